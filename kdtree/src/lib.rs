@@ -1,0 +1,46 @@
+//! Perfect-split SAH kd-tree (Tsakok 2008, sections 2.2.1, 3.2.1 and 4.2).
+//!
+//! - [`build`]: the surface area heuristic build with perfect splits (triangles clipped to the
+//!   node box) evaluated by the O(N log N) event sweep of Wald & Havran 2006, parallel over
+//!   subtrees and identical whatever the thread count.
+//! - [`node`]: the 8-byte node layout, children adjacent, leaves pointing into one
+//!   contiguous triangle-reference array.
+//! - [`triangle`]: Wald's projected-barycentric test (thesis 4.2) and the watertight test of
+//!   Woop, Benthin and Wald 2013, selectable per tree.
+//! - [`traverse`]: iterative single-ray traversal with a fixed stack, closest hit
+//!   ([`KdTree::intersect`]) and any hit ([`KdTree::occluded`]).
+//! - [`oracle`]: a brute-force intersector over all triangles, the reference every traversal
+//!   method is tested against.
+//! - [`counters`]: node / leaf / intersection counters that compile to nothing when off.
+//!
+//! This crate knows nothing about files, images or packets: it takes positions and triangle
+//! indices and answers ray queries. Its kernels never allocate.
+
+pub mod aabb;
+pub mod build;
+pub mod counters;
+pub mod node;
+pub mod oracle;
+pub mod ray;
+pub mod stats;
+pub mod traverse;
+pub mod tree;
+pub mod triangle;
+mod validate;
+
+pub use aabb::Aabb;
+pub use build::{BuildConfig, BuildError};
+pub use counters::{Counters, NoCounters, TraversalCounts};
+pub use node::KdNode;
+pub use oracle::BruteForce;
+pub use ray::{Hit, Ray, RayError};
+pub use stats::TreeStats;
+pub use tree::KdTree;
+pub use triangle::Intersector;
+
+/// Depth of the fixed traversal stack. The builder never makes a tree deeper than
+/// [`MAX_DEPTH`], which is below this, so the stack cannot overflow.
+pub const STACK_SIZE: usize = 64;
+
+/// The deepest tree the builder makes, whatever the configuration asks.
+pub const MAX_DEPTH: u32 = 60;

@@ -1,0 +1,3 @@
+//! Brute force.
+/// Brute force.
+pub struct BruteForce;

@@ -1,0 +1,111 @@
+//! Rays and hits.
+
+use glam::Vec3;
+
+/// A ray `origin + t * dir` for `t` in `[t_min, t_max]`.
+///
+/// `inv_dir` is `1 / dir` per component, computed once; a zero component (`+0.0` or `-0.0`)
+/// gives an infinity of the same sign, which the traversal handles (a ray parallel to a
+/// split plane). `dir` need not be normalised; hit distances are in units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Origin.
+    pub origin: Vec3,
+    /// Direction.
+    pub dir: Vec3,
+    /// `1 / dir`, per component.
+    pub inv_dir: Vec3,
+    /// Start of the valid interval.
+    pub t_min: f32,
+    /// End of the valid interval (may be `f32::INFINITY`).
+    pub t_max: f32,
+}
+
+/// Why a ray was rejected by [`Ray::try_new`].
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum RayError {
+    /// The origin has a NaN or infinite component.
+    #[error("ray origin {0} is not finite")]
+    NonFiniteOrigin(Vec3),
+    /// The direction has a NaN or infinite component, or is zero.
+    #[error("ray direction {0} is not finite and non-zero")]
+    BadDirection(Vec3),
+    /// The interval is NaN, negative-infinite at its end, or empty (`t_min > t_max`).
+    #[error("ray interval [{0}, {1}] is not a valid interval")]
+    BadInterval(f32, f32),
+}
+
+impl Ray {
+    /// A ray over `[t_min, t_max]`, with `inv_dir` precomputed.
+    ///
+    /// This does not check its input: traversal of a ray with NaN components returns no hit
+    /// and never panics, but the answer is meaningless. Use [`Ray::try_new`] on user input.
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
+        Ray { origin, dir, inv_dir: dir.recip(), t_min, t_max }
+    }
+
+    /// Like [`Ray::new`], but rejects non-finite origins, zero or non-finite directions and
+    /// NaN or empty intervals (`t_max = +inf` is allowed).
+    pub fn try_new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Result<Ray, RayError> {
+        if !origin.is_finite() {
+            return Err(RayError::NonFiniteOrigin(origin));
+        }
+        if !dir.is_finite() || dir == Vec3::ZERO {
+            return Err(RayError::BadDirection(dir));
+        }
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max || t_min == f32::INFINITY || t_max == f32::NEG_INFINITY {
+            return Err(RayError::BadInterval(t_min, t_max));
+        }
+        Ok(Ray::new(origin, dir, t_min, t_max))
+    }
+
+    /// The point at distance `t`.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.dir
+    }
+}
+
+/// A ray-triangle hit: distance, barycentrics and the triangle.
+///
+/// The hit point is `(1 - u - v) * a + u * b + v * c` for the triangle's vertices `a, b, c`
+/// in the order given to the build. Queries return `Option<Hit>`: `None` is "no hit".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray, in units of its direction.
+    pub t: f32,
+    /// Barycentric weight of the second vertex.
+    pub u: f32,
+    /// Barycentric weight of the third vertex.
+    pub v: f32,
+    /// Index of the triangle in the array given to [`crate::KdTree::build`].
+    pub prim: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn try_new_rejects_non_finite_input() {
+        let o = Vec3::ZERO;
+        let d = Vec3::X;
+        assert!(Ray::try_new(o, d, 0.0, f32::INFINITY).is_ok());
+        assert!(matches!(Ray::try_new(Vec3::new(f32::NAN, 0.0, 0.0), d, 0.0, 1.0), Err(RayError::NonFiniteOrigin(_))));
+        assert!(matches!(
+            Ray::try_new(o, Vec3::new(0.0, f32::INFINITY, 0.0), 0.0, 1.0),
+            Err(RayError::BadDirection(_))
+        ));
+        assert!(matches!(Ray::try_new(o, Vec3::ZERO, 0.0, 1.0), Err(RayError::BadDirection(_))));
+        assert!(matches!(Ray::try_new(o, d, f32::NAN, 1.0), Err(RayError::BadInterval(..))));
+        assert!(matches!(Ray::try_new(o, d, 2.0, 1.0), Err(RayError::BadInterval(..))));
+    }
+
+    #[test]
+    fn zero_components_give_signed_infinities() {
+        let r = Ray::new(Vec3::ZERO, Vec3::new(0.0, -0.0, 1.0), 0.0, 1.0);
+        assert_eq!(r.inv_dir.x, f32::INFINITY);
+        assert_eq!(r.inv_dir.y, f32::NEG_INFINITY);
+    }
+}

@@ -1,0 +1,3 @@
+//! Stats.
+/// Stats.
+pub struct TreeStats;

@@ -1,0 +1,151 @@
+//! The kd-tree: nodes, references and precomputed intersection records in contiguous arrays.
+
+use glam::Vec3;
+
+use crate::build::{self, BuildConfig, BuildError};
+use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle};
+use crate::{Aabb, KdNode};
+
+/// A perfect-split SAH kd-tree over a triangle soup (thesis 3.2.1).
+///
+/// Memory layout: `nodes` (8 bytes each, root at 0, children adjacent), `prim_refs` (one
+/// `u32` triangle index per leaf reference, each leaf's references contiguous), and one
+/// precomputed intersection record per triangle for the tree's [`Intersector`].
+#[derive(Clone, Debug)]
+pub struct KdTree {
+    pub(crate) nodes: Vec<KdNode>,
+    pub(crate) prim_refs: Vec<u32>,
+    pub(crate) bounds: Aabb,
+    pub(crate) intersector: Intersector,
+    pub(crate) wald: Vec<WaldTriangle>,
+    pub(crate) watertight: Vec<WatertightTriangle>,
+    /// Triangle vertices, kept for validation, statistics and the oracle twin.
+    pub(crate) tris: Vec<[Vec3; 3]>,
+    pub(crate) config: BuildConfig,
+}
+
+impl KdTree {
+    /// Builds the tree over the triangles `triangles` (indices into `positions`).
+    ///
+    /// Degenerate (zero-area) triangles are kept in the numbering but left out of the tree:
+    /// no ray can hit them. Non-finite positions and out-of-range indices are rejected with
+    /// an error naming the vertex or triangle; nothing here panics on user input.
+    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]], config: &BuildConfig) -> Result<KdTree, BuildError> {
+        if let Some(index) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(BuildError::NonFiniteVertex { index, position: positions[index] });
+        }
+        if !(config.c_trav.is_finite() && config.c_trav >= 0.0) {
+            return Err(BuildError::BadConfig(format!("c_trav = {} must be finite and >= 0", config.c_trav)));
+        }
+        if !(config.c_isect.is_finite() && config.c_isect > 0.0) {
+            return Err(BuildError::BadConfig(format!("c_isect = {} must be finite and > 0", config.c_isect)));
+        }
+        if !(0.0..1.0).contains(&config.empty_bonus) {
+            return Err(BuildError::BadConfig(format!("empty_bonus = {} must be in [0, 1)", config.empty_bonus)));
+        }
+        if u32::try_from(triangles.len()).is_err() {
+            return Err(BuildError::TooLarge(format!("{} triangles do not fit 32-bit ids", triangles.len())));
+        }
+        let mut tris = Vec::with_capacity(triangles.len());
+        for (t, tri) in triangles.iter().enumerate() {
+            let mut v = [Vec3::ZERO; 3];
+            for (k, &i) in tri.iter().enumerate() {
+                v[k] = *positions.get(i as usize).ok_or(BuildError::IndexOutOfRange {
+                    triangle: t,
+                    vertex: i,
+                    vertices: positions.len(),
+                })?;
+            }
+            tris.push(v);
+        }
+        Self::build_from_triangles(tris, config)
+    }
+
+    /// Builds the tree over a triangle soup given as vertex triples.
+    pub fn build_soup(tris: &[[Vec3; 3]], config: &BuildConfig) -> Result<KdTree, BuildError> {
+        if let Some((t, v)) = tris.iter().enumerate().find(|(_, v)| !v.iter().all(|p| p.is_finite())) {
+            let k = v.iter().position(|p| !p.is_finite()).unwrap_or(0);
+            return Err(BuildError::NonFiniteVertex { index: 3 * t + k, position: v[k] });
+        }
+        let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
+        let indices: Vec<[u32; 3]> = (0..tris.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        Self::build(&positions, &indices, config)
+    }
+
+    fn build_from_triangles(tris: Vec<[Vec3; 3]>, config: &BuildConfig) -> Result<KdTree, BuildError> {
+        let prims: Vec<u32> = (0..tris.len() as u32).filter(|&t| !is_degenerate(&tris[t as usize])).collect();
+        let bounds = prims.iter().fold(Aabb::EMPTY, |b, &t| {
+            let [a, bb, c] = tris[t as usize];
+            b.grow(a).grow(bb).grow(c)
+        });
+        let built = build::build_nodes(&tris, &prims, bounds, config)?;
+        let (wald, watertight) = match config.intersector {
+            Intersector::Wald => (tris.iter().map(WaldTriangle::new).collect(), Vec::new()),
+            Intersector::Watertight => (Vec::new(), tris.iter().map(WatertightTriangle::new).collect()),
+        };
+        Ok(KdTree {
+            nodes: built.nodes,
+            prim_refs: built.prim_refs,
+            bounds,
+            intersector: config.intersector,
+            wald,
+            watertight,
+            tris,
+            config: config.clone(),
+        })
+    }
+
+    /// The nodes, root at index 0.
+    pub fn nodes(&self) -> &[KdNode] {
+        &self.nodes
+    }
+
+    /// The triangle references of a leaf node.
+    pub fn leaf_prims(&self, leaf: KdNode) -> &[u32] {
+        &self.prim_refs[leaf.prim_range()]
+    }
+
+    /// The bounds of all non-degenerate triangles (the root's box).
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The intersection test this tree was built for.
+    pub fn intersector(&self) -> Intersector {
+        self.intersector
+    }
+
+    /// The configuration the tree was built with.
+    pub fn config(&self) -> &BuildConfig {
+        &self.config
+    }
+
+    /// Number of triangles given to the build (including degenerate ones).
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// The vertices of triangle `prim`.
+    pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        self.tris[prim as usize]
+    }
+
+    /// The whole tree as bytes (nodes then references), for determinism checks.
+    pub fn layout_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(8 * self.nodes.len() + 4 * self.prim_refs.len());
+        for n in &self.nodes {
+            let (a, b) = n.raw();
+            out.extend_from_slice(&a.to_le_bytes());
+            out.extend_from_slice(&b.to_le_bytes());
+        }
+        for r in &self.prim_refs {
+            out.extend_from_slice(&r.to_le_bytes());
+        }
+        out
+    }
+}
+
+/// True for a triangle of exactly zero area (its edge cross product is zero).
+pub fn is_degenerate(t: &[Vec3; 3]) -> bool {
+    (t[1] - t[0]).cross(t[2] - t[0]) == Vec3::ZERO
+}

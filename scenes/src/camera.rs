@@ -1,0 +1,100 @@
+//! The pinhole camera and the one ray convention of the workspace.
+
+use glam::Vec3;
+
+/// A pinhole camera with a look-at frame.
+///
+/// The convention, fixed so that any other tracer can reproduce our rays exactly:
+/// - eye `e` looks at target `t`, world up is +Y;
+/// - `fovy_deg` is the full vertical field of view in degrees, aspect = width / height;
+/// - the ray of pixel `(x, y)` passes through the pixel centre `(x + 0.5, y + 0.5)`;
+/// - row `y = 0` is the top of the image;
+/// - directions are normalised, so a hit distance `t` is a Euclidean distance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position (every primary ray starts here).
+    pub eye: Vec3,
+    /// Unit view direction (from eye towards target).
+    pub forward: Vec3,
+    /// Unit camera right vector (`forward x up`, normalised).
+    pub right: Vec3,
+    /// Unit camera up vector (`right x forward`).
+    pub up: Vec3,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// `tan(fovy / 2)`: half the image plane height at distance 1.
+    pub tan_half_fovy: f32,
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target` with vertical field of view `fovy_deg` (degrees)
+    /// for a `width` x `height` image.
+    ///
+    /// Returns `None` if the frame is degenerate: eye equal to target, a view direction
+    /// parallel to +Y, non-finite input, a zero image size, or a field of view outside
+    /// (0, 180) degrees.
+    pub fn look_at(eye: Vec3, target: Vec3, fovy_deg: f32, width: u32, height: u32) -> Option<Camera> {
+        if !eye.is_finite() || !target.is_finite() || !fovy_deg.is_finite() {
+            return None;
+        }
+        if width == 0 || height == 0 || fovy_deg <= 0.0 || fovy_deg >= 180.0 {
+            return None;
+        }
+        let forward = (target - eye).try_normalize()?;
+        let right = forward.cross(Vec3::Y).try_normalize()?;
+        let up = right.cross(forward);
+        Some(Camera { eye, forward, right, up, width, height, tan_half_fovy: (fovy_deg.to_radians() * 0.5).tan() })
+    }
+
+    /// The normalised direction of the ray through image position `(px, py)`, in pixels
+    /// from the top-left corner of the image (pixel centres are at `x + 0.5`).
+    #[inline]
+    pub fn direction(&self, px: f32, py: f32) -> Vec3 {
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = (2.0 * px / self.width as f32 - 1.0) * self.tan_half_fovy * aspect;
+        let sy = (1.0 - 2.0 * py / self.height as f32) * self.tan_half_fovy;
+        (self.forward + sx * self.right + sy * self.up).normalize()
+    }
+
+    /// Origin and normalised direction of the primary ray of pixel `(x, y)`, through the
+    /// pixel centre.
+    #[inline]
+    pub fn pixel_ray(&self, x: u32, y: u32) -> (Vec3, Vec3) {
+        (self.eye, self.direction(x as f32 + 0.5, y as f32 + 0.5))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn centre_ray_points_at_target_for_odd_sizes() {
+        let cam = Camera::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 2.0, -1.0), 60.0, 5, 3).unwrap();
+        let (o, d) = cam.pixel_ray(2, 1);
+        assert_eq!(o, cam.eye);
+        assert_relative_eq!(d.dot(cam.forward), 1.0, epsilon = 1e-6);
+    }
+
+    #[test]
+    fn top_row_looks_up_and_corners_span_the_fov() {
+        let cam = Camera::look_at(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0), 90.0, 4, 4).unwrap();
+        let top = cam.direction(2.0, 0.0);
+        assert!(top.y > 0.0);
+        // The top edge of the image is at 45 degrees for a 90 degree vertical fov.
+        assert_relative_eq!(top.y / -top.z, 1.0, epsilon = 1e-6);
+        let left = cam.direction(0.0, 2.0);
+        assert!(left.x < 0.0);
+    }
+
+    #[test]
+    fn degenerate_frames_are_rejected() {
+        assert!(Camera::look_at(Vec3::ZERO, Vec3::ZERO, 60.0, 4, 4).is_none());
+        assert!(Camera::look_at(Vec3::ZERO, Vec3::Y, 60.0, 4, 4).is_none());
+        assert!(Camera::look_at(Vec3::ZERO, Vec3::X, f32::NAN, 4, 4).is_none());
+        assert!(Camera::look_at(Vec3::ZERO, Vec3::X, 60.0, 0, 4).is_none());
+    }
+}

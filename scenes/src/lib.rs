@@ -1,0 +1,30 @@
+//! The shared scene and image crate of the workspace.
+//!
+//! Everything that touches files lives here: meshes and their OBJ loader, the built-in
+//! procedural scenes that mirror the thesis's benchmark scenes (Tsakok 2008, Figure 4.1),
+//! pinhole cameras, lights, floating-point images with PNG/PFM output, error metrics and
+//! tile iteration. The kd-tree and traversal crates never read files; they take the
+//! positions and triangles of a [`Mesh`].
+//!
+//! One camera convention serves every tracer (see [`Camera`]), so that other tracers can
+//! reproduce our rays exactly.
+
+pub mod builtin;
+pub mod camera;
+pub mod error;
+pub mod image;
+pub mod light;
+pub mod mesh;
+pub mod metrics;
+pub mod obj;
+pub mod scene;
+pub mod tile;
+
+pub use camera::Camera;
+pub use error::SceneError;
+pub use image::{Image, ScalarImage};
+pub use light::{PointLight, RectLight, SphereLight};
+pub use mesh::{Material, Mesh};
+pub use obj::{LoadReport, load_obj};
+pub use scene::{Scene, View, load_scene, shared_scenes_dir};
+pub use tile::{Tile, tiles};

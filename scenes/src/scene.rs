@@ -1,0 +1,126 @@
+//! A scene: a mesh with named camera views and default lights, loaded by name or path.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::{Camera, Mesh, PointLight, RectLight, SceneError, builtin, obj};
+
+/// A named camera view: eye, target and vertical field of view (see [`Camera`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    /// Name used on the command line (`--view NAME`).
+    pub name: String,
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point looked at.
+    pub target: Vec3,
+    /// Vertical field of view in degrees.
+    pub fovy_deg: f32,
+}
+
+impl View {
+    /// The camera of this view for a `width` x `height` image (`None` for a degenerate view).
+    pub fn camera(&self, width: u32, height: u32) -> Option<Camera> {
+        Camera::look_at(self.eye, self.target, self.fovy_deg, width, height)
+    }
+}
+
+/// A mesh with its named views (the first is the default) and default lights.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Scene name (built-in name or file stem).
+    pub name: String,
+    /// The geometry.
+    pub mesh: Mesh,
+    /// Named views; never empty, the first is the default.
+    pub views: Vec<View>,
+    /// The default point light (hard shadows, thesis benchmark shading).
+    pub point_light: PointLight,
+    /// The default rectangular area light (soft shadows).
+    pub area_light: RectLight,
+}
+
+impl Scene {
+    /// The view called `name`, or an error listing the views there are.
+    pub fn view(&self, name: &str) -> Result<&View, SceneError> {
+        self.views.iter().find(|v| v.name == name).ok_or_else(|| SceneError::UnknownView {
+            scene: self.name.clone(),
+            view: name.to_string(),
+            available: self.views.iter().map(|v| v.name.as_str()).collect::<Vec<_>>().join(", "),
+        })
+    }
+
+    /// The default (first) view.
+    pub fn default_view(&self) -> &View {
+        &self.views[0]
+    }
+
+    /// A scene around a loaded mesh with a default view and lights derived from its bounds,
+    /// plus the known views of recognised scenes (Sponza's benchmark view).
+    pub fn from_mesh(name: &str, mesh: Mesh) -> Scene {
+        let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
+        let center = 0.5 * (lo + hi);
+        let extent = (hi - lo).max(Vec3::splat(1e-3));
+        let radius = extent.length() * 0.5;
+        let mut views = Vec::new();
+        if name.starts_with("sponza") {
+            // The view used for the Embree figures quoted in the issues.
+            views.push(View {
+                name: "default".into(),
+                eye: Vec3::new(-10.0, 3.0, 0.0),
+                target: Vec3::new(0.0, 4.0, 0.0),
+                fovy_deg: 70.0,
+            });
+        }
+        views.push(View {
+            name: if views.is_empty() { "default".into() } else { "overview".into() },
+            eye: center + Vec3::new(0.3, 0.35, 1.0).normalize() * radius * 1.8,
+            target: center,
+            fovy_deg: 50.0,
+        });
+        let light_pos = center + Vec3::new(0.1, 0.35, 0.05) * extent;
+        let size = 0.05 * extent.max_element();
+        Scene {
+            name: name.to_string(),
+            mesh,
+            views,
+            point_light: PointLight { position: light_pos, intensity: Vec3::splat(radius * radius * 0.3) },
+            area_light: RectLight {
+                corner: light_pos - Vec3::new(0.5 * size, 0.0, 0.5 * size),
+                edge_u: Vec3::new(size, 0.0, 0.0),
+                edge_v: Vec3::new(0.0, 0.0, size),
+                intensity: Vec3::splat(radius * radius * 0.3),
+            },
+        }
+    }
+}
+
+/// Loads a scene given as a built-in name (see [`builtin::NAMES`]) or a path to an
+/// `.obj` / `.obj.gz` file.
+pub fn load_scene(spec: &str) -> Result<Scene, SceneError> {
+    if let Some(scene) = builtin::by_name(spec) {
+        return Ok(scene);
+    }
+    let path = Path::new(spec);
+    if !path.exists() {
+        return Err(SceneError::UnknownScene(spec.to_string(), builtin::NAMES.join(", ")));
+    }
+    let (mesh, _report) = obj::load_obj(path)?;
+    let stem = path.file_name().and_then(|s| s.to_str()).unwrap_or("scene");
+    let stem = stem.trim_end_matches(".gz").trim_end_matches(".obj");
+    Ok(Scene::from_mesh(stem, mesh))
+}
+
+/// The folder of shared benchmark scenes (Sponza and others), if present: `$RTTEST_SCENES`,
+/// else `../shared/scenes` from the workspace root, else `../shared/scenes` from the current
+/// directory. Tests and benches that use it skip cleanly when it is `None`.
+pub fn shared_scenes_dir() -> Option<PathBuf> {
+    let mut candidates = Vec::new();
+    if let Some(dir) = std::env::var_os("RTTEST_SCENES") {
+        candidates.push(PathBuf::from(dir));
+    }
+    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes"));
+    candidates.push(PathBuf::from("../shared/scenes"));
+    candidates.into_iter().find(|p| p.is_dir())
+}
