@@ -83,9 +83,37 @@ pub struct Hit {
     pub prim: u32,
 }
 
+/// The origin of a ray leaving surface point `p` (with geometric normal `n`, any length, any
+/// orientation) on the side that `toward` points into, so that the new ray cannot hit the
+/// surface it starts on.
+///
+/// The one offset scheme of the workspace (every method that spawns rays uses it): `p` is
+/// moved along the normal by a distance proportional to its own magnitude, 32 units in the
+/// last place of its largest coordinate (the rounding error of computing a hit point from
+/// `o + t d` or from barycentrics is a few ulps of the coordinates involved), with a floor of
+/// `1e-30` for points at the origin. It is scale-aware: the same relative offset at scene
+/// scales 1e-3 and 1e5 and far from the origin.
+#[inline]
+pub fn offset_origin(p: Vec3, n: Vec3, toward: Vec3) -> Vec3 {
+    let n = n.normalize_or_zero();
+    let n = if n.dot(toward) < 0.0 { -n } else { n };
+    let scale = p.abs().max_element().max(1e-30);
+    p + n * (scale * (32.0 * f32::EPSILON))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn offset_moves_to_the_requested_side_by_a_relative_amount() {
+        for scale in [1e-3f32, 1.0, 1e5] {
+            let p = Vec3::new(1.0, 2.0, 3.0) * scale;
+            let o = offset_origin(p, Vec3::Y, -Vec3::Y);
+            assert!(o.y < p.y && o.x == p.x);
+            assert!((p.y - o.y) / (3.0 * scale) < 1e-5);
+        }
+    }
 
     #[test]
     fn try_new_rejects_non_finite_input() {
