@@ -150,15 +150,23 @@ fn parse_error(path: &Path, message: impl Into<String>) -> SceneError {
 }
 
 fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), SceneError> {
-    image::save_buffer_with_format(path, rgb, width, height, image::ColorType::Rgb8, image::ImageFormat::Png)
-        .map_err(|e| match e {
+    image::save_buffer_with_format(path, rgb, width, height, image::ColorType::Rgb8, image::ImageFormat::Png).map_err(
+        |e| match e {
             image::ImageError::IoError(source) => io_error(path, source),
             other => io_error(path, std::io::Error::other(other)),
-        })
+        },
+    )
 }
 
 /// Writes a PFM with `channels` floats per pixel; `data` is row-major with row 0 at the top.
-fn write_pfm(path: &Path, magic: &str, width: u32, height: u32, channels: usize, data: &[f32]) -> Result<(), SceneError> {
+fn write_pfm(
+    path: &Path,
+    magic: &str,
+    width: u32,
+    height: u32,
+    channels: usize,
+    data: &[f32],
+) -> Result<(), SceneError> {
     let mut bytes = format!("{magic}\n{width} {height}\n-1.0\n").into_bytes();
     let row_len = width as usize * channels;
     bytes.reserve(data.len() * 4);

@@ -43,10 +43,7 @@ impl Samples for [f32] {
 }
 
 /// The pairs of samples of `a` and `b`, or an error if their sizes differ.
-fn pairs<'a, T: Samples + ?Sized>(
-    a: &'a T,
-    b: &'a T,
-) -> Result<impl Iterator<Item = (f64, f64)> + 'a, SceneError> {
+fn pairs<'a, T: Samples + ?Sized>(a: &'a T, b: &'a T) -> Result<impl Iterator<Item = (f64, f64)> + 'a, SceneError> {
     let (da, db) = (a.dims(), b.dims());
     if da != db {
         return Err(SceneError::SizeMismatch { a: da, b: db });
