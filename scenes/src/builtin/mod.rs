@@ -2,6 +2,8 @@
 
 use crate::Scene;
 
+pub mod shapes;
+
 /// Names of the built-in scenes, the default first.
 pub const NAMES: &[&str] = &["atrium"];
 
