@@ -1,0 +1,5 @@
+//! stub
+use crate::Scene;
+pub fn arena() -> Scene {
+    super::small::cube()
+}

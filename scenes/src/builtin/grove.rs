@@ -1,0 +1,5 @@
+//! stub
+use crate::Scene;
+pub fn grove() -> Scene {
+    super::small::cube()
+}
