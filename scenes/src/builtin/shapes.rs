@@ -269,6 +269,38 @@ impl MeshBuilder {
     }
 }
 
+/// Splits the wall rectangle `span` x `height` minus the rectangular `openings`
+/// `(u0, u1, y0, y1)` into non-overlapping rectangles: vertical strips between the openings'
+/// edges, each cut around the openings that cross it.
+pub fn wall_boxes(
+    span: (f32, f32),
+    height: (f32, f32),
+    openings: &[(f32, f32, f32, f32)],
+) -> Vec<(f32, f32, f32, f32)> {
+    let mut us: Vec<f32> = vec![span.0, span.1];
+    us.extend(openings.iter().flat_map(|o| [o.0, o.1]));
+    us.sort_by(f32::total_cmp);
+    us.dedup();
+    let mut out = Vec::new();
+    for strip in us.windows(2) {
+        let (u0, u1) = (strip[0], strip[1]);
+        let mut holes: Vec<(f32, f32)> =
+            openings.iter().filter(|o| o.0 <= u0 && o.1 >= u1).map(|o| (o.2, o.3)).collect();
+        holes.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut y = height.0;
+        for (h0, h1) in holes {
+            if h0 > y {
+                out.push((u0, u1, y, h0));
+            }
+            y = y.max(h1);
+        }
+        if height.1 > y {
+            out.push((u0, u1, y, height.1));
+        }
+    }
+    out
+}
+
 /// A small deterministic random number generator (SplitMix64), so that scenes are the same on
 /// every platform and run.
 #[derive(Clone, Debug)]
@@ -401,6 +433,22 @@ mod tests {
         assert_eq!(mesh.triangle_count(), 12 + 80);
         assert_eq!(mesh.prim_ids, (0..92).collect::<Vec<u32>>());
         assert_eq!(checks::open_edge(&mesh.triangles), None);
+    }
+
+    #[test]
+    fn wall_boxes_cover_the_wall_minus_the_openings() {
+        let openings = [(1.0, 2.0, 0.0, 1.0), (1.5, 3.0, 2.0, 2.5)];
+        let boxes = wall_boxes((0.0, 4.0), (0.0, 3.0), &openings);
+        let area: f32 = boxes.iter().map(|b| (b.1 - b.0) * (b.3 - b.2)).sum();
+        let holes: f32 = 1.0 + 1.5 * 0.5;
+        assert!((area - (12.0 - holes)).abs() < 1e-5, "{area}");
+        // No box overlaps an opening.
+        for b in &boxes {
+            for o in &openings {
+                let overlap = b.0 < o.1 && o.0 < b.1 && b.2 < o.3 && o.2 < b.3;
+                assert!(!overlap, "{b:?} overlaps {o:?}");
+            }
+        }
     }
 
     #[test]
