@@ -199,6 +199,39 @@ impl Part {
         Part { positions: positions.into_iter().map(|p| p * radius).collect(), triangles }
     }
 
+    /// Closes an open surface that is a height field over the XZ plane (such as a terrain
+    /// grid, normals up) into a solid: vertical walls down from its boundary to height `floor`
+    /// and a flat bottom (a fan around the bottom's centre). `floor` must lie below the surface.
+    pub fn close_downwards(surface: &Part, floor: f32) -> Part {
+        let mut part = surface.clone();
+        let directed: std::collections::HashSet<(u32, u32)> =
+            surface.triangles.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).collect();
+        // Boundary edges: directed edges whose reverse no triangle uses, in triangle order.
+        let boundary: Vec<(u32, u32)> = surface
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .filter(|&(a, b)| !directed.contains(&(b, a)))
+            .collect();
+        let mut below: HashMap<u32, u32> = HashMap::new();
+        for &(a, _) in &boundary {
+            below.entry(a).or_insert_with(|| {
+                let p = part.positions[a as usize];
+                part.positions.push(Vec3::new(p.x, floor, p.z));
+                part.positions.len() as u32 - 1
+            });
+        }
+        let bottom: Vec<Vec3> = below.values().map(|&i| part.positions[i as usize]).collect();
+        let centre = bottom.iter().copied().sum::<Vec3>() / bottom.len().max(1) as f32;
+        let c = part.positions.len() as u32;
+        part.positions.push(centre);
+        for &(a, b) in &boundary {
+            let (a2, b2) = (below[&a], below[&b]);
+            part.triangles.extend([[b, a, a2], [b, a2, b2], [c, b2, a2]]);
+        }
+        part
+    }
+
     /// This part under the affine map `m` (winding flipped if `m` mirrors, so it stays outward).
     pub fn transformed(&self, m: Affine3A) -> Part {
         let flip = m.matrix3.determinant() < 0.0;
@@ -417,6 +450,28 @@ mod tests {
         assert_closed_outward(&arch, "arch");
         let mirror = Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0));
         assert_closed_outward(&arch.transformed(mirror), "mirrored arch");
+    }
+
+    #[test]
+    fn height_fields_close_into_solids() {
+        let n = 6u32;
+        let mut grid = Part::default();
+        for i in 0..=n {
+            for k in 0..=n {
+                let (x, z) = (i as f32, k as f32);
+                grid.positions.push(Vec3::new(x, 1.0 + 0.3 * (x * z).sin(), z));
+            }
+        }
+        let at = |i: u32, k: u32| i * (n + 1) + k;
+        for i in 0..n {
+            for k in 0..n {
+                grid.triangles.push([at(i, k), at(i + 1, k + 1), at(i + 1, k)]);
+                grid.triangles.push([at(i, k), at(i, k + 1), at(i + 1, k + 1)]);
+            }
+        }
+        let solid = Part::close_downwards(&grid, -1.0);
+        assert_closed_outward(&solid, "closed height field");
+        assert_eq!(solid.triangles.len(), grid.triangles.len() + 3 * 4 * n as usize);
     }
 
     #[test]
