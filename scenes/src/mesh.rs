@@ -78,10 +78,10 @@ impl Mesh {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(format!("vertex {i} is not finite: {}", self.positions[i]));
         }
-        if let Some(normals) = &self.normals {
-            if normals.len() != self.positions.len() {
-                return Err(format!("{} normals for {} positions", normals.len(), self.positions.len()));
-            }
+        if let Some(normals) = &self.normals
+            && normals.len() != self.positions.len()
+        {
+            return Err(format!("{} normals for {} positions", normals.len(), self.positions.len()));
         }
         for (t, tri) in self.triangles.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= self.positions.len()) {
