@@ -46,7 +46,7 @@ pub fn arena() -> Scene {
         name: "arena".to_string(),
         mesh: b.finish(),
         views: vec![
-            view("default", Vec3::new(-13.0, 3.0, -12.5), Vec3::new(0.0, 2.0, 0.0), 75.0),
+            view("default", Vec3::new(-14.0, 3.5, -5.0), Vec3::new(0.0, 2.0, 3.0), 75.0),
             view("platform", Vec3::new(2.0, 9.0, 12.0), Vec3::new(0.0, 1.5, 0.0), 70.0),
             view("corridor", Vec3::new(HALL + WALL + CORRIDOR + ROOM, 2.5, 0.5), Vec3::new(0.0, 3.0, 0.0), 60.0),
         ],

@@ -52,7 +52,7 @@ pub fn grove() -> Scene {
         name: "grove".to_string(),
         mesh: b.finish(),
         views: vec![
-            view("default", Vec3::new(-15.0, 2.5, -13.0), Vec3::new(0.0, 0.6, 0.0), 60.0),
+            view("default", Vec3::new(-10.0, 2.2, -9.0), Vec3::new(0.0, 0.5, 0.0), 60.0),
             view("close", Vec3::new(-3.0, 1.1, -3.5), Vec3::new(0.0, 0.6, 0.0), 60.0),
             view("top", Vec3::new(5.0, 32.0, 12.0), Vec3::ZERO, 60.0),
         ],

@@ -122,6 +122,10 @@ mod tests {
             if closed {
                 assert_eq!(open_edge(&mesh.triangles), None, "{name}: open edge");
                 assert_eq!(inconsistent_edge(&mesh.triangles), None, "{name}: inconsistent winding");
+                // Consistent winding plus positive total volume: outward (each part's sign is
+                // checked in the shapes tests).
+                let solid = shapes::Part { positions: mesh.positions.clone(), triangles: mesh.triangles.clone() };
+                assert!(solid.signed_volume() > 0.0, "{name}: inward winding");
             }
             // Views: the first is the default and every one gives a camera.
             assert!(!scene.views.is_empty());
