@@ -277,7 +277,8 @@ mod tests {
     fn degenerate_triangles_never_hit() {
         let flat = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X];
         let point = [Vec3::ONE; 3];
-        let collinear = [Vec3::new(-0.75, -0.75, 0.4531973), Vec3::new(-0.75, -0.75, 0.3497554), Vec3::new(-0.75, -0.75, -1.0)];
+        let collinear =
+            [Vec3::new(-0.75, -0.75, 0.4531973), Vec3::new(-0.75, -0.75, 0.3497554), Vec3::new(-0.75, -0.75, -1.0)];
         let ray = Ray::new(Vec3::new(-2.0, 1.3998178, 1.5), Vec3::new(1.25, -2.149818, -2.5), 0.0, f32::INFINITY);
         assert_eq!(both(collinear, &ray), [None, None]);
         for tri in [flat, point] {
