@@ -58,19 +58,69 @@ pub(crate) fn ev_prim(e: u64) -> u32 {
     (e as u32) & PRIM_MASK
 }
 
-/// Per-axis sorted event lists of one node.
+/// Per-axis sorted event lists of one node. The buffers only grow; the logical lengths are
+/// kept apart so that reusing them never re-initialises memory.
 #[derive(Default, Debug)]
 pub(crate) struct Lists {
-    /// Events of the x, y and z axes, each sorted ascending.
-    pub ev: [Vec<u64>; 3],
+    buf: [Vec<u64>; 3],
+    len: [usize; 3],
 }
 
 impl Lists {
-    /// Empties the lists, keeping their capacity.
-    pub fn clear(&mut self) {
-        for l in &mut self.ev {
-            l.clear();
+    /// Lists holding the given (sorted) vectors.
+    pub fn from_vecs(v: [Vec<u64>; 3]) -> Lists {
+        let len = [v[0].len(), v[1].len(), v[2].len()];
+        Lists { buf: v, len }
+    }
+
+    /// The events of axis `a`.
+    #[inline]
+    pub fn axis(&self, a: usize) -> &[u64] {
+        &self.buf[a][..self.len[a]]
+    }
+
+    /// The events of the three axes.
+    #[inline]
+    pub fn axes(&self) -> [&[u64]; 3] {
+        [self.axis(0), self.axis(1), self.axis(2)]
+    }
+
+    /// A buffer of at least `n` entries for axis `a` to write into; its contents are stale.
+    #[inline]
+    pub fn writable(&mut self, a: usize, n: usize) -> &mut [u64] {
+        if self.buf[a].len() < n {
+            self.buf[a].resize(n, 0);
         }
+        &mut self.buf[a]
+    }
+
+    /// Sets the length of axis `a` (at most the buffer's).
+    #[inline]
+    pub fn set_len(&mut self, a: usize, n: usize) {
+        debug_assert!(n <= self.buf[a].len());
+        self.len[a] = n;
+    }
+
+    /// Merges the sorted `extra` into axis `a` in place (from the back, no buffer).
+    pub fn merge(&mut self, a: usize, extra: &[u64]) {
+        if extra.is_empty() {
+            return;
+        }
+        let old = self.len[a];
+        let total = old + extra.len();
+        let dst = self.writable(a, total);
+        let (mut i, mut j, mut w) = (old, extra.len(), total);
+        while j > 0 {
+            if i > 0 && dst[i - 1] > extra[j - 1] {
+                dst[w - 1] = dst[i - 1];
+                i -= 1;
+            } else {
+                dst[w - 1] = extra[j - 1];
+                j -= 1;
+            }
+            w -= 1;
+        }
+        self.len[a] = total;
     }
 }
 
@@ -84,26 +134,6 @@ pub(crate) fn push_box_events(lists: &mut [Vec<u64>; 3], prim: u32, lo: [f32; 3]
             l.push(event(lo[k], START, prim));
             l.push(event(hi[k], END, prim));
         }
-    }
-}
-
-/// Merges the sorted `extra` into the sorted `dst` in place (from the back, no buffer).
-pub(crate) fn merge_into(dst: &mut Vec<u64>, extra: &[u64]) {
-    if extra.is_empty() {
-        return;
-    }
-    let old = dst.len();
-    dst.resize(old + extra.len(), 0);
-    let (mut i, mut j, mut w) = (old, extra.len(), old + extra.len());
-    while j > 0 {
-        if i > 0 && dst[i - 1] > extra[j - 1] {
-            dst[w - 1] = dst[i - 1];
-            i -= 1;
-        } else {
-            dst[w - 1] = extra[j - 1];
-            j -= 1;
-        }
-        w -= 1;
     }
 }
 
@@ -135,11 +165,13 @@ mod tests {
 
     #[test]
     fn merge_keeps_order() {
-        let mut a = vec![1, 4, 9, 12];
-        merge_into(&mut a, &[0, 5, 13]);
-        assert_eq!(a, vec![0, 1, 4, 5, 9, 12, 13]);
-        let mut b = vec![];
-        merge_into(&mut b, &[2, 3]);
-        assert_eq!(b, vec![2, 3]);
+        let mut a = Lists::from_vecs([vec![1, 4, 9, 12], vec![], vec![7]]);
+        a.merge(0, &[0, 5, 13]);
+        a.merge(1, &[2, 3]);
+        a.merge(2, &[]);
+        assert_eq!(a.axes(), [&[0, 1, 4, 5, 9, 12, 13][..], &[2, 3], &[7]]);
+        a.set_len(0, 2);
+        a.merge(0, &[3]);
+        assert_eq!(a.axis(0), &[0, 1, 3]);
     }
 }

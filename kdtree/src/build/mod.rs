@@ -144,7 +144,7 @@ impl Ctx<'_> {
         if n == 0 || depth >= self.depth_limit {
             return None;
         }
-        let s = find_split(&lists.ev, n, b, &self.costs)?;
+        let s = find_split(lists.axes(), n, b, &self.costs)?;
         (s.cost < self.costs.c_isect * n as f64).then_some(s)
     }
 }
@@ -152,7 +152,7 @@ impl Ctx<'_> {
 /// Appends a leaf's triangles (ascending) to `refs` and returns its node.
 fn make_leaf(lists: &Lists, refs: &mut Vec<u32>) -> Result<KdNode, BuildError> {
     let first = refs.len();
-    refs.extend(lists.ev[0].iter().filter(|&&e| matches!(ev_type(e), START | PLANAR)).map(|&e| ev_prim(e)));
+    refs.extend(lists.axis(0).iter().filter(|&&e| matches!(ev_type(e), START | PLANAR)).map(|&e| ev_prim(e)));
     refs[first..].sort_unstable();
     leaf_node(first, refs.len() - first)
 }
@@ -289,18 +289,19 @@ pub(crate) fn build_nodes(
         },
         depth_limit: config.depth_limit(n),
     };
-    let mut lists = Lists::default();
-    for l in &mut lists.ev {
+    let mut lists: [Vec<u64>; 3] = Default::default();
+    for l in &mut lists {
         l.reserve(2 * n);
     }
     for &p in prims {
         let [a, b, c] = tris[p as usize];
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-        push_box_events(&mut lists.ev, p, lo.to_array(), hi.to_array());
+        push_box_events(&mut lists, p, lo.to_array(), hi.to_array());
     }
-    for l in &mut lists.ev {
+    for l in &mut lists {
         l.par_sort_unstable();
     }
+    let lists = Lists::from_vecs(lists);
     let sub = build_par(&ctx, lists, n, bounds, 0)?;
     let mut nodes = vec![KdNode::leaf(0, 0)];
     let mut prim_refs = Vec::new();

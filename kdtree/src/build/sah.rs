@@ -48,7 +48,7 @@ pub(crate) fn extent64(b: &Aabb) -> [f64; 3] {
 /// The cheapest split of a node with `n` triangles whose events are `lists` (each sorted),
 /// or `None` when no plane lies strictly inside the box. Ties keep the first candidate in
 /// axis order, then position order, so the result is deterministic.
-pub(crate) fn find_split(lists: &[Vec<u64>; 3], n: usize, b: &Aabb, costs: &Costs) -> Option<Split> {
+pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs) -> Option<Split> {
     let e = extent64(b);
     let sa = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]);
     if !(sa > 0.0 && sa.is_finite()) {
@@ -74,12 +74,14 @@ pub(crate) fn find_split(lists: &[Vec<u64>; 3], n: usize, b: &Aabb, costs: &Cost
         let len = ev.len();
         while i < len {
             let key = ev_key(ev[i]);
-            let mut count = [0usize; 4];
+            let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
             while i < len && ev_key(ev[i]) == key {
-                count[ev_type(ev[i]) as usize] += 1;
+                let t = ev_type(ev[i]);
+                pe += usize::from(t == END);
+                pp += usize::from(t == PLANAR);
+                ps += usize::from(t == START);
                 i += 1;
             }
-            let (pe, pp, ps) = (count[END as usize], count[PLANAR as usize], count[START as usize]);
             nr -= pe + pp;
             let p = key_pos(key);
             if p > lo && p < hi {
@@ -113,14 +115,14 @@ mod tests {
     const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0 };
 
     fn lists_of(boxes: &[([f32; 3], [f32; 3])]) -> Lists {
-        let mut l = Lists::default();
+        let mut l: [Vec<u64>; 3] = Default::default();
         for (i, &(lo, hi)) in boxes.iter().enumerate() {
-            push_box_events(&mut l.ev, i as u32, lo, hi);
+            push_box_events(&mut l, i as u32, lo, hi);
         }
-        for v in &mut l.ev {
+        for v in &mut l {
             v.sort_unstable();
         }
-        l
+        Lists::from_vecs(l)
     }
 
     #[test]
@@ -128,7 +130,7 @@ mod tests {
         let boxes = [([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]), ([9.0, 0.0, 0.0], [10.0, 1.0, 1.0])];
         let l = lists_of(&boxes);
         let b = Aabb::new(Vec3::ZERO, Vec3::new(10.0, 1.0, 1.0));
-        let s = find_split(&l.ev, 2, &b, &COSTS).unwrap();
+        let s = find_split(l.axes(), 2, &b, &COSTS).unwrap();
         assert_eq!(s.axis, 0);
         assert!(s.pos == 1.0 || s.pos == 9.0, "{s:?}");
         assert!(s.cost < 10.0);
@@ -140,8 +142,8 @@ mod tests {
         let l = lists_of(&boxes);
         // A box flat in two axes has no area.
         let b = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0));
-        assert!(find_split(&l.ev, 1, &b, &COSTS).is_none());
-        assert!(find_split(&l.ev, 1, &Aabb::EMPTY, &COSTS).is_none());
+        assert!(find_split(l.axes(), 1, &b, &COSTS).is_none());
+        assert!(find_split(l.axes(), 1, &Aabb::EMPTY, &COSTS).is_none());
     }
 
     #[test]
@@ -150,7 +152,7 @@ mod tests {
             let boxes = [([0.0, 0.0, 0.0], [0.1 * s, 0.1 * s, 0.1 * s]), ([0.9 * s, 0.0, 0.0], [s, s, s])];
             let l = lists_of(&boxes);
             let b = Aabb::new(Vec3::splat(-s), Vec3::splat(s));
-            let sp = find_split(&l.ev, 2, &b, &COSTS).unwrap();
+            let sp = find_split(l.axes(), 2, &b, &COSTS).unwrap();
             assert!(sp.cost.is_finite() && sp.cost > 0.0, "{s}: {sp:?}");
         }
     }

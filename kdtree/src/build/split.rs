@@ -5,8 +5,8 @@
 
 use glam::Vec3;
 
-use super::clip::clipped_bounds;
-use super::events::{END, Lists, PLANAR, START, ev_key, ev_prim, ev_type, merge_into, pos_key, push_box_events};
+use super::clip::clipped_split_bounds;
+use super::events::{END, Lists, START, ev_key, ev_prim, ev_type, pos_key, push_box_events};
 use super::sah::Split;
 use crate::Aabb;
 
@@ -23,7 +23,7 @@ pub(crate) struct SplitScratch {
     /// Triangles that straddle the plane, in the order of the split axis's events.
     both: Vec<u32>,
     /// New events of the clipped straddling triangles, left and right.
-    new: [Lists; 2],
+    new: [[Vec<u64>; 3]; 2],
 }
 
 /// The children boxes of `b` split by `s`.
@@ -52,76 +52,82 @@ pub(crate) fn split_lists(
     let k = s.axis;
     let pkey = pos_key(s.pos);
     let planar_side = if s.planar_left { LEFT } else { RIGHT };
+    scratch.both.clear();
     // Classify from the split axis. A triangle's first event is its start (or its only,
-    // planar, event); its end follows later in the sorted list.
-    for &e in &lists.ev[k] {
-        let prim = ev_prim(e) as usize;
+    // planar, event); its end follows later in the sorted list, and only then is a triangle
+    // that started left of the plane known to straddle it.
+    let (mut nl, mut nr) = (0usize, 0usize);
+    for &e in lists.axis(k) {
+        let prim = ev_prim(e);
         let key = ev_key(e);
         match ev_type(e) {
-            START => class[prim] = if key >= pkey { RIGHT } else { BOTH },
+            START => {
+                let right = key >= pkey;
+                nr += usize::from(right);
+                class[prim as usize] = if right { RIGHT } else { BOTH };
+            }
             END => {
                 if key <= pkey {
-                    class[prim] = LEFT;
+                    class[prim as usize] = LEFT;
+                    nl += 1;
+                } else if class[prim as usize] == BOTH {
+                    scratch.both.push(prim);
                 }
             }
             _ => {
-                class[prim] = match key.cmp(&pkey) {
+                let c = match key.cmp(&pkey) {
                     std::cmp::Ordering::Less => LEFT,
                     std::cmp::Ordering::Greater => RIGHT,
                     std::cmp::Ordering::Equal => planar_side,
-                }
+                };
+                nl += usize::from(c == LEFT);
+                nr += usize::from(c == RIGHT);
+                class[prim as usize] = c;
             }
         }
     }
-    left.clear();
-    right.clear();
-    scratch.both.clear();
-    let (mut nl, mut nr) = (0usize, 0usize);
+    // Copy the one-sided triangles' events, branch-free: every event is written to both
+    // outputs and each output's cursor advances only for its own side.
     for a in 0..3 {
-        let (l, r) = (&mut left.ev[a], &mut right.ev[a]);
-        for &e in &lists.ev[a] {
-            match class[ev_prim(e) as usize] {
-                LEFT => l.push(e),
-                RIGHT => r.push(e),
-                _ => {}
-            }
+        let src = lists.axis(a);
+        let l = left.writable(a, src.len());
+        let r = right.writable(a, src.len());
+        let (mut il, mut ir) = (0usize, 0usize);
+        for &e in src {
+            let c = class[ev_prim(e) as usize];
+            l[il] = e;
+            r[ir] = e;
+            il += usize::from(c == LEFT);
+            ir += usize::from(c == RIGHT);
         }
-    }
-    for &e in &lists.ev[k] {
-        let t = ev_type(e);
-        if t == START || t == PLANAR {
-            match class[ev_prim(e) as usize] {
-                LEFT => nl += 1,
-                RIGHT => nr += 1,
-                _ => scratch.both.push(ev_prim(e)),
-            }
-        }
+        left.set_len(a, il);
+        right.set_len(a, ir);
     }
     if scratch.both.is_empty() {
         return (nl, nr);
     }
-    let (bl, br) = child_boxes(b, s);
-    let (bl_lo, bl_hi) = (bl.min.to_array(), bl.max.to_array());
-    let (br_lo, br_hi) = (br.min.to_array(), br.max.to_array());
+    let (lo, hi) = (b.min.to_array(), b.max.to_array());
     let [new_l, new_r] = &mut scratch.new;
-    new_l.clear();
-    new_r.clear();
+    for v in new_l.iter_mut().chain(new_r.iter_mut()) {
+        v.clear();
+    }
     for &prim in &scratch.both {
         let tri = &tris[prim as usize];
-        if let Some((lo, hi)) = clipped_bounds(tri, bl_lo, bl_hi) {
-            push_box_events(&mut new_l.ev, prim, lo, hi);
+        let (l, r) = clipped_split_bounds(tri, lo, hi, k, s.pos);
+        if let Some((lo, hi)) = l {
+            push_box_events(new_l, prim, lo, hi);
             nl += 1;
         }
-        if let Some((lo, hi)) = clipped_bounds(tri, br_lo, br_hi) {
-            push_box_events(&mut new_r.ev, prim, lo, hi);
+        if let Some((lo, hi)) = r {
+            push_box_events(new_r, prim, lo, hi);
             nr += 1;
         }
     }
     for a in 0..3 {
-        new_l.ev[a].sort_unstable();
-        new_r.ev[a].sort_unstable();
-        merge_into(&mut left.ev[a], &new_l.ev[a]);
-        merge_into(&mut right.ev[a], &new_r.ev[a]);
+        new_l[a].sort_unstable();
+        new_r[a].sort_unstable();
+        left.merge(a, &new_l[a]);
+        right.merge(a, &new_r[a]);
     }
     (nl, nr)
 }
