@@ -89,7 +89,7 @@ impl KdTree {
                 continue;
             }
             let (axis, split) = (n.axis(), n.split());
-            if !split.is_finite() || !(b.min[axis] <= split && split <= b.max[axis]) {
+            if !(split.is_finite() && b.min[axis] <= split && split <= b.max[axis]) {
                 return Err(format!(
                     "node {i} splits axis {axis} at {split} outside its box [{}, {}]",
                     b.min[axis], b.max[axis]
