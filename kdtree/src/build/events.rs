@@ -102,6 +102,7 @@ impl Lists {
     }
 
     /// Merges the sorted `extra` into axis `a` in place (from the back, no buffer).
+    #[cfg(test)]
     pub fn merge(&mut self, a: usize, extra: &[u64]) {
         if extra.is_empty() {
             return;
