@@ -73,37 +73,38 @@ pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs) 
         let ext = e[k];
         // Counts as f64: they only feed the cost, and exact up to 2^53.
         let (mut nl, mut nr) = (0.0f64, nf);
-        let mut i = 0;
-        let len = ev.len();
-        while i < len {
-            let key = ev_key(ev[i]);
-            let (mut pe, mut pp, mut ps) = (0u32, 0u32, 0u32);
-            while i < len && ev_key(ev[i]) == key {
-                let t = ev_type(ev[i]);
-                pe += u32::from(t == END);
-                pp += u32::from(t == PLANAR);
-                ps += u32::from(t == START);
-                i += 1;
+        let mut it = ev.iter().copied();
+        let mut next = it.next();
+        while let Some(e) = next {
+            let key = ev_key(e);
+            // The group of events at this position: ends, then planars, then starts.
+            let t = ev_type(e);
+            let (mut pe, mut pp, mut ps) = (u32::from(t == END), u32::from(t == PLANAR), u32::from(t == START));
+            loop {
+                next = it.next();
+                match next {
+                    Some(e2) if ev_key(e2) == key => {
+                        let t2 = ev_type(e2);
+                        pe += u32::from(t2 == END);
+                        pp += u32::from(t2 == PLANAR);
+                        ps += u32::from(t2 == START);
+                    }
+                    _ => break,
+                }
             }
             let ppf = f64::from(pp);
             nr -= f64::from(pe) + ppf;
             if key > lo_key && key < hi_key {
                 let d = f64::from(key_pos(key)) - lo64;
-                let a_l = cross + d * sum;
-                let a_r = cross + (ext - d) * sum;
+                let (a_l, a_r) = (cross + d * sum, cross + (ext - d) * sum);
                 let base = nl * a_l + nr * a_r;
-                let mut c_left = c_trav + scale * (base + ppf * a_l);
-                if nl + ppf == 0.0 || nr == 0.0 {
-                    c_left *= factor;
-                }
-                let mut c = c_left;
+                let f_l = if nl + ppf == 0.0 || nr == 0.0 { factor } else { 1.0 };
+                let mut c = (c_trav + scale * (base + ppf * a_l)) * f_l;
                 let mut left = true;
                 if pp > 0 {
-                    let mut c_right = c_trav + scale * (base + ppf * a_r);
-                    if nl == 0.0 || nr + ppf == 0.0 {
-                        c_right *= factor;
-                    }
-                    if c_right < c_left {
+                    let f_r = if nl == 0.0 || nr + ppf == 0.0 { factor } else { 1.0 };
+                    let c_right = (c_trav + scale * (base + ppf * a_r)) * f_r;
+                    if c_right < c {
                         c = c_right;
                         left = false;
                     }
