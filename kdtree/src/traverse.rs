@@ -79,33 +79,41 @@ impl KdTree {
 #[inline]
 pub fn clip_to_box(ray: &Ray, bounds: &Aabb) -> Option<(f32, f32)> {
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+    let (o, d, inv) = (ray.origin.to_array(), ray.dir.to_array(), ray.inv_dir.to_array());
+    let (lo, hi) = (bounds.min.to_array(), bounds.max.to_array());
     for a in 0..3 {
-        let (o, d) = (ray.origin[a], ray.dir[a]);
-        if d == 0.0 {
-            if o < bounds.min[a] || o > bounds.max[a] {
+        if d[a] == 0.0 {
+            if o[a] < lo[a] || o[a] > hi[a] {
                 return None;
             }
             continue;
         }
-        let inv = ray.inv_dir[a];
-        let (mut near, mut far) = ((bounds.min[a] - o) * inv, (bounds.max[a] - o) * inv);
-        if near > far {
-            std::mem::swap(&mut near, &mut far);
-        }
-        near -= near.abs() * WIDEN;
-        far += far.abs() * WIDEN;
-        t0 = t0.max(near);
-        t1 = t1.min(far);
+        let (near, far) = ((lo[a] - o[a]) * inv[a], (hi[a] - o[a]) * inv[a]);
+        let (near, far) = if near > far { (far, near) } else { (near, far) };
+        t0 = t0.max(near - near.abs() * WIDEN);
+        t1 = t1.min(far + far.abs() * WIDEN);
     }
     // Also false for NaN input.
     if t0 <= t1 { Some((t0, t1)) } else { None }
 }
 
+/// One deferred back voxel: node index and its interval.
 #[derive(Clone, Copy, Default)]
 struct StackEntry {
     node: u32,
     t0: f32,
     t1: f32,
+}
+
+/// `t` moved outward by [`WIDEN`]: `t + |t| W` (towards +inf) or `t - |t| W` (towards -inf).
+#[inline(always)]
+fn widen_up(t: f32) -> f32 {
+    t + t.abs() * WIDEN
+}
+
+#[inline(always)]
+fn widen_down(t: f32) -> f32 {
+    t - t.abs() * WIDEN
 }
 
 /// The traversal kernel, generic over the triangle test, the counters and the query kind
@@ -119,40 +127,49 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
 ) -> Option<Hit> {
     let (mut t0, mut t1) = clip_to_box(ray, &tree.bounds)?;
     let prepared = T::prepare(ray);
+    // Per-axis ray data as 4-lane arrays: an axis `& 3` indexes them without bounds checks.
+    let origin = ray.origin.extend(0.0).to_array();
+    let inv_dir = ray.inv_dir.extend(0.0).to_array();
+    // 1 where the direction's sign bit is set: then the front voxel is the upper child.
+    let upper_first = [
+        ray.dir.x.is_sign_negative() as usize,
+        ray.dir.y.is_sign_negative() as usize,
+        ray.dir.z.is_sign_negative() as usize,
+        0,
+    ];
     let nodes = tree.nodes.as_slice();
     let mut stack = [StackEntry::default(); STACK_SIZE];
     let mut sp = 0usize;
     let mut best: Option<Hit> = None;
     let mut t_hit = ray.t_max;
     let mut index = 0usize;
+    let (mut t0_wide, mut t1_wide) = (widen_down(t0), widen_up(t1));
     loop {
         let node = nodes[index];
         counters.node();
         if !node.is_leaf() {
             // Inner node: front voxel, back voxel or both.
-            let axis = node.axis();
-            let split = node.split();
-            let (o, d) = (ray.origin[axis], ray.dir[axis]);
-            let t_plane = (split - o) * ray.inv_dir[axis];
-            let left = node.left_child();
+            let axis = node.axis() & 3;
+            let t_plane = (node.split() - origin[axis]) * inv_dir[axis];
             // The front voxel holds the ray for t < t_plane: below the plane when the
             // direction's sign bit is clear (this also sends +0.0 and -0.0 the right way).
-            let below_first = !d.is_sign_negative();
-            let (front, back) = if below_first { (left, left + 1) } else { (left + 1, left) };
-            if t_plane.is_nan() {
-                // The ray lies in the split plane (0 * inf): both children, whole interval.
-                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0, t1 };
-                sp += 1;
+            let front = node.left_child() + upper_first[axis];
+            let back = node.left_child() + 1 - upper_first[axis];
+            if t_plane > t1_wide {
                 index = front;
-            } else if t_plane > t1 + t1.abs() * WIDEN {
-                index = front;
-            } else if t_plane < t0 - t0.abs() * WIDEN {
+            } else if t_plane < t0_wide {
                 index = back;
             } else {
-                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_plane, t1 };
+                // Both (NaN lands here too: a ray lying in the split plane, 0 * inf, visits
+                // both children over the whole interval).
+                let t_split = if t_plane.is_nan() { t0 } else { t_plane };
+                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_split, t1 };
                 sp += 1;
                 index = front;
-                t1 = t_plane;
+                if !t_plane.is_nan() {
+                    t1 = t_plane;
+                    t1_wide = widen_up(t1);
+                }
             }
             continue;
         }
@@ -183,6 +200,7 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
                 index = entry.node as usize;
                 t0 = entry.t0;
                 t1 = entry.t1.min(t_hit);
+                (t0_wide, t1_wide) = (widen_down(t0), widen_up(t1));
                 break;
             }
         }

@@ -54,7 +54,8 @@ pub trait TriangleTest: Sync {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct WaldTriangle {
-    k: u32,
+    /// The projection axes packed as `k | u << 8 | v << 16`.
+    kuv: u32,
     n_u: f32,
     n_v: f32,
     n_d: f32,
@@ -90,7 +91,7 @@ impl WaldTriangle {
         if nk == 0.0 || !nk.is_finite() {
             let nan = f32::NAN;
             return WaldTriangle {
-                k: k as u32,
+                kuv: pack_axes(k),
                 n_u: nan,
                 n_v: nan,
                 n_d: nan,
@@ -104,7 +105,7 @@ impl WaldTriangle {
         }
         let inv = 1.0 / nk;
         WaldTriangle {
-            k: k as u32,
+            kuv: pack_axes(k),
             n_u: (n[u] * inv) as f32,
             n_v: (n[v] * inv) as f32,
             n_d: (n.dot(a) * inv) as f32,
@@ -118,17 +119,41 @@ impl WaldTriangle {
     }
 }
 
+/// `k | (k + 1) % 3 << 8 | (k + 2) % 3 << 16`.
+fn pack_axes(k: usize) -> u32 {
+    (k | ((k + 1) % 3) << 8 | ((k + 2) % 3) << 16) as u32
+}
+
+/// The ray as arrays of four lanes, so that an axis chosen at run time indexes them without
+/// a bounds check or a branch (`axis & 3 < 4`).
+#[derive(Clone, Copy, Debug)]
+pub struct RayArrays {
+    /// Origin, `[x, y, z, 0]`.
+    pub o: [f32; 4],
+    /// Direction, `[x, y, z, 0]`.
+    pub d: [f32; 4],
+}
+
+impl RayArrays {
+    /// The arrays of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> RayArrays {
+        RayArrays { o: ray.origin.extend(0.0).to_array(), d: ray.dir.extend(0.0).to_array() }
+    }
+}
+
 impl TriangleTest for WaldTriangle {
-    type RayData = ();
+    type RayData = RayArrays;
 
     #[inline(always)]
-    fn prepare(_ray: &Ray) {}
+    fn prepare(ray: &Ray) -> RayArrays {
+        RayArrays::new(ray)
+    }
 
     #[inline(always)]
-    fn intersect(&self, ray: &Ray, _: &(), t_max: f32) -> Option<(f32, f32, f32)> {
-        let k = self.k as usize;
-        let (u, v) = (MOD3[k + 1], MOD3[k + 2]);
-        let (o, d) = (ray.origin, ray.dir);
+    fn intersect(&self, ray: &Ray, r: &RayArrays, t_max: f32) -> Option<(f32, f32, f32)> {
+        let (k, u, v) = ((self.kuv & 3) as usize, (self.kuv >> 8 & 3) as usize, (self.kuv >> 16 & 3) as usize);
+        let (o, d) = (&r.o, &r.d);
         let denom = d[k] + self.n_u * d[u] + self.n_v * d[v];
         let t = (self.n_d - o[k] - self.n_u * o[u] - self.n_v * o[v]) / denom;
         // Written so that NaN (a degenerate record, or 0/0 for a ray in the plane) fails.
@@ -203,9 +228,10 @@ impl TriangleTest for WatertightTriangle {
     #[inline]
     fn intersect(&self, ray: &Ray, s: &ShearedRay, t_max: f32) -> Option<(f32, f32, f32)> {
         // Vertices relative to the origin, sheared so the ray runs along +z.
-        let a = self.v[0] - ray.origin;
-        let b = self.v[1] - ray.origin;
-        let c = self.v[2] - ray.origin;
+        let a = (self.v[0] - ray.origin).extend(0.0).to_array();
+        let b = (self.v[1] - ray.origin).extend(0.0).to_array();
+        let c = (self.v[2] - ray.origin).extend(0.0).to_array();
+        let s = &ShearedRay { kx: s.kx & 3, ky: s.ky & 3, kz: s.kz & 3, ..*s };
         let (ax, ay) = (a[s.kx] - s.sx * a[s.kz], a[s.ky] - s.sy * a[s.kz]);
         let (bx, by) = (b[s.kx] - s.sx * b[s.kz], b[s.ky] - s.sy * b[s.kz]);
         let (cx, cy) = (c[s.kx] - s.sx * c[s.kz], c[s.ky] - s.sy * c[s.kz]);
@@ -247,7 +273,7 @@ mod tests {
     fn both(tri: [Vec3; 3], ray: &Ray) -> [Option<(f32, f32, f32)>; 2] {
         let w = WaldTriangle::new(&tri);
         let wt = WatertightTriangle::new(&tri);
-        [w.intersect(ray, &(), ray.t_max), wt.intersect(ray, &WatertightTriangle::prepare(ray), ray.t_max)]
+        [w.intersect(ray, &WaldTriangle::prepare(ray), ray.t_max), wt.intersect(ray, &WatertightTriangle::prepare(ray), ray.t_max)]
     }
 
     const TRI: [Vec3; 3] = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
