@@ -1,0 +1,227 @@
+//! The reports: tree statistics, build and render results, as a text table or one JSON object.
+//!
+//! The JSON field names are the interface to scripts (the README tables are made from them);
+//! keep them stable. Times are in the unit their name says (`_ms`, `_secs`).
+
+use std::fmt;
+
+use kdtree::KdTree;
+use serde::Serialize;
+
+/// The statistics of a built kd-tree, as reported by `rttest build`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct TreeSummary {
+    /// Triangles given to the build (including degenerate ones).
+    pub triangles: u64,
+    /// Non-degenerate triangles, the ones the tree holds.
+    pub triangles_in_tree: u64,
+    /// Nodes, inner and leaf.
+    pub nodes: u64,
+    /// Inner nodes.
+    pub inner_nodes: u64,
+    /// Leaves, empty or not.
+    pub leaves: u64,
+    /// Leaves without triangles.
+    pub empty_leaves: u64,
+    /// Depth of the deepest leaf (the root alone has depth 0).
+    pub depth: u64,
+    /// Triangle references in leaves.
+    pub refs: u64,
+    /// `refs / triangles_in_tree`: how often perfect splits duplicate a triangle.
+    pub refs_per_triangle: f64,
+    /// Mean triangles per non-empty leaf.
+    pub avg_tris_per_leaf: f64,
+    /// The SAH cost of the tree relative to its root box (thesis 2.2.1).
+    pub sah_cost: f64,
+    /// Memory of the tree: nodes, references and per-triangle intersection records.
+    pub bytes: u64,
+}
+
+impl TreeSummary {
+    /// The statistics of `tree`.
+    ///
+    /// Computed here by walking the nodes until `KdTree::stats` lands in the kdtree crate.
+    pub fn of(tree: &KdTree) -> TreeSummary {
+        let nodes = tree.nodes();
+        let root = tree.bounds();
+        let root_area = f64::from(root.surface_area()).max(f64::MIN_POSITIVE);
+        let config = tree.config();
+        let mut s = TreeSummary { triangles: tree.triangle_count() as u64, ..TreeSummary::default() };
+        let mut stack = vec![(0usize, root, 0u64)];
+        let mut cost = 0.0;
+        while let Some((i, bounds, depth)) = stack.pop() {
+            let Some(&node) = nodes.get(i) else { continue };
+            s.nodes += 1;
+            s.depth = s.depth.max(depth);
+            let area = f64::from(bounds.surface_area()) / root_area;
+            if node.is_leaf() {
+                s.leaves += 1;
+                s.refs += node.prim_count() as u64;
+                s.empty_leaves += u64::from(node.prim_count() == 0);
+                cost += f64::from(config.c_isect) * node.prim_count() as f64 * area;
+            } else {
+                s.inner_nodes += 1;
+                cost += f64::from(config.c_trav) * area;
+                let (axis, split) = (node.axis(), node.split());
+                let (mut left, mut right) = (bounds, bounds);
+                left.max[axis] = split;
+                right.min[axis] = split;
+                stack.push((node.left_child(), left, depth + 1));
+                stack.push((node.left_child() + 1, right, depth + 1));
+            }
+        }
+        s.triangles_in_tree = (0..tree.triangle_count() as u32)
+            .filter(|&t| !kdtree::tree::is_degenerate(&tree.triangle(t)))
+            .count() as u64;
+        s.refs_per_triangle = s.refs as f64 / (s.triangles_in_tree.max(1)) as f64;
+        s.avg_tris_per_leaf = s.refs as f64 / ((s.leaves - s.empty_leaves).max(1)) as f64;
+        s.sah_cost = cost;
+        let record = match tree.intersector() {
+            kdtree::Intersector::Wald => 40,
+            kdtree::Intersector::Watertight => 36,
+        };
+        s.bytes = 8 * s.nodes + 4 * s.refs + record * s.triangles;
+        s
+    }
+}
+
+/// The result of building one scene's tree (`rttest build`, and the head of `rttest render`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildReport {
+    /// Scene name.
+    pub scene: String,
+    /// Milliseconds to build the tree (the best of `--repeat` builds).
+    pub build_ms: f64,
+    /// Milliseconds to load or generate the scene.
+    pub load_ms: f64,
+    /// Threads in the pool the build ran on.
+    pub threads: usize,
+    /// The ray-triangle test the tree was built for (`wald` or `watertight`).
+    pub intersector: String,
+    /// The tree's statistics (flattened into the JSON object).
+    #[serde(flatten)]
+    pub tree: TreeSummary,
+}
+
+/// The result of rendering one scene (`rttest render`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderReport {
+    /// Scene name.
+    pub scene: String,
+    /// The traversal method (`mono`).
+    pub method: String,
+    /// The view rendered (`custom` for `--camera`).
+    pub view: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Threads in the pool.
+    pub threads: usize,
+    /// The ray-triangle test (`wald` or `watertight`).
+    pub intersector: String,
+    /// `none` or `hard`.
+    pub shadows: String,
+    /// `color`, `depth` or `prim`.
+    pub aov: String,
+    /// Triangles in the scene.
+    pub triangles: u64,
+    /// Milliseconds to build the tree.
+    pub build_ms: f64,
+    /// Frames traced; the times are the best (minimum) over them.
+    pub frames: u32,
+    /// Rays traced in one frame: `primary_rays + shadow_rays`.
+    pub rays: u64,
+    /// Primary rays in one frame (one per pixel).
+    pub primary_rays: u64,
+    /// Shadow rays in one frame (one per primary hit facing the light, with shadows on).
+    pub shadow_rays: u64,
+    /// Primary rays that hit.
+    pub hits: u64,
+    /// Shadow rays that found a blocker.
+    pub occluded: u64,
+    /// Best frame's seconds for ray generation, traversal and intersection (both passes).
+    pub trace_secs: f64,
+    /// Best seconds of the primary pass alone.
+    pub primary_secs: f64,
+    /// Best seconds of the shadow pass alone (0 without shadows).
+    pub shadow_secs: f64,
+    /// `rays / trace_secs / 1e6`.
+    pub mrays_per_s: f64,
+    /// `primary_rays / primary_secs / 1e6`.
+    pub primary_mrays_per_s: f64,
+    /// `shadow_rays / shadow_secs / 1e6` (0 without shadows).
+    pub shadow_mrays_per_s: f64,
+    /// Seconds to shade (or extract the AOV) into the image, once.
+    pub shade_secs: f64,
+    /// Seconds to write the image file.
+    pub write_secs: f64,
+    /// The image file written.
+    pub out: String,
+}
+
+/// Millions of rays per second, 0 when nothing was timed.
+pub fn mrays_per_s(rays: u64, secs: f64) -> f64 {
+    if secs > 0.0 { rays as f64 / secs / 1e6 } else { 0.0 }
+}
+
+/// Bytes in a human unit.
+fn human_bytes(bytes: u64) -> String {
+    const MIB: f64 = 1024.0 * 1024.0;
+    if bytes as f64 >= MIB {
+        format!("{:.1} MiB", bytes as f64 / MIB)
+    } else {
+        format!("{:.1} KiB", bytes as f64 / 1024.0)
+    }
+}
+
+impl fmt::Display for BuildReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = &self.tree;
+        writeln!(f, "scene        {} ({} triangles, {} in tree)", self.scene, t.triangles, t.triangles_in_tree)?;
+        writeln!(f, "load         {:.1} ms", self.load_ms)?;
+        writeln!(
+            f,
+            "build        {:.1} ms ({} threads, {} intersector)",
+            self.build_ms, self.threads, self.intersector
+        )?;
+        writeln!(
+            f,
+            "nodes        {} ({} inner, {} leaves of which {} empty)",
+            t.nodes, t.inner_nodes, t.leaves, t.empty_leaves
+        )?;
+        writeln!(f, "depth        {}", t.depth)?;
+        writeln!(
+            f,
+            "refs         {} ({:.2} per triangle, {:.2} per non-empty leaf)",
+            t.refs, t.refs_per_triangle, t.avg_tris_per_leaf
+        )?;
+        writeln!(f, "SAH cost     {:.2}", t.sah_cost)?;
+        write!(f, "memory       {}", human_bytes(t.bytes))
+    }
+}
+
+impl fmt::Display for RenderReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "render       {}x{}, view {}, method {}, shadows {}, {} threads",
+            self.width, self.height, self.view, self.method, self.shadows, self.threads
+        )?;
+        writeln!(
+            f,
+            "rays         {} = {} primary ({} hits) + {} shadow ({} blocked)",
+            self.rays, self.primary_rays, self.hits, self.shadow_rays, self.occluded
+        )?;
+        writeln!(
+            f,
+            "trace        {:.4} s best of {} frames: {:.2} Mrays/s (primary {:.2}, shadow {:.2})",
+            self.trace_secs, self.frames, self.mrays_per_s, self.primary_mrays_per_s, self.shadow_mrays_per_s
+        )?;
+        write!(
+            f,
+            "output       {} ({}: shade {:.4} s, write {:.4} s)",
+            self.out, self.aov, self.shade_secs, self.write_secs
+        )
+    }
+}
