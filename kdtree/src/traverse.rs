@@ -1,14 +1,190 @@
-//! Single-ray traversal.
-use crate::{Hit, KdTree, Ray};
+//! Single-ray traversal: closest hit and any hit (thesis 2.2.1, Listing 2.1).
+//!
+//! Iterative, with an explicit fixed-size stack: the ray's interval `[t0, t1]` is clipped to
+//! the root box, then at each inner node the distance to the split plane,
+//! `t_plane = (split - o[axis]) / d[axis]`, decides whether the ray visits the *front voxel*
+//! only (the child on the origin's side), the *back voxel* only, or both, front first with the
+//! back voxel pushed. Leaves are intersected front to back.
+//!
+//! ## The hard cases, and how each is handled
+//! - **Front and back voxels** come from the sign of `d[axis]` (Listing 2.1): with a clear
+//!   sign bit the ray is below the plane for `t < t_plane`. Then the interval alone decides:
+//!   `t_plane > t1` front only, `t_plane < t0` back only (this covers planes behind the
+//!   origin), else both. Negative `t_min` works too.
+//! - **Zero direction components** (`+0.0` or `-0.0`): `1/d` is an infinity of the same sign
+//!   as the zero, so `t_plane` is `+inf` (front voxel only) or `-inf` (back voxel only), and
+//!   the sign-bit rule makes that voxel the origin's side in all four sign combinations.
+//! - **Ray lying in a split plane** (`o[axis] == split`, `d[axis] == 0`): `t_plane` is
+//!   `0 * inf = NaN`. Triangles touching the plane may sit on either side, so both children
+//!   are visited over the whole interval.
+//! - **Origin on a split plane** (`o[axis] == split`, `d[axis] != 0`): `t_plane = ±0`. The
+//!   front voxel is the side the ray comes from (`t < 0`), the back voxel the side it goes to;
+//!   with `t_min > 0` only the back voxel is visited, with `t_min <= 0` both (so a triangle in
+//!   the plane hit at exactly `t = 0` is found whichever side holds it).
+//! - **Rounding**: the interval comparisons are widened by a few ulps, so a child is never
+//!   skipped because `t_plane` was rounded past an interval end. Visiting an extra child costs
+//!   a little time and never changes the answer, because a leaf accepts any hit in
+//!   `[t_min, closest so far]`, not only hits inside its own interval.
+//! - **Early exit**: once a hit at `t_hit` is known, stack entries starting beyond `t_hit`
+//!   are dropped when popped and children beyond it are never pushed, so the traversal ends
+//!   as soon as no remaining voxel can hold a closer hit. (A plain "hit inside this leaf's
+//!   interval, stop" test would be wrong for the in-plane case, whose two children share one
+//!   interval.)
+
+use crate::counters::{Counters, NoCounters};
+use crate::triangle::{Intersector, TriangleTest};
+use crate::{Aabb, Hit, KdTree, Ray, STACK_SIZE};
+
+/// Relative widening of interval comparisons: about 8 ulps.
+const WIDEN: f32 = 8.0 * f32::EPSILON;
+
 impl KdTree {
-    /// Closest hit.
+    /// The closest hit of `ray` in `[ray.t_min, ray.t_max]`, or `None`.
+    ///
+    /// A ray with NaN components gets `None` (never a panic); reject such rays earlier with
+    /// [`Ray::try_new`].
+    #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let _ = ray;
-        todo!()
+        self.intersect_counted(ray, &mut NoCounters)
     }
-    /// Any hit.
+
+    /// True if anything blocks `ray` in `[ray.t_min, ray.t_max]` (any hit, the shadow query).
+    #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let _ = ray;
-        todo!()
+        self.occluded_counted(ray, &mut NoCounters)
+    }
+
+    /// [`KdTree::intersect`], counting nodes, leaves and intersection tests into `counters`.
+    #[inline]
+    pub fn intersect_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        match self.intersector {
+            Intersector::Wald => traverse::<_, C, false>(self, &self.wald, ray, counters),
+            Intersector::Watertight => traverse::<_, C, false>(self, &self.watertight, ray, counters),
+        }
+    }
+
+    /// [`KdTree::occluded`], counting nodes, leaves and intersection tests into `counters`.
+    #[inline]
+    pub fn occluded_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        match self.intersector {
+            Intersector::Wald => traverse::<_, C, true>(self, &self.wald, ray, counters).is_some(),
+            Intersector::Watertight => traverse::<_, C, true>(self, &self.watertight, ray, counters).is_some(),
+        }
+    }
+}
+
+/// The ray's parameter interval inside `bounds` intersected with `[t_min, t_max]`, widened by
+/// a few ulps, or `None` if it misses the box. An axis with a zero direction component
+/// constrains nothing when the origin is inside the slab (avoids `0 * inf`).
+#[inline]
+pub fn clip_to_box(ray: &Ray, bounds: &Aabb) -> Option<(f32, f32)> {
+    let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+    for a in 0..3 {
+        let (o, d) = (ray.origin[a], ray.dir[a]);
+        if d == 0.0 {
+            if o < bounds.min[a] || o > bounds.max[a] {
+                return None;
+            }
+            continue;
+        }
+        let inv = ray.inv_dir[a];
+        let (mut near, mut far) = ((bounds.min[a] - o) * inv, (bounds.max[a] - o) * inv);
+        if near > far {
+            std::mem::swap(&mut near, &mut far);
+        }
+        near -= near.abs() * WIDEN;
+        far += far.abs() * WIDEN;
+        t0 = t0.max(near);
+        t1 = t1.min(far);
+    }
+    // Also false for NaN input.
+    if t0 <= t1 { Some((t0, t1)) } else { None }
+}
+
+#[derive(Clone, Copy, Default)]
+struct StackEntry {
+    node: u32,
+    t0: f32,
+    t1: f32,
+}
+
+/// The traversal kernel, generic over the triangle test, the counters and the query kind
+/// (`ANY_HIT`: stop at the first hit). Never allocates.
+#[inline(always)]
+fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    records: &[T],
+    ray: &Ray,
+    counters: &mut C,
+) -> Option<Hit> {
+    let (mut t0, mut t1) = clip_to_box(ray, &tree.bounds)?;
+    let prepared = T::prepare(ray);
+    let nodes = tree.nodes.as_slice();
+    let mut stack = [StackEntry::default(); STACK_SIZE];
+    let mut sp = 0usize;
+    let mut best: Option<Hit> = None;
+    let mut t_hit = ray.t_max;
+    let mut index = 0usize;
+    loop {
+        let node = nodes[index];
+        counters.node();
+        if !node.is_leaf() {
+            // Inner node: front voxel, back voxel or both.
+            let axis = node.axis();
+            let split = node.split();
+            let (o, d) = (ray.origin[axis], ray.dir[axis]);
+            let t_plane = (split - o) * ray.inv_dir[axis];
+            let left = node.left_child();
+            // The front voxel holds the ray for t < t_plane: below the plane when the
+            // direction's sign bit is clear (this also sends +0.0 and -0.0 the right way).
+            let below_first = !d.is_sign_negative();
+            let (front, back) = if below_first { (left, left + 1) } else { (left + 1, left) };
+            if t_plane.is_nan() {
+                // The ray lies in the split plane (0 * inf): both children, whole interval.
+                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0, t1 };
+                sp += 1;
+                index = front;
+            } else if t_plane > t1 + t1.abs() * WIDEN {
+                index = front;
+            } else if t_plane < t0 - t0.abs() * WIDEN {
+                index = back;
+            } else {
+                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_plane, t1 };
+                sp += 1;
+                index = front;
+                t1 = t_plane;
+            }
+            continue;
+        }
+
+        // Leaf: test its triangles against the closest hit so far.
+        counters.leaf();
+        let refs = &tree.prim_refs[node.prim_range()];
+        counters.isects(refs.len() as u64);
+        for &prim in refs {
+            if let Some((t, u, v)) = records[prim as usize].intersect(ray, &prepared, t_hit) {
+                let hit = Hit { t, u, v, prim };
+                if ANY_HIT {
+                    return Some(hit);
+                }
+                best = Some(hit);
+                t_hit = t;
+            }
+        }
+
+        // Next voxel: pop, skipping those that start beyond the closest hit.
+        loop {
+            if sp == 0 {
+                return best;
+            }
+            sp -= 1;
+            let entry = stack[sp % STACK_SIZE];
+            if entry.t0 <= t_hit {
+                index = entry.node as usize;
+                t0 = entry.t0;
+                t1 = entry.t1.min(t_hit);
+                break;
+            }
+        }
     }
 }
