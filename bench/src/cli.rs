@@ -18,7 +18,7 @@ use crate::Error;
 use crate::compat::SaveExt;
 use crate::progress::{self, Progress};
 use crate::render::{Method, Renderer, Shadows};
-use crate::report::{BuildReport, RenderReport, TreeSummary, mrays_per_s};
+use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};
 
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
 pub const MAX_SIDE: u32 = 16384;
@@ -133,6 +133,9 @@ pub struct RenderArgs {
     /// How rays traverse the tree.
     #[arg(long, value_enum, default_value_t = Method::Mono)]
     pub method: Method,
+    /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray.
+    #[arg(long)]
+    pub counters: bool,
 }
 
 /// `--aov` values: what the image file holds.
@@ -336,6 +339,10 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs, with_build_report: boo
     }
     frames.finish();
     let stats = best.unwrap_or_default();
+    let traversal = args.counters.then(|| {
+        let (_, primary, shadow) = renderer.trace_counted(&mut buffers);
+        TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow)
+    });
 
     let start = Instant::now();
     enum Output {
@@ -389,6 +396,7 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs, with_build_report: boo
         shade_secs,
         write_secs,
         out: out.display().to_string(),
+        traversal,
     };
     emit(global, &report)
 }

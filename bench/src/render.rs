@@ -20,7 +20,7 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use kdtree::{Hit, KdTree, Ray};
+use kdtree::{Counters, Hit, KdTree, NoCounters, Ray, TraversalCounts};
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, Tile};
 
@@ -196,54 +196,73 @@ impl<'a> Renderer<'a> {
     /// Traces one frame into `buf`: the primary pass, then the shadow pass if shadows are on.
     /// Runs on the current rayon pool.
     pub fn trace(&self, buf: &mut FrameBuffers) -> FrameStats {
+        self.trace_with::<NoCounters>(buf).0
+    }
+
+    /// [`Renderer::trace`] counting traversal steps, leaves and intersection tests, for the
+    /// primary and the shadow pass apart. Slower: not for timing.
+    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, TraversalCounts, TraversalCounts) {
+        self.trace_with::<TraversalCounts>(buf)
+    }
+
+    fn trace_with<C: TileCounters>(&self, buf: &mut FrameBuffers) -> (FrameStats, C, C) {
         let start = Instant::now();
-        let hits = self.primary_pass(&mut buf.hits);
+        let (hits, primary_counts) = self.primary_pass::<C>(&mut buf.hits);
         let primary_secs = start.elapsed().as_secs_f64();
-        let (shadow_rays, occluded, shadow_secs) = match self.shadows {
+        let (shadow_rays, occluded, shadow_counts, shadow_secs) = match self.shadows {
             Shadows::None => {
                 buf.occluded.fill(false);
-                (0, 0, 0.0)
+                (0, 0, C::default(), 0.0)
             }
             Shadows::Hard => {
                 let start = Instant::now();
-                let (rays, occluded) = self.shadow_pass(&buf.hits, &mut buf.occluded);
-                (rays, occluded, start.elapsed().as_secs_f64())
+                let (rays, occluded, counts) = self.shadow_pass::<C>(&buf.hits, &mut buf.occluded);
+                (rays, occluded, counts, start.elapsed().as_secs_f64())
             }
         };
-        FrameStats {
+        let stats = FrameStats {
             primary_rays: self.layout.pixel_count() as u64,
             shadow_rays,
             hits,
             occluded,
             primary_secs,
             shadow_secs,
-        }
+        };
+        (stats, primary_counts, shadow_counts)
     }
 
     /// Pass 1: the closest hit of every pixel's primary ray. Returns the number of hits.
-    fn primary_pass(&self, hits: &mut [Option<Hit>]) -> u64 {
+    fn primary_pass<C: TileCounters>(&self, hits: &mut [Option<Hit>]) -> (u64, C) {
         let chunks = self.layout.chunks_mut(hits);
         self.layout
             .tiles()
             .par_iter()
             .zip(chunks)
-            .map(|(tile, out)| match self.method {
-                Method::Mono => mono_primary_tile(self.tree, &self.camera, tile, out),
+            .map(|(tile, out)| {
+                let mut counts = C::default();
+                let hits = match self.method {
+                    Method::Mono => mono_primary_tile(self.tree, &self.camera, tile, out, &mut counts),
+                };
+                (hits, counts)
             })
-            .sum()
+            .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1)))
     }
 
     /// Pass 2: one shadow ray per hit facing the light. Returns (rays traced, rays blocked).
-    fn shadow_pass(&self, hits: &[Option<Hit>], occluded: &mut [bool]) -> (u64, u64) {
-        let chunks = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(occluded));
+    fn shadow_pass<C: TileCounters>(&self, hits: &[Option<Hit>], occluded: &mut [bool]) -> (u64, u64, C) {
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(occluded)).collect();
         self.layout
             .tiles()
             .par_iter()
-            .zip(chunks.collect::<Vec<_>>())
-            .map(|(tile, (hits, out))| match self.method {
-                Method::Mono => mono_shadow_tile(self.scene, self.tree, &self.camera, tile, hits, out),
+            .zip(chunks)
+            .map(|(tile, (hits, out))| {
+                let mut counts = C::default();
+                let (rays, blocked) = match self.method {
+                    Method::Mono => mono_shadow_tile(self.scene, self.tree, &self.camera, tile, hits, out, &mut counts),
+                };
+                (rays, blocked, counts)
             })
-            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+            .reduce(|| (0, 0, C::default()), |a, b| (a.0 + b.0, a.1 + b.1, a.2.merge(b.2)))
     }
 
     /// Pass 3 for `--aov color`: the shaded image.
@@ -286,6 +305,28 @@ impl<'a> Renderer<'a> {
     }
 }
 
+/// Per-tile traversal counters that can be summed over tiles: [`NoCounters`] for timed
+/// frames (counting compiles away), [`TraversalCounts`] for `--counters`.
+pub trait TileCounters: Counters + Default + Send {
+    /// The sum of two tiles' counts.
+    fn merge(self, other: Self) -> Self;
+}
+
+impl TileCounters for NoCounters {
+    #[inline]
+    fn merge(self, _other: Self) -> Self {
+        self
+    }
+}
+
+impl TileCounters for TraversalCounts {
+    #[inline]
+    fn merge(mut self, other: Self) -> Self {
+        self += other;
+        self
+    }
+}
+
 /// The primary ray of pixel `(x, y)`: from the eye, unbounded.
 #[inline]
 pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
@@ -294,23 +335,30 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
 }
 
 /// Single-ray primary kernel of one tile. Returns the number of hits.
-fn mono_primary_tile(tree: &KdTree, camera: &Camera, tile: &Tile, out: &mut [Option<Hit>]) -> u64 {
+fn mono_primary_tile<C: Counters>(
+    tree: &KdTree,
+    camera: &Camera,
+    tile: &Tile,
+    out: &mut [Option<Hit>],
+    counts: &mut C,
+) -> u64 {
     let mut hits = 0;
     for ((x, y), slot) in tile.pixels().zip(out) {
-        *slot = tree.intersect(&primary_ray(camera, x, y));
+        *slot = tree.intersect_counted(&primary_ray(camera, x, y), counts);
         hits += u64::from(slot.is_some());
     }
     hits
 }
 
 /// Single-ray shadow kernel of one tile. Returns (rays traced, rays blocked).
-fn mono_shadow_tile(
+fn mono_shadow_tile<C: Counters>(
     scene: &Scene,
     tree: &KdTree,
     camera: &Camera,
     tile: &Tile,
     hits: &[Option<Hit>],
     out: &mut [bool],
+    counts: &mut C,
 ) -> (u64, u64) {
     let (mut rays, mut blocked) = (0, 0);
     for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
@@ -319,7 +367,7 @@ fn mono_shadow_tile(
         let (origin, dir) = camera.pixel_ray(x, y);
         let Some(ray) = shade::shadow_ray(&scene.mesh, &scene.point_light, origin, dir, hit) else { continue };
         rays += 1;
-        *slot = tree.occluded(&ray);
+        *slot = tree.occluded_counted(&ray, counts);
         blocked += u64::from(*slot);
     }
     (rays, blocked)

@@ -5,7 +5,7 @@
 
 use std::fmt;
 
-use kdtree::KdTree;
+use kdtree::{KdTree, TraversalCounts};
 use serde::Serialize;
 
 /// The statistics of a built kd-tree, as reported by `rttest build`.
@@ -158,6 +158,41 @@ pub struct RenderReport {
     pub write_secs: f64,
     /// The image file written.
     pub out: String,
+    /// Traversal work per ray, with `--counters` (flattened into the JSON object).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub traversal: Option<TraversalReport>,
+}
+
+/// Mean traversal work per ray, from one counted frame (`--counters`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct TraversalReport {
+    /// Nodes fetched per primary ray (inner and leaf).
+    pub primary_nodes_per_ray: f64,
+    /// Leaves visited per primary ray.
+    pub primary_leaves_per_ray: f64,
+    /// Ray-triangle tests per primary ray.
+    pub primary_isects_per_ray: f64,
+    /// Nodes fetched per shadow ray.
+    pub shadow_nodes_per_ray: f64,
+    /// Leaves visited per shadow ray.
+    pub shadow_leaves_per_ray: f64,
+    /// Ray-triangle tests per shadow ray.
+    pub shadow_isects_per_ray: f64,
+}
+
+impl TraversalReport {
+    /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays.
+    pub fn new(primary_rays: u64, primary: TraversalCounts, shadow_rays: u64, shadow: TraversalCounts) -> Self {
+        let per = |n: u64, rays: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
+        TraversalReport {
+            primary_nodes_per_ray: per(primary.nodes, primary_rays),
+            primary_leaves_per_ray: per(primary.leaves, primary_rays),
+            primary_isects_per_ray: per(primary.isects, primary_rays),
+            shadow_nodes_per_ray: per(shadow.nodes, shadow_rays),
+            shadow_leaves_per_ray: per(shadow.leaves, shadow_rays),
+            shadow_isects_per_ray: per(shadow.isects, shadow_rays),
+        }
+    }
 }
 
 /// Millions of rays per second, 0 when nothing was timed.
