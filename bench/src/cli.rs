@@ -212,8 +212,8 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     let global = cli.global;
     pool.install(|| match cli.command {
         Some(Command::Build(args)) => build_command(&global, &args),
-        Some(Command::Render(args)) => render_command(&global, &args, false),
-        None => render_command(&global, &default_render_args(), true),
+        Some(Command::Render(args)) => render_command(&global, &args),
+        None => render_command(&global, &default_render_args()),
     })
 }
 
@@ -314,12 +314,13 @@ fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
 
-/// `rttest render` (and `rttest` alone, which also prints the build report).
-fn render_command(global: &GlobalArgs, args: &RenderArgs, with_build_report: bool) -> Result<(), Error> {
+/// `rttest render` (and `rttest` alone). The text output starts with the build report; the
+/// JSON object has the build time and triangle count only (`rttest build` has the rest).
+fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
     let built = load_and_build(global, &args.scene, 1)?;
     let (camera, view) = camera_for(&built.scene, args)?;
     let out = out_path(&built.scene, args);
-    if with_build_report && !global.json {
+    if !global.json {
         emit(global, &built.report)?;
     }
 
