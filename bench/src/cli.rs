@@ -23,9 +23,6 @@ use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mra
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
 pub const MAX_SIDE: u32 = 16384;
 
-/// Scenes with more triangles than this get a progress spinner while building.
-const BIG_SCENE: usize = 100_000;
-
 /// Fast kd-tree ray tracing: build trees and render scenes (after Tsakok 2008, "RTTest").
 ///
 /// Without a command, builds the `atrium` scene, renders its default view at 512x512 with hard
@@ -246,8 +243,7 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
-    let big = scene.mesh.triangle_count() > BIG_SCENE || repeat > 1;
-    let building = Progress::bar(u64::from(repeat), &format!("building {}", scene.name), show && big);
+    let building = Progress::bar(u64::from(repeat), &format!("building {}", scene.name), show);
     let mut best: Option<(KdTree, f64)> = None;
     for _ in 0..repeat {
         let start = Instant::now();

@@ -2,8 +2,9 @@
 //!
 //! A [`Progress`] starts hidden. A watcher thread waits one second; if the work is still
 //! running then (and progress display is enabled: stderr is a terminal and `--json` is off)
-//! the bar is drawn and ticks steadily until [`Progress::finish`] clears it. Quick work
-//! therefore never flickers a bar, and a long single call (a big build) still shows a spinner.
+//! the bar is drawn until [`Progress::finish`] clears it. Quick work therefore never flickers
+//! a bar. A spinner ticks on its own (a long single call such as a big build still moves); a
+//! bar is redrawn only when it advances, so no drawing thread competes with timed work.
 
 use std::io::IsTerminal;
 use std::sync::mpsc::{self, RecvTimeoutError, Sender};
@@ -36,7 +37,7 @@ impl Progress {
             ProgressStyle::with_template("{spinner} {msg} {elapsed}")
                 .unwrap_or_else(|_| ProgressStyle::default_spinner()),
         );
-        Self::start(bar, message, enabled)
+        Self::start(bar, message, enabled, true)
     }
 
     /// A bar of `len` steps with `message` (frames, for example).
@@ -46,10 +47,10 @@ impl Progress {
             ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
-        Self::start(bar, message, enabled)
+        Self::start(bar, message, enabled, false)
     }
 
-    fn start(bar: ProgressBar, message: &str, enabled: bool) -> Progress {
+    fn start(bar: ProgressBar, message: &str, enabled: bool, ticking: bool) -> Progress {
         bar.set_message(message.to_string());
         if !enabled {
             return Progress { bar, done: None, watcher: None };
@@ -59,7 +60,11 @@ impl Progress {
         let watcher = std::thread::spawn(move || {
             if let Err(RecvTimeoutError::Timeout) = rx.recv_timeout(SHOW_AFTER) {
                 shown.set_draw_target(ProgressDrawTarget::stderr());
-                shown.enable_steady_tick(Duration::from_millis(120));
+                if ticking {
+                    shown.enable_steady_tick(Duration::from_millis(120));
+                } else {
+                    shown.tick();
+                }
             }
         });
         Progress { bar, done: Some(done), watcher: Some(watcher) }

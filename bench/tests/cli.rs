@@ -117,7 +117,7 @@ fn custom_camera_and_named_out_file() {
     let dir = scratch("camera");
     let v = json(&rttest(
         &dir,
-        &["render", "--scene", "cube", "--size", "16x16", "--camera", "3,2,4,0,0,0,45", "--out", "x.pfm", "--json"],
+        &["render", "--scene", "cube", "--size", "16x16", "--camera", "-3,2,4,0,0,0,45", "--out", "x.pfm", "--json"],
     ));
     assert_eq!(v["view"], "custom");
     assert!(dir.join("x.pfm").is_file());
@@ -148,4 +148,15 @@ fn bad_input_gives_one_line_and_non_zero_exit() {
         assert!(stderr.starts_with("rttest: error: "), "{args:?}: {stderr}");
         assert!(out.stdout.is_empty(), "{args:?}: wrote to stdout");
     }
+}
+
+#[test]
+fn no_arguments_renders_the_atrium() {
+    let dir = scratch("default");
+    let v = json(&rttest(&dir, &["--json", "--threads", "2"]));
+    assert_eq!(v["scene"], "atrium");
+    assert_eq!(v["width"], 512);
+    assert_eq!(v["shadows"], "hard");
+    assert!(v["shadow_rays"].as_u64().unwrap() > 0);
+    assert!(dir.join("atrium.png").is_file());
 }
