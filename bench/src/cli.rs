@@ -120,7 +120,7 @@ pub struct RenderArgs {
     /// What to write: the shaded image (PNG), or the hit distance or primitive id (PFM).
     #[arg(long, value_enum, default_value_t = Aov::Color)]
     pub aov: Aov,
-    /// Output file (default: <scene>.png, <scene>-depth.pfm or <scene>-prim.pfm). A .pfm
+    /// Output file (default: SCENE.png, SCENE-depth.pfm or SCENE-prim.pfm). A .pfm
     /// colour image or a .png depth/prim image is written in that format.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,

@@ -54,6 +54,9 @@ fn build_json_has_the_tree_statistics() {
     assert_eq!(v["scene"], "cube");
     assert_eq!(v["threads"], 2);
     assert_eq!(v["triangles"], 12);
+    assert_eq!(v["intersector"], "wald");
+    let v = json(&rttest(&dir, &["build", "--scene", "cube", "--intersector", "watertight", "--json"]));
+    assert_eq!(v["intersector"], "watertight");
 }
 
 #[test]
