@@ -1,3 +1,85 @@
-//! Stats.
-/// Stats.
-pub struct TreeStats;
+//! Tree statistics: sizes, depth, references and the SAH cost of the finished tree
+//! (thesis 2.2.1 cost model).
+
+use crate::build::surface_area64;
+use crate::tree::is_degenerate;
+use crate::{Aabb, KdTree};
+
+/// Statistics of a built tree ([`KdTree::stats`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TreeStats {
+    /// Triangles given to the build, degenerate ones included.
+    pub triangles: usize,
+    /// Non-degenerate triangles (the ones the tree holds).
+    pub triangles_in_tree: usize,
+    /// All nodes.
+    pub nodes: usize,
+    /// Inner (split) nodes.
+    pub inner_nodes: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Leaves without triangles.
+    pub empty_leaves: usize,
+    /// Deepest leaf (the root alone is depth 0).
+    pub depth: usize,
+    /// Total triangle references of all leaves.
+    pub refs: usize,
+    /// `refs / triangles_in_tree` (0 for an empty tree): the duplication caused by
+    /// straddling triangles.
+    pub refs_per_triangle: f64,
+    /// Average triangle count of the non-empty leaves.
+    pub avg_tris_per_nonempty_leaf: f64,
+    /// The tree's SAH cost: `C_trav` per inner node plus `C_isect * count` per leaf, each
+    /// weighted by its box's surface area over the root's.
+    pub sah_cost: f64,
+    /// Memory: 8 bytes per node, 4 per reference, plus the intersection records.
+    pub bytes: usize,
+}
+
+impl KdTree {
+    /// Statistics of this tree, with the SAH cost under the tree's own [`crate::BuildConfig`].
+    pub fn stats(&self) -> TreeStats {
+        let (c_trav, c_isect) = (f64::from(self.config.c_trav), f64::from(self.config.c_isect));
+        let sa_root = surface_area64(&self.bounds);
+        let weight = |b: &Aabb| if sa_root > 0.0 { surface_area64(b) / sa_root } else { 1.0 };
+        let (mut inner, mut leaves, mut empty, mut depth, mut sah) = (0, 0, 0, 0, 0.0);
+        let mut stack = vec![(0usize, self.bounds, 0usize)];
+        while let Some((i, b, d)) = stack.pop() {
+            let n = self.nodes[i];
+            depth = depth.max(d);
+            if n.is_leaf() {
+                leaves += 1;
+                empty += usize::from(n.prim_count() == 0);
+                sah += c_isect * n.prim_count() as f64 * weight(&b);
+            } else {
+                inner += 1;
+                sah += c_trav * weight(&b);
+                let (mut l, mut r) = (b, b);
+                l.max[n.axis()] = n.split();
+                r.min[n.axis()] = n.split();
+                stack.push((n.left_child(), l, d + 1));
+                stack.push((n.left_child() + 1, r, d + 1));
+            }
+        }
+        let in_tree = self.tris.iter().filter(|t| !is_degenerate(t)).count();
+        let refs = self.prim_refs.len();
+        let nonempty = leaves - empty;
+        TreeStats {
+            triangles: self.tris.len(),
+            triangles_in_tree: in_tree,
+            nodes: self.nodes.len(),
+            inner_nodes: inner,
+            leaves,
+            empty_leaves: empty,
+            depth,
+            refs,
+            refs_per_triangle: if in_tree > 0 { refs as f64 / in_tree as f64 } else { 0.0 },
+            avg_tris_per_nonempty_leaf: if nonempty > 0 { refs as f64 / nonempty as f64 } else { 0.0 },
+            sah_cost: sah,
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.prim_refs.as_slice())
+                + std::mem::size_of_val(self.wald.as_slice())
+                + std::mem::size_of_val(self.watertight.as_slice()),
+        }
+    }
+}

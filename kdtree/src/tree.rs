@@ -95,6 +95,61 @@ impl KdTree {
         })
     }
 
+    /// A tree from node and reference arrays made elsewhere (another builder, a file), over
+    /// the triangle soup `tris`, with the root box `bounds`.
+    ///
+    /// The arrays are checked structurally (indices in range, depth within the stack); use
+    /// [`KdTree::validate`] for the full check that every triangle is reachable.
+    pub fn from_parts(
+        tris: Vec<[Vec3; 3]>,
+        nodes: Vec<KdNode>,
+        prim_refs: Vec<u32>,
+        bounds: Aabb,
+        config: &BuildConfig,
+    ) -> Result<KdTree, String> {
+        if nodes.is_empty() {
+            return Err("no nodes".into());
+        }
+        if let Some(r) = prim_refs.iter().find(|&&r| r as usize >= tris.len()) {
+            return Err(format!("reference to triangle {r} of {}", tris.len()));
+        }
+        // Depth-first walk with depths: children in range, depth within the stack.
+        let mut todo = vec![(0usize, 0usize)];
+        let mut seen = 0usize;
+        while let Some((i, depth)) = todo.pop() {
+            seen += 1;
+            if seen > nodes.len() || depth > crate::MAX_DEPTH as usize {
+                return Err(format!("node {i} is at depth {depth}: a cycle or a tree too deep"));
+            }
+            let n = nodes[i];
+            if n.is_leaf() {
+                if n.first_ref() + n.prim_count() > prim_refs.len() {
+                    return Err(format!("leaf {i} references past the end"));
+                }
+            } else {
+                if n.left_child() + 1 >= nodes.len() {
+                    return Err(format!("node {i} has child {} of {}", n.left_child(), nodes.len()));
+                }
+                todo.push((n.left_child(), depth + 1));
+                todo.push((n.left_child() + 1, depth + 1));
+            }
+        }
+        let (wald, watertight) = match config.intersector {
+            Intersector::Wald => (tris.iter().map(WaldTriangle::new).collect(), Vec::new()),
+            Intersector::Watertight => (Vec::new(), tris.iter().map(WatertightTriangle::new).collect()),
+        };
+        Ok(KdTree {
+            nodes,
+            prim_refs,
+            bounds,
+            intersector: config.intersector,
+            wald,
+            watertight,
+            tris,
+            config: config.clone(),
+        })
+    }
+
     /// The nodes, root at index 0.
     pub fn nodes(&self) -> &[KdNode] {
         &self.nodes

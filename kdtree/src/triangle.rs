@@ -151,8 +151,14 @@ pub struct WatertightTriangle {
 }
 
 impl WatertightTriangle {
-    /// The record of triangle `[a, b, c]`.
+    /// The record of triangle `[a, b, c]`. A zero-area triangle gets NaN vertices, which make
+    /// every test fail (in ray space a collinear triangle can otherwise round to a tiny
+    /// non-zero area and report a hit that the tree, which leaves such triangles out, never
+    /// could).
     pub fn new(tri: &[Vec3; 3]) -> WatertightTriangle {
+        if crate::tree::is_degenerate(tri) {
+            return WatertightTriangle { v: [Vec3::NAN; 3] };
+        }
         WatertightTriangle { v: *tri }
     }
 }
@@ -271,6 +277,10 @@ mod tests {
     fn degenerate_triangles_never_hit() {
         let flat = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X];
         let point = [Vec3::ONE; 3];
+        let collinear =
+            [Vec3::new(-0.75, -0.75, 0.4531973), Vec3::new(-0.75, -0.75, 0.3497554), Vec3::new(-0.75, -0.75, -1.0)];
+        let ray = Ray::new(Vec3::new(-2.0, 1.3998178, 1.5), Vec3::new(1.25, -2.149818, -2.5), 0.0, f32::INFINITY);
+        assert_eq!(both(collinear, &ray), [None, None]);
         for tri in [flat, point] {
             for d in [Vec3::Z, Vec3::Y, Vec3::X, Vec3::new(1.0, 1.0, 1.0)] {
                 let ray = Ray::new(Vec3::new(0.5, 0.0, 0.0) - d, d, 0.0, f32::INFINITY);

@@ -40,4 +40,12 @@ pub enum SceneError {
         /// The views the scene has, comma separated.
         available: String,
     },
+    /// Two images that should be compared have different sizes.
+    #[error("image sizes differ: {a:?} and {b:?} (width, height)")]
+    SizeMismatch {
+        /// Size of the first image.
+        a: (usize, usize),
+        /// Size of the second image.
+        b: (usize, usize),
+    },
 }

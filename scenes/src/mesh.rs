@@ -78,10 +78,10 @@ impl Mesh {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(format!("vertex {i} is not finite: {}", self.positions[i]));
         }
-        if let Some(normals) = &self.normals {
-            if normals.len() != self.positions.len() {
-                return Err(format!("{} normals for {} positions", normals.len(), self.positions.len()));
-            }
+        if let Some(normals) = &self.normals
+            && normals.len() != self.positions.len()
+        {
+            return Err(format!("{} normals for {} positions", normals.len(), self.positions.len()));
         }
         for (t, tri) in self.triangles.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= self.positions.len()) {
@@ -99,5 +99,99 @@ impl Mesh {
     pub fn geometric_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.triangle(i);
         (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// A mesh with exactly twice the triangles: each triangle is split at the midpoint of its
+    /// longest edge into two, in the same winding, with the same material; triangle `i`
+    /// becomes triangles `2i` and `2i + 1`, and `prim_ids` are renumbered `0..2n`.
+    ///
+    /// Used to make a scene at 2, 4, 8, ... times its triangle count with the same shape, to
+    /// measure how build time scales with the number of triangles (thesis 3.3). Two triangles
+    /// that split the same edge share its midpoint; a neighbour that splits another edge is
+    /// left with a T-junction, so the result need not be closed. Shading normals, when present,
+    /// are carried (the midpoint's normal is the normalised mean of the edge's two).
+    pub fn split_longest_edges(&self) -> Mesh {
+        let mut positions = self.positions.clone();
+        let mut normals = self.normals.clone();
+        let mut midpoints: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+        let mut triangles = Vec::with_capacity(2 * self.triangles.len());
+        for &[a, b, c] in &self.triangles {
+            let (pa, pb, pc) = (self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]);
+            let lengths = [pa.distance_squared(pb), pb.distance_squared(pc), pc.distance_squared(pa)];
+            // Rotate the corners so that the longest edge is (p, q), with r opposite it.
+            let [p, q, r] = if lengths[0] >= lengths[1] && lengths[0] >= lengths[2] {
+                [a, b, c]
+            } else if lengths[1] >= lengths[2] {
+                [b, c, a]
+            } else {
+                [c, a, b]
+            };
+            let m = *midpoints.entry((p.min(q), p.max(q))).or_insert_with(|| {
+                positions.push(0.5 * (self.positions[p as usize] + self.positions[q as usize]));
+                if let Some(n) = normals.as_mut() {
+                    let mid = (n[p as usize] + n[q as usize]).normalize_or_zero();
+                    n.push(mid);
+                }
+                positions.len() as u32 - 1
+            });
+            triangles.push([p, m, r]);
+            triangles.push([m, q, r]);
+        }
+        Mesh {
+            positions,
+            triangles,
+            normals,
+            material_ids: self.material_ids.iter().flat_map(|&m| [m, m]).collect(),
+            materials: self.materials.clone(),
+            prim_ids: (0..2 * self.triangles.len() as u32).collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_triangles() -> Mesh {
+        Mesh {
+            positions: vec![Vec3::ZERO, Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(4.0, 1.0, 0.0)],
+            triangles: vec![[0, 1, 2], [1, 3, 2]],
+            normals: Some(vec![Vec3::Z; 4]),
+            material_ids: vec![0, 1],
+            materials: vec![Material::default(), Material { name: "b".into(), diffuse: Vec3::X }],
+            prim_ids: vec![7, 9],
+        }
+    }
+
+    #[test]
+    fn split_doubles_triangles_and_keeps_area_winding_and_materials() {
+        let mesh = two_triangles();
+        let split = mesh.split_longest_edges();
+        split.check().unwrap();
+        assert_eq!(split.triangle_count(), 4);
+        assert_eq!(split.prim_ids, vec![0, 1, 2, 3]);
+        assert_eq!(split.material_ids, vec![0, 0, 1, 1]);
+        // Both triangles split their shared diagonal (1, 2), so they share its midpoint.
+        assert_eq!(split.positions.len(), 5);
+        assert_eq!(split.positions[4], Vec3::new(2.0, 0.5, 0.0));
+        let area = |m: &Mesh, i: usize| {
+            let [a, b, c] = m.triangle(i);
+            0.5 * (b - a).cross(c - a)
+        };
+        for t in 0..2 {
+            assert_eq!(area(&split, 2 * t) + area(&split, 2 * t + 1), area(&mesh, t));
+            assert_eq!(split.geometric_normal(2 * t), mesh.geometric_normal(t));
+        }
+        assert_eq!(split.normals.as_ref().map(Vec::len), Some(5));
+    }
+
+    #[test]
+    fn repeated_splits_scale_exactly() {
+        let mut mesh = two_triangles();
+        for k in 1..=4 {
+            mesh = mesh.split_longest_edges();
+            assert_eq!(mesh.triangle_count(), 2 << k);
+            mesh.check().unwrap();
+        }
     }
 }

@@ -56,23 +56,17 @@ impl Scene {
         &self.views[0]
     }
 
-    /// A scene around a loaded mesh with a default view and lights derived from its bounds,
-    /// plus the known views of recognised scenes (Sponza's benchmark view).
+    /// A scene around a loaded mesh with a view and lights derived from its bounds.
+    ///
+    /// For the recognised shared scenes (file names starting with `sponza`, `kitchen`,
+    /// `sibenik` or `conference`) the first view, `default`, is the scene's known benchmark
+    /// or check viewpoint (see `SOURCES.md`) and the bounds-derived one is called `overview`.
     pub fn from_mesh(name: &str, mesh: Mesh) -> Scene {
         let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
         let center = 0.5 * (lo + hi);
         let extent = (hi - lo).max(Vec3::splat(1e-3));
         let radius = extent.length() * 0.5;
-        let mut views = Vec::new();
-        if name.starts_with("sponza") {
-            // The view used for the Embree figures quoted in the issues.
-            views.push(View {
-                name: "default".into(),
-                eye: Vec3::new(-10.0, 3.0, 0.0),
-                target: Vec3::new(0.0, 4.0, 0.0),
-                fovy_deg: 70.0,
-            });
-        }
+        let mut views: Vec<View> = known_view(name).into_iter().collect();
         views.push(View {
             name: if views.is_empty() { "default".into() } else { "overview".into() },
             eye: center + Vec3::new(0.3, 0.35, 1.0).normalize() * radius * 1.8,
@@ -94,6 +88,26 @@ impl Scene {
             },
         }
     }
+}
+
+/// The known viewpoint of a recognised shared scene, named `default`.
+fn known_view(name: &str) -> Option<View> {
+    let (eye, target, fovy_deg) = if name.starts_with("sponza") {
+        // The view used for the Embree figures quoted in the issues.
+        ((-10.0, 3.0, 0.0), (0.0, 4.0, 0.0), 70.0)
+    } else if name.starts_with("kitchen") {
+        // Inside the kitchen: cupboards, sink, table and stools.
+        ((3.75, 2.3, 3.6), (2.0, 0.8, 1.5), 60.0)
+    } else if name.starts_with("sibenik") {
+        // Down the nave towards the altar.
+        ((-15.0, -10.0, 0.0), (0.0, -8.0, 0.0), 70.0)
+    } else if name.starts_with("conference") {
+        // The long table and chairs.
+        ((1400.0, 450.0, 500.0), (0.0, 80.0, -300.0), 70.0)
+    } else {
+        return None;
+    };
+    Some(View { name: "default".into(), eye: Vec3::from(eye), target: Vec3::from(target), fovy_deg })
 }
 
 /// Loads a scene given as a built-in name (see [`builtin::NAMES`]) or a path to an
@@ -123,4 +137,50 @@ pub fn shared_scenes_dir() -> Option<PathBuf> {
     candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes"));
     candidates.push(PathBuf::from("../shared/scenes"));
     candidates.into_iter().find(|p| p.is_dir())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn built_in_names_load_and_unknown_names_fail_clearly() {
+        let scene = load_scene("cube").unwrap();
+        assert_eq!(scene.mesh.triangle_count(), 12);
+        assert!(scene.view("default").is_ok());
+        let err = scene.view("nope").unwrap_err().to_string();
+        assert!(err.contains("nope") && err.contains("default"), "{err}");
+        let err = load_scene("/no/such/scene.obj").unwrap_err().to_string();
+        assert!(err.contains("/no/such/scene.obj") && err.contains("atrium"), "{err}");
+    }
+
+    #[test]
+    fn files_get_bounds_views_and_known_viewpoints() {
+        let dir = std::env::temp_dir().join(format!("scenes-scene-tests-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = "v 0 0 0\nv 4 0 0\nv 0 2 0\nv 0 0 3\nf 1 2 3\nf 1 4 2\n";
+        for (file, first_view) in
+            [("plain.obj", "default"), ("kitchen-test.obj", "default"), ("sponza-x.obj", "default")]
+        {
+            let path = dir.join(file);
+            std::fs::write(&path, text).unwrap();
+            let scene = load_scene(path.to_str().unwrap()).unwrap();
+            assert_eq!(scene.default_view().name, first_view);
+            assert_eq!(scene.name, file.trim_end_matches(".obj"));
+            for v in &scene.views {
+                assert!(v.camera(32, 32).is_some(), "{file}: {}", v.name);
+            }
+        }
+        let sponza = load_scene(dir.join("sponza-x.obj").to_str().unwrap()).unwrap();
+        assert_eq!(sponza.default_view().eye, Vec3::new(-10.0, 3.0, 0.0));
+        assert_eq!(sponza.views[1].name, "overview");
+        let kitchen = load_scene(dir.join("kitchen-test.obj").to_str().unwrap()).unwrap();
+        assert_eq!(kitchen.default_view().fovy_deg, 60.0);
+    }
+
+    #[test]
+    fn subdivided_atrium_loads_by_name() {
+        let scene = load_scene("atrium-x2").unwrap();
+        assert_eq!(scene.mesh.triangle_count(), 2 * load_scene("atrium").unwrap().mesh.triangle_count());
+    }
 }

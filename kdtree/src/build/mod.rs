@@ -1,8 +1,36 @@
-//! The perfect-split SAH build (thesis 2.2.1, 3.2.1).
+//! The perfect-split SAH build (thesis 2.2.1, 3.2.1) in O(N log N) (Wald & Havran 2006).
+//!
+//! - Cost model (thesis 2.2.1): a split of a node with box `V` into `V_l`, `V_r` costs
+//!   `C_trav + C_isect * (N_l SA(V_l) + N_r SA(V_r)) / SA(V)`, times `1 - empty_bonus` when a
+//!   side holds no triangle; a leaf costs `C_isect * N`. A node becomes a leaf when no plane
+//!   is cheaper, when it is empty or at the depth limit.
+//! - Perfect splits (thesis 3.2.1): the candidate planes of a triangle are the faces of the
+//!   box of the triangle clipped to the node ([`clip`]).
+//! - O(N log N) (Wald & Havran 2006, section 4): the candidate events of all triangles are
+//!   sorted once at the root ([`events`]); each node finds its plane by a linear sweep
+//!   ([`sah`]) and hands its children their event lists still sorted ([`split`]); only the
+//!   few straddling triangles are clipped again and their new events sorted and merged.
+//! - Parallel (rayon) over subtrees above [`PAR_MIN_TRIS`] triangles, sequential with reused
+//!   buffers below. Which nodes run in parallel depends only on their triangle counts, and
+//!   the subtrees are assembled in a fixed depth-first order, so the tree is bit-identical
+//!   whatever the number of threads.
+
+mod clip;
+mod events;
+mod sah;
+mod split;
 
 use glam::Vec3;
+use rayon::slice::ParallelSliceMut;
 
+use crate::node::MAX_NODE_FIELD;
 use crate::{Aabb, KdNode, triangle::Intersector};
+
+pub(crate) use clip::{Polygon, clip_triangle};
+use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events};
+pub(crate) use sah::surface_area64;
+use sah::{Costs, Split, find_split};
+use split::{SplitScratch, child_boxes, split_lists};
 
 /// Build parameters: the SAH terms with the thesis's defaults.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,6 +100,171 @@ pub(crate) struct BuiltNodes {
     pub prim_refs: Vec<u32>,
 }
 
+/// Nodes with at least this many triangles build their two subtrees with `rayon::join`;
+/// smaller subtrees are built sequentially. Fixed, so the tree does not depend on threads.
+pub const PAR_MIN_TRIS: usize = 1024;
+
+/// `i` as a node child index, or [`BuildError::TooLarge`] if it (or its sibling `i + 1`)
+/// does not fit the node's 30-bit field ([`MAX_NODE_FIELD`]).
+pub(crate) fn node_index(i: usize) -> Result<u32, BuildError> {
+    match u32::try_from(i) {
+        Ok(v) if v < MAX_NODE_FIELD => Ok(v),
+        _ => Err(BuildError::TooLarge(format!("node index {i} exceeds {MAX_NODE_FIELD}"))),
+    }
+}
+
+/// A leaf's `(first, count)` checked against the reference (`u32`) and count (30-bit) widths.
+pub(crate) fn leaf_fields(first: usize, count: usize) -> Result<(u32, u32), BuildError> {
+    let end = first.checked_add(count);
+    match (u32::try_from(first), u32::try_from(count), end.map(u32::try_from)) {
+        (Ok(f), Ok(c), Some(Ok(_))) if c <= MAX_NODE_FIELD => Ok((f, c)),
+        _ => Err(BuildError::TooLarge(format!("leaf references {first}..+{count} exceed the index widths"))),
+    }
+}
+
+fn inner_node(axis: usize, pos: f32, left: usize) -> Result<KdNode, BuildError> {
+    Ok(KdNode::inner(axis as u32, pos, node_index(left)?))
+}
+
+fn leaf_node(first: usize, count: usize) -> Result<KdNode, BuildError> {
+    let (f, c) = leaf_fields(first, count)?;
+    Ok(KdNode::leaf(f, c))
+}
+
+/// Shared, read-only build state.
+struct Ctx<'a> {
+    tris: &'a [[Vec3; 3]],
+    costs: Costs,
+    depth_limit: u32,
+}
+
+impl Ctx<'_> {
+    /// The split of a node, or `None` for a leaf (empty, too deep, or no cheaper plane).
+    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32) -> Option<Split> {
+        if n == 0 || depth >= self.depth_limit {
+            return None;
+        }
+        let s = find_split(lists.axes(), n, b, &self.costs)?;
+        (s.cost < self.costs.c_isect * n as f64).then_some(s)
+    }
+}
+
+/// Appends a leaf's triangles (ascending) to `refs` and returns its node.
+fn make_leaf(lists: &Lists, refs: &mut Vec<u32>) -> Result<KdNode, BuildError> {
+    let first = refs.len();
+    refs.extend(lists.axis(0).iter().filter(|&&e| matches!(ev_type(e), START | PLANAR)).map(|&e| ev_prim(e)));
+    refs[first..].sort_unstable();
+    leaf_node(first, refs.len() - first)
+}
+
+/// A subtree built by one task: nodes in the final layout relative to the chunk (root at 0,
+/// children adjacent) and its references relative to the chunk.
+struct Chunk {
+    nodes: Vec<KdNode>,
+    refs: Vec<u32>,
+}
+
+/// The result of the parallel top of the tree: inner nodes over sequentially built chunks.
+enum Sub {
+    Chunk(Chunk),
+    Inner { axis: usize, pos: f32, kids: Box<(Sub, Sub)> },
+}
+
+/// Sequential builder of one subtree: event lists per depth (two slots, left and right
+/// child), reused down the recursion so deep nodes allocate nothing.
+struct Seq<'c, 'a> {
+    ctx: &'c Ctx<'a>,
+    class: Vec<u8>,
+    scratch: SplitScratch,
+    levels: Vec<[Lists; 2]>,
+    nodes: Vec<KdNode>,
+    refs: Vec<u32>,
+}
+
+impl Seq<'_, '_> {
+    fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
+        let Some(s) = self.ctx.decide(&self.levels[d][side], n, &b, depth) else {
+            self.nodes[idx] = make_leaf(&self.levels[d][side], &mut self.refs)?;
+            return Ok(());
+        };
+        if self.levels.len() < d + 2 {
+            self.levels.push(Default::default());
+        }
+        let (cur, next) = self.levels.split_at_mut(d + 1);
+        let [l, r] = &mut next[0];
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, &mut self.class, &mut self.scratch, l, r);
+        let c = self.nodes.len();
+        self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
+        self.nodes.extend([KdNode::leaf(0, 0); 2]);
+        let (bl, br) = child_boxes(&b, &s);
+        self.node(d + 1, 0, nl, bl, depth + 1, c)?;
+        self.node(d + 1, 1, nr, br, depth + 1, c + 1)
+    }
+}
+
+/// Builds the subtree of a node with `n` triangles whose sorted events are `lists`.
+fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<Sub, BuildError> {
+    if n < PAR_MIN_TRIS {
+        let mut seq = Seq {
+            ctx,
+            class: vec![0; ctx.tris.len()],
+            scratch: SplitScratch::default(),
+            levels: vec![[lists, Lists::default()]],
+            nodes: vec![KdNode::leaf(0, 0)],
+            refs: Vec::new(),
+        };
+        seq.node(0, 0, n, b, depth, 0)?;
+        return Ok(Sub::Chunk(Chunk { nodes: seq.nodes, refs: seq.refs }));
+    }
+    let Some(s) = ctx.decide(&lists, n, &b, depth) else {
+        let mut refs = Vec::with_capacity(n);
+        let leaf = make_leaf(&lists, &mut refs)?;
+        return Ok(Sub::Chunk(Chunk { nodes: vec![leaf], refs }));
+    };
+    let (mut left, mut right) = (Lists::default(), Lists::default());
+    let (nl, nr) = {
+        let mut class = vec![0u8; ctx.tris.len()];
+        let mut scratch = SplitScratch::default();
+        split_lists(ctx.tris, &lists, &b, &s, &mut class, &mut scratch, &mut left, &mut right)
+    };
+    drop(lists);
+    let (bl, br) = child_boxes(&b, &s);
+    let (l, r) = rayon::join(|| build_par(ctx, left, nl, bl, depth + 1), || build_par(ctx, right, nr, br, depth + 1));
+    Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
+}
+
+/// Writes `sub` with its root at `nodes[slot]` and its other nodes appended, depth first.
+fn flatten(sub: Sub, slot: usize, nodes: &mut Vec<KdNode>, refs: &mut Vec<u32>) -> Result<(), BuildError> {
+    match sub {
+        Sub::Chunk(c) => {
+            // Chunk node i >= 1 goes to g + i - 1; its references move up by `rb`.
+            let (g, rb) = (nodes.len(), refs.len());
+            let relocate = |n: KdNode| -> Result<KdNode, BuildError> {
+                if n.is_leaf() {
+                    leaf_node(n.first_ref() + rb, n.prim_count())
+                } else {
+                    inner_node(n.axis(), n.split(), n.left_child() + g - 1)
+                }
+            };
+            nodes[slot] = relocate(c.nodes[0])?;
+            nodes.reserve(c.nodes.len() - 1);
+            for &n in &c.nodes[1..] {
+                nodes.push(relocate(n)?);
+            }
+            refs.extend_from_slice(&c.refs);
+            Ok(())
+        }
+        Sub::Inner { axis, pos, kids } => {
+            let g = nodes.len();
+            nodes[slot] = inner_node(axis, pos, g)?;
+            nodes.extend([KdNode::leaf(0, 0); 2]);
+            let (l, r) = *kids;
+            flatten(l, g, nodes, refs)?;
+            flatten(r, g + 1, nodes, refs)
+        }
+    }
+}
+
 /// Builds the node and reference arrays for the triangles `prims` (indices into `tris`;
 /// degenerate triangles already removed) inside `bounds`.
 pub(crate) fn build_nodes(
@@ -80,7 +273,57 @@ pub(crate) fn build_nodes(
     bounds: Aabb,
     config: &BuildConfig,
 ) -> Result<BuiltNodes, BuildError> {
-    let _ = (tris, bounds, config);
-    // Placeholder until the SAH builder lands: one leaf with everything.
-    Ok(BuiltNodes { nodes: vec![KdNode::leaf(0, prims.len() as u32)], prim_refs: prims.to_vec() })
+    if tris.len() > PRIM_MASK as usize + 1 {
+        return Err(BuildError::TooLarge(format!("{} triangles exceed the builder's 2^30", tris.len())));
+    }
+    let n = prims.len();
+    if n == 0 {
+        return Ok(BuiltNodes { nodes: vec![KdNode::leaf(0, 0)], prim_refs: Vec::new() });
+    }
+    let ctx = Ctx {
+        tris,
+        costs: Costs {
+            c_trav: f64::from(config.c_trav),
+            c_isect: f64::from(config.c_isect),
+            empty_factor: 1.0 - f64::from(config.empty_bonus),
+        },
+        depth_limit: config.depth_limit(n),
+    };
+    let mut lists: [Vec<u64>; 3] = Default::default();
+    for l in &mut lists {
+        l.reserve(2 * n);
+    }
+    for &p in prims {
+        let [a, b, c] = tris[p as usize];
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        push_box_events(&mut lists, p, lo.to_array(), hi.to_array());
+    }
+    for l in &mut lists {
+        l.par_sort_unstable();
+    }
+    let lists = Lists::from_vecs(lists);
+    let sub = build_par(&ctx, lists, n, bounds, 0)?;
+    let mut nodes = vec![KdNode::leaf(0, 0)];
+    let mut prim_refs = Vec::new();
+    flatten(sub, 0, &mut nodes, &mut prim_refs)?;
+    Ok(BuiltNodes { nodes, prim_refs })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_checks_report_too_large() {
+        assert_eq!(node_index(5), Ok(5));
+        assert_eq!(node_index(MAX_NODE_FIELD as usize - 1), Ok(MAX_NODE_FIELD - 1));
+        assert!(matches!(node_index(MAX_NODE_FIELD as usize), Err(BuildError::TooLarge(_))));
+        assert!(matches!(node_index(usize::MAX), Err(BuildError::TooLarge(_))));
+        assert_eq!(leaf_fields(7, 3), Ok((7, 3)));
+        assert!(matches!(leaf_fields(0, MAX_NODE_FIELD as usize + 1), Err(BuildError::TooLarge(_))));
+        assert!(matches!(leaf_fields(u32::MAX as usize, 2), Err(BuildError::TooLarge(_))));
+        assert!(matches!(leaf_fields(usize::MAX, 1), Err(BuildError::TooLarge(_))));
+        assert!(matches!(inner_node(0, 0.5, 1 << 30), Err(BuildError::TooLarge(_))));
+        assert!(matches!(leaf_node(1 << 33, 1), Err(BuildError::TooLarge(_))));
+    }
 }

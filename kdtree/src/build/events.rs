@@ -1,0 +1,177 @@
+//! Compact split-candidate events (Wald & Havran 2006, section 4.2).
+//!
+//! An event is one `u64`: the high 32 bits are the plane position mapped to an unsigned key
+//! that sorts like the float, the low 32 bits hold the event type (2 bits) above the triangle
+//! index (30 bits). Sorting the `u64`s therefore sorts by position, then by type in the order
+//! the sweep needs (end < planar < start at the same position), then by triangle: a total
+//! order, so the sorted lists, and the tree built from them, never depend on the sort
+//! algorithm or on scheduling.
+
+/// A triangle's extent ends at the event position (`max` of its clipped box).
+pub(crate) const END: u32 = 0;
+/// The triangle's clipped box is flat at the event position (it lies in the plane).
+pub(crate) const PLANAR: u32 = 1;
+/// A triangle's extent starts at the event position (`min` of its clipped box).
+pub(crate) const START: u32 = 2;
+
+/// Bits of an event that hold the triangle index.
+pub(crate) const PRIM_BITS: u32 = 30;
+/// Mask of the triangle index in the low word of an event.
+pub(crate) const PRIM_MASK: u32 = (1 << PRIM_BITS) - 1;
+
+/// The unsigned key of a finite position: sorts like the float, `-0.0` mapped to `+0.0` so
+/// that both zeros are one plane.
+#[inline(always)]
+pub(crate) fn pos_key(pos: f32) -> u32 {
+    let bits = (pos + 0.0).to_bits();
+    if bits & 0x8000_0000 != 0 { !bits } else { bits | 0x8000_0000 }
+}
+
+/// The position of a key made by [`pos_key`].
+#[inline(always)]
+pub(crate) fn key_pos(key: u32) -> f32 {
+    let bits = if key & 0x8000_0000 != 0 { key & 0x7fff_ffff } else { !key };
+    f32::from_bits(bits)
+}
+
+/// The event of type `ty` for triangle `prim` (`< 2^30`) at `pos`.
+#[inline(always)]
+pub(crate) fn event(pos: f32, ty: u32, prim: u32) -> u64 {
+    (u64::from(pos_key(pos)) << 32) | u64::from((ty << PRIM_BITS) | prim)
+}
+
+/// The position key of an event.
+#[inline(always)]
+pub(crate) fn ev_key(e: u64) -> u32 {
+    (e >> 32) as u32
+}
+
+/// The type of an event ([`END`], [`PLANAR`] or [`START`]).
+#[inline(always)]
+pub(crate) fn ev_type(e: u64) -> u32 {
+    ((e >> PRIM_BITS) & 3) as u32
+}
+
+/// The triangle of an event.
+#[inline(always)]
+pub(crate) fn ev_prim(e: u64) -> u32 {
+    (e as u32) & PRIM_MASK
+}
+
+/// Per-axis sorted event lists of one node. The buffers only grow; the logical lengths are
+/// kept apart so that reusing them never re-initialises memory.
+#[derive(Default, Debug)]
+pub(crate) struct Lists {
+    buf: [Vec<u64>; 3],
+    len: [usize; 3],
+}
+
+impl Lists {
+    /// Lists holding the given (sorted) vectors.
+    pub fn from_vecs(v: [Vec<u64>; 3]) -> Lists {
+        let len = [v[0].len(), v[1].len(), v[2].len()];
+        Lists { buf: v, len }
+    }
+
+    /// The events of axis `a`.
+    #[inline]
+    pub fn axis(&self, a: usize) -> &[u64] {
+        &self.buf[a][..self.len[a]]
+    }
+
+    /// The events of the three axes.
+    #[inline]
+    pub fn axes(&self) -> [&[u64]; 3] {
+        [self.axis(0), self.axis(1), self.axis(2)]
+    }
+
+    /// A buffer of at least `n` entries for axis `a` to write into; its contents are stale.
+    #[inline]
+    pub fn writable(&mut self, a: usize, n: usize) -> &mut [u64] {
+        if self.buf[a].len() < n {
+            self.buf[a].resize(n, 0);
+        }
+        &mut self.buf[a]
+    }
+
+    /// Sets the length of axis `a` (at most the buffer's).
+    #[inline]
+    pub fn set_len(&mut self, a: usize, n: usize) {
+        debug_assert!(n <= self.buf[a].len());
+        self.len[a] = n;
+    }
+
+    /// Merges the sorted `extra` into axis `a` in place (from the back, no buffer).
+    pub fn merge(&mut self, a: usize, extra: &[u64]) {
+        if extra.is_empty() {
+            return;
+        }
+        let old = self.len[a];
+        let total = old + extra.len();
+        let dst = self.writable(a, total);
+        let (mut i, mut j, mut w) = (old, extra.len(), total);
+        while j > 0 {
+            if i > 0 && dst[i - 1] > extra[j - 1] {
+                dst[w - 1] = dst[i - 1];
+                i -= 1;
+            } else {
+                dst[w - 1] = extra[j - 1];
+                j -= 1;
+            }
+            w -= 1;
+        }
+        self.len[a] = total;
+    }
+}
+
+/// Appends the events of triangle `prim` whose clipped box is `[lo, hi]` to the lists.
+#[inline]
+pub(crate) fn push_box_events(lists: &mut [Vec<u64>; 3], prim: u32, lo: [f32; 3], hi: [f32; 3]) {
+    for (k, l) in lists.iter_mut().enumerate() {
+        if lo[k] == hi[k] {
+            l.push(event(lo[k], PLANAR, prim));
+        } else {
+            l.push(event(lo[k], START, prim));
+            l.push(event(hi[k], END, prim));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_sort_like_floats() {
+        let xs = [-1e30f32, -2.5, -1e-30, -0.0, 0.0, 1e-38, 1e-30, 0.5, 3.0, 1e30, f32::MAX, f32::MIN];
+        for &a in &xs {
+            assert_eq!(key_pos(pos_key(a)), a + 0.0);
+            for &b in &xs {
+                assert_eq!(a.partial_cmp(&b), pos_key(a).partial_cmp(&pos_key(b)), "{a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn events_order_by_position_then_type() {
+        let e = event(1.0, END, 7);
+        let p = event(1.0, PLANAR, 3);
+        let s = event(1.0, START, 1);
+        assert!(e < p && p < s);
+        assert!(s < event(1.5, END, 0));
+        assert_eq!((ev_type(p), ev_prim(p), key_pos(ev_key(p))), (PLANAR, 3, 1.0));
+        assert_eq!(ev_prim(event(0.0, START, PRIM_MASK)), PRIM_MASK);
+    }
+
+    #[test]
+    fn merge_keeps_order() {
+        let mut a = Lists::from_vecs([vec![1, 4, 9, 12], vec![], vec![7]]);
+        a.merge(0, &[0, 5, 13]);
+        a.merge(1, &[2, 3]);
+        a.merge(2, &[]);
+        assert_eq!(a.axes(), [&[0, 1, 4, 5, 9, 12, 13][..], &[2, 3], &[7]]);
+        a.set_len(0, 2);
+        a.merge(0, &[3]);
+        assert_eq!(a.axis(0), &[0, 1, 3]);
+    }
+}

@@ -1,0 +1,194 @@
+//! Hand-made build cases: SAH termination, flat and degenerate configurations, huge and tiny
+//! coordinates, and the statistics of a small tree.
+
+use glam::Vec3;
+use kdtree::{BuildConfig, KdNode, KdTree};
+
+fn v(x: f32, y: f32, z: f32) -> Vec3 {
+    Vec3::new(x, y, z)
+}
+
+fn build(tris: &[[Vec3; 3]]) -> KdTree {
+    build_with(tris, &BuildConfig::default())
+}
+
+fn build_with(tris: &[[Vec3; 3]], config: &BuildConfig) -> KdTree {
+    let tree = KdTree::build_soup(tris, config).expect("build");
+    tree.validate().unwrap_or_else(|e| panic!("invalid tree: {e}"));
+    tree
+}
+
+/// A deterministic xorshift generator for the small soups here.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn vec(&mut self) -> Vec3 {
+        v(self.next(), self.next(), self.next())
+    }
+}
+
+#[test]
+fn empty_and_degenerate_inputs_give_one_empty_leaf() {
+    let tree = build(&[]);
+    assert_eq!(tree.nodes(), &[KdNode::leaf(0, 0)]);
+    let flat = [[v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(2.0, 2.0, 2.0)]; 3];
+    let tree = build(&flat);
+    assert_eq!(tree.nodes(), &[KdNode::leaf(0, 0)]);
+    let s = tree.stats();
+    assert_eq!((s.triangles, s.triangles_in_tree, s.refs, s.empty_leaves), (3, 0, 0, 1));
+    assert_eq!(s.sah_cost, 0.0);
+}
+
+#[test]
+fn single_triangle_is_a_leaf() {
+    let tree = build(&[[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 1.0)]]);
+    assert_eq!(tree.nodes(), &[KdNode::leaf(0, 1)]);
+    assert_eq!(tree.leaf_prims(tree.nodes()[0]), &[0]);
+}
+
+#[test]
+fn two_far_clusters_are_split_between_them() {
+    let mut rng = Rng(7);
+    let mut tris = Vec::new();
+    for c in [v(0.0, 0.0, 0.0), v(100.0, 0.0, 0.0)] {
+        for _ in 0..50 {
+            tris.push([c + rng.vec(), c + rng.vec(), c + rng.vec()]);
+        }
+    }
+    let tree = build(&tris);
+    let root = tree.nodes()[0];
+    assert!(!root.is_leaf());
+    assert_eq!(root.axis(), 0);
+    let c0_max = tris[..50].iter().flatten().map(|p| p.x).fold(f32::MIN, f32::max);
+    let c1_min = tris[50..].iter().flatten().map(|p| p.x).fold(f32::MAX, f32::min);
+    assert!(root.split() >= c0_max && root.split() <= c1_min, "split at {}", root.split());
+    let s = tree.stats();
+    assert_eq!(s.refs_per_triangle, 1.0 * s.refs as f64 / 100.0);
+}
+
+/// Root splits x = 1 (ties keep the first plane), its right child cuts the empty space off at
+/// x = 9: root(x=1) -> [leaf T0, inner(x=9) -> [empty leaf, leaf T1]].
+#[test]
+fn stats_of_a_hand_built_tree() {
+    let t0 = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
+    let t1 = t0.map(|p| p + v(9.0, 0.0, 0.0));
+    let tree = build(&[t0, t1]);
+    assert_eq!(
+        tree.nodes(),
+        &[
+            KdNode::inner(0, 1.0, 1),
+            KdNode::leaf(0, 1),
+            KdNode::inner(0, 9.0, 3),
+            KdNode::leaf(1, 0),
+            KdNode::leaf(1, 1)
+        ]
+    );
+    let s = tree.stats();
+    assert_eq!((s.triangles, s.triangles_in_tree, s.nodes, s.inner_nodes), (2, 2, 5, 2));
+    assert_eq!((s.leaves, s.empty_leaves, s.depth, s.refs), (3, 1, 2, 2));
+    assert_eq!((s.refs_per_triangle, s.avg_tris_per_nonempty_leaf), (1.0, 1.0));
+    // 1 (root) + 18/20 (right inner) + 2 * 5 * 2/20 (the two triangle leaves).
+    assert!((s.sah_cost - 2.9).abs() < 1e-9, "{}", s.sah_cost);
+    assert_eq!(s.bytes, 5 * 8 + 2 * 4 + 2 * 40);
+}
+
+#[test]
+fn all_triangles_in_one_plane() {
+    let mut rng = Rng(11);
+    let tris: Vec<_> = (0..2000)
+        .map(|_| {
+            let c = rng.vec() * 10.0;
+            let s = 0.05 + rng.next();
+            [c, c + v(s, 0.0, 0.0), c + v(0.0, s, 0.0)].map(|p| v(p.x, p.y, 0.5))
+        })
+        .collect();
+    let tree = build(&tris);
+    let s = tree.stats();
+    assert!(s.leaves > 50, "{s:?}");
+    assert_eq!(tree.bounds().min.z, tree.bounds().max.z);
+}
+
+#[test]
+fn many_identical_triangles_stay_together() {
+    let t = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 1.0)];
+    let mut tris = vec![t; 500];
+    tris.push(t.map(|p| p + v(50.0, 0.0, 0.0)));
+    let tree = build(&tris);
+    let s = tree.stats();
+    assert!(s.depth < 10 && s.refs < 1100, "{s:?}");
+}
+
+#[test]
+fn triangles_on_split_planes_and_touching_boxes() {
+    // A grid of unit cells, each with triangles lying in its faces (x = i, y = j planes), and
+    // cubes' faces touching each other.
+    let mut tris = Vec::new();
+    for i in 0..8 {
+        for j in 0..8 {
+            let (x, y) = (i as f32, j as f32);
+            tris.push([v(x, y, 0.0), v(x, y + 1.0, 0.0), v(x, y, 1.0)]);
+            tris.push([v(x, y, 0.0), v(x + 1.0, y, 0.0), v(x, y, 1.0)]);
+            tris.push([v(x, y, 0.0), v(x + 1.0, y, 0.0), v(x + 1.0, y + 1.0, 0.0)]);
+            tris.push([v(x + 0.25, y + 0.25, 0.0), v(x + 0.75, y + 0.5, 0.5), v(x + 0.5, y + 0.75, 1.0)]);
+        }
+    }
+    for config in [BuildConfig::default(), BuildConfig { empty_bonus: 0.8, ..BuildConfig::default() }] {
+        let tree = build_with(&tris, &config);
+        assert!(tree.stats().leaves > 64);
+    }
+}
+
+/// Coordinates of magnitude 1e30 / 1e38 and 1e-15 build normal trees. At 1e-30 the caller's
+/// `f32` degeneracy test (edge cross product) underflows to zero, so the triangles count as
+/// degenerate; those builds must still succeed and validate.
+#[test]
+fn huge_and_tiny_coordinates() {
+    for scale in [1e-30f32, 1e-38] {
+        let mut rng = Rng(3);
+        let tris: Vec<_> = (0..500).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| p * scale)).collect();
+        build(&tris);
+    }
+    // A scene mixing both: tiny triangles near the origin and huge ones around them.
+    let mut rng = Rng(9);
+    let mut tris: Vec<_> = (0..300).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| p * 1e-18)).collect();
+    tris.extend((0..300).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| (p - Vec3::splat(0.5)) * 1e30)));
+    build(&tris);
+    for scale in [1e30f32, 1e-15, 1e38] {
+        let mut rng = Rng(3);
+        let tris: Vec<_> = (0..500)
+            .map(|_| {
+                let c = rng.vec() * 2.0 - Vec3::ONE;
+                let s = rng.next() * 0.2;
+                [c, c + rng.vec() * s, c + rng.vec() * s].map(|p| p * scale)
+            })
+            .collect();
+        let tree = build(&tris);
+        let s = tree.stats();
+        assert!(s.sah_cost.is_finite() && s.sah_cost > 0.0, "{scale}: {s:?}");
+        assert!(s.leaves > 10, "{scale}: {s:?}");
+        assert!(tree.nodes().iter().all(|n| n.is_leaf() || n.split().is_finite()));
+    }
+}
+
+#[test]
+fn depth_limit_is_respected() {
+    let mut rng = Rng(5);
+    let tris: Vec<_> = (0..3000)
+        .map(|_| {
+            let c = rng.vec() * 10.0;
+            [c, c + rng.vec() * 0.1, c + rng.vec() * 0.1]
+        })
+        .collect();
+    for d in [0, 1, 5] {
+        let tree = build_with(&tris, &BuildConfig { max_depth: Some(d), ..BuildConfig::default() });
+        assert_eq!(tree.stats().depth, d as usize);
+    }
+    let tree = build_with(&tris, &BuildConfig { max_depth: Some(1000), c_trav: 0.0, ..BuildConfig::default() });
+    assert!(tree.stats().depth <= kdtree::MAX_DEPTH as usize);
+}

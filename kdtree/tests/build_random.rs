@@ -1,0 +1,146 @@
+//! Property tests of the build over seeded random soups: every tree validates (structure,
+//! split positions, depth, completeness), whatever the sizes, scales and degenerate
+//! configurations; and the tree is bit-identical across thread counts.
+
+use glam::Vec3;
+use kdtree::{BuildConfig, KdTree};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngSeed};
+
+/// A deterministic xorshift generator.
+struct Rng(u64);
+
+impl Rng {
+    fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    fn f(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn v(&mut self) -> Vec3 {
+        Vec3::new(self.f(), self.f(), self.f())
+    }
+    fn below(&mut self, n: u32) -> u32 {
+        ((self.f() * n as f32) as u32).min(n - 1)
+    }
+}
+
+/// A soup of `n` triangles in the unit cube times `scale`, mixing: small random triangles,
+/// axis-aligned triangles on a few common planes (x = 0.5, y = 0.25, z = 0.75 and the cube
+/// faces), exact duplicates, faces of grid cells that touch each other, and, `big` times in
+/// a thousand, large random triangles and long slivers crossing the whole cube.
+fn soup(seed: u64, n: usize, scale: f32, big: u32) -> Vec<[Vec3; 3]> {
+    let mut r = Rng::new(seed);
+    let planes = [0.0, 0.25, 0.5, 0.75, 1.0];
+    let mut tris: Vec<[Vec3; 3]> = Vec::with_capacity(n);
+    while tris.len() < n {
+        let kind = match r.below(1000) {
+            x if x < big / 2 => 1,
+            x if x < big => 5,
+            x => [0, 0, 2, 3, 4][(x % 5) as usize],
+        };
+        let t = match kind {
+            0 => {
+                let c = r.v();
+                let s = 0.001 + 0.05 * r.f();
+                [c, c + (r.v() - 0.5) * s, c + (r.v() - 0.5) * s]
+            }
+            1 => [r.v(), r.v(), r.v()],
+            2 => {
+                // Lies in an axis plane shared with many others.
+                let axis = r.below(3) as usize;
+                let p = planes[r.below(5) as usize];
+                let mut t = [r.v(), r.v(), r.v()];
+                let s = 0.02 + 0.3 * r.f();
+                let c = t[0];
+                for v in &mut t[1..] {
+                    *v = c + (*v - 0.5) * s;
+                }
+                for v in &mut t {
+                    v[axis] = p;
+                }
+                t
+            }
+            3 if !tris.is_empty() => tris[r.below(tris.len() as u32) as usize],
+            4 => {
+                // A face of a grid cell: boxes touching their neighbours.
+                let g = 4.0;
+                let (i, j, k) = (r.below(4) as f32 / g, r.below(4) as f32 / g, r.below(4) as f32 / g);
+                let (a, b, c) = (Vec3::new(i, j, k), Vec3::new(1.0 / g, 0.0, 0.0), Vec3::new(0.0, 1.0 / g, 0.0));
+                if r.below(2) == 0 { [a, a + b, a + c] } else { [a + b + c, a + c, a + b] }
+            }
+            _ => {
+                // Long thin slivers crossing the whole cube.
+                let a = r.v();
+                let d = r.v() - 0.5;
+                [a - d * 2.0, a + d * 2.0, a + d * 2.0 + r.v() * 0.01]
+            }
+        };
+        tris.push(t);
+    }
+    tris.iter().map(|t| t.map(|p| p * scale)).collect()
+}
+
+fn check(tris: &[[Vec3; 3]], config: &BuildConfig) -> KdTree {
+    let tree = KdTree::build_soup(tris, config).expect("build");
+    if let Err(e) = tree.validate() {
+        panic!("invalid tree ({} triangles, {config:?}): {e}", tris.len());
+    }
+    let s = tree.stats();
+    assert!(s.sah_cost.is_finite(), "{s:?}");
+    assert!(s.depth <= config.depth_limit(s.triangles_in_tree.max(1)) as usize, "{s:?}");
+    tree
+}
+
+fn config() -> Config {
+    Config { cases: 48, rng_seed: RngSeed::Fixed(0x6b64_7472), failure_persistence: None, ..Config::default() }
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    #[test]
+    fn random_soups_validate(
+        seed in any::<u64>(),
+        n in 1usize..600,
+        scale in prop::sample::select(vec![1.0f32, 1e30, 1e-12, 3e5, 1e37]),
+        c_isect in prop::sample::select(vec![1.0f32, 5.0, 80.0]),
+        empty_bonus in prop::sample::select(vec![0.0f32, 0.5, 0.9]),
+    ) {
+        let tris = soup(seed, n, scale, 100);
+        let config = BuildConfig { c_isect, empty_bonus, ..BuildConfig::default() };
+        check(&tris, &config);
+    }
+}
+
+#[test]
+fn larger_soups_validate() {
+    for (seed, n) in [(1u64, 5_000usize), (2, 20_000)] {
+        check(&soup(seed, n, 1.0, 5), &BuildConfig::default());
+    }
+    // Offset far from the origin: small extents relative to the coordinates.
+    let tris: Vec<_> = soup(3, 3000, 1.0, 20).iter().map(|t| t.map(|p| p + Vec3::splat(1e4))).collect();
+    check(&tris, &BuildConfig::default());
+}
+
+#[test]
+fn identical_across_thread_counts() {
+    let tris = soup(42, 40_000, 1.0, 3);
+    let config = BuildConfig::default();
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| KdTree::build_soup(&tris, &config).unwrap())
+    };
+    let reference = build(1);
+    reference.validate().unwrap();
+    let bytes = reference.layout_bytes();
+    for threads in [2, 4, 3] {
+        assert!(build(threads).layout_bytes() == bytes, "tree differs with {threads} threads");
+    }
+    // And with the global pool, twice.
+    assert!(KdTree::build_soup(&tris, &config).unwrap().layout_bytes() == bytes);
+    assert!(KdTree::build_soup(&tris, &config).unwrap().layout_bytes() == bytes);
+}
