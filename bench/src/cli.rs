@@ -15,7 +15,6 @@ use scenes::{Camera, Scene};
 use serde::Serialize;
 
 use crate::Error;
-use crate::compat::SaveExt;
 use crate::progress::{self, Progress};
 use crate::render::{Method, Renderer, Shadows};
 use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};

@@ -6,7 +6,6 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use glam::Vec3;
 use kdtree::{BuildConfig, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
@@ -99,34 +98,12 @@ pub fn trace_any(tree: &KdTree, rays: &[Ray]) -> usize {
     rays.par_chunks(256).map(|chunk| chunk.iter().filter(|r| tree.occluded(r)).count()).sum()
 }
 
-/// `mesh` with its triangle count multiplied by `2^doublings`, for build-scaling benches:
-/// each doubling splits every triangle at the midpoint of its longest edge.
+/// `mesh` with its triangle count multiplied by `2^doublings`, for build-scaling benches
+/// (each doubling is [`Mesh::split_longest_edges`]).
 pub fn refined(mesh: &Mesh, doublings: u32) -> Mesh {
     let mut mesh = mesh.clone();
     for _ in 0..doublings {
-        mesh = split_longest_edges(&mesh);
+        mesh = mesh.split_longest_edges();
     }
     mesh
-}
-
-/// Splits every triangle in two at the midpoint of its longest edge (a new vertex per
-/// triangle). Stands in for `scenes::Mesh::split_longest_edges` until that lands.
-fn split_longest_edges(mesh: &Mesh) -> Mesh {
-    let mut out = Mesh { normals: None, materials: mesh.materials.clone(), ..Mesh::default() };
-    out.positions = mesh.positions.clone();
-    for (i, &tri) in mesh.triangles.iter().enumerate() {
-        let p = tri.map(|v| mesh.positions[v as usize]);
-        let edge = (0..3).max_by(|&a, &b| edge_len(&p, a).total_cmp(&edge_len(&p, b))).unwrap_or(0);
-        let (a, b, c) = (tri[edge], tri[(edge + 1) % 3], tri[(edge + 2) % 3]);
-        let m = out.positions.len() as u32;
-        out.positions.push(0.5 * (mesh.positions[a as usize] + mesh.positions[b as usize]));
-        out.triangles.extend([[a, m, c], [m, b, c]]);
-        out.material_ids.extend([mesh.material_ids[i]; 2]);
-        out.prim_ids.extend([mesh.prim_ids[i]; 2]);
-    }
-    out
-}
-
-fn edge_len(p: &[Vec3; 3], e: usize) -> f32 {
-    p[e].distance_squared(p[(e + 1) % 3])
 }

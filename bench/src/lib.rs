@@ -35,7 +35,6 @@
 //! - [`error`]: the one error type, printed as a single line by the binary.
 
 pub mod cli;
-pub mod compat;
 pub mod error;
 pub mod harness;
 pub mod progress;

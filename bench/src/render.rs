@@ -24,7 +24,6 @@ use kdtree::{Counters, Hit, KdTree, NoCounters, Ray, TraversalCounts};
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, Tile};
 
-use crate::compat::TileExt;
 use crate::shade;
 
 /// Side of the square tiles handed to the threads.

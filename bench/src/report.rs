@@ -38,50 +38,23 @@ pub struct TreeSummary {
 }
 
 impl TreeSummary {
-    /// The statistics of `tree`.
-    ///
-    /// Computed here by walking the nodes until `KdTree::stats` lands in the kdtree crate.
+    /// The statistics of `tree`, as [`KdTree::stats`] computes them.
     pub fn of(tree: &KdTree) -> TreeSummary {
-        let nodes = tree.nodes();
-        let root = tree.bounds();
-        let root_area = f64::from(root.surface_area()).max(f64::MIN_POSITIVE);
-        let config = tree.config();
-        let mut s = TreeSummary { triangles: tree.triangle_count() as u64, ..TreeSummary::default() };
-        let mut stack = vec![(0usize, root, 0u64)];
-        let mut cost = 0.0;
-        while let Some((i, bounds, depth)) = stack.pop() {
-            let Some(&node) = nodes.get(i) else { continue };
-            s.nodes += 1;
-            s.depth = s.depth.max(depth);
-            let area = f64::from(bounds.surface_area()) / root_area;
-            if node.is_leaf() {
-                s.leaves += 1;
-                s.refs += node.prim_count() as u64;
-                s.empty_leaves += u64::from(node.prim_count() == 0);
-                cost += f64::from(config.c_isect) * node.prim_count() as f64 * area;
-            } else {
-                s.inner_nodes += 1;
-                cost += f64::from(config.c_trav) * area;
-                let (axis, split) = (node.axis(), node.split());
-                let (mut left, mut right) = (bounds, bounds);
-                left.max[axis] = split;
-                right.min[axis] = split;
-                stack.push((node.left_child(), left, depth + 1));
-                stack.push((node.left_child() + 1, right, depth + 1));
-            }
+        let s = tree.stats();
+        TreeSummary {
+            triangles: s.triangles as u64,
+            triangles_in_tree: s.triangles_in_tree as u64,
+            nodes: s.nodes as u64,
+            inner_nodes: s.inner_nodes as u64,
+            leaves: s.leaves as u64,
+            empty_leaves: s.empty_leaves as u64,
+            depth: s.depth as u64,
+            refs: s.refs as u64,
+            refs_per_triangle: s.refs_per_triangle,
+            avg_tris_per_leaf: s.avg_tris_per_nonempty_leaf,
+            sah_cost: s.sah_cost,
+            bytes: s.bytes as u64,
         }
-        s.triangles_in_tree = (0..tree.triangle_count() as u32)
-            .filter(|&t| !kdtree::tree::is_degenerate(&tree.triangle(t)))
-            .count() as u64;
-        s.refs_per_triangle = s.refs as f64 / (s.triangles_in_tree.max(1)) as f64;
-        s.avg_tris_per_leaf = s.refs as f64 / ((s.leaves - s.empty_leaves).max(1)) as f64;
-        s.sah_cost = cost;
-        let record = match tree.intersector() {
-            kdtree::Intersector::Wald => 40,
-            kdtree::Intersector::Watertight => 36,
-        };
-        s.bytes = 8 * s.nodes + 4 * s.refs + record * s.triangles;
-        s
     }
 }
 
