@@ -315,9 +315,6 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
     let built = load_and_build(global, &args.scene, 1)?;
     let (camera, view) = camera_for(&built.scene, args)?;
     let out = out_path(&built.scene, args);
-    if !global.json {
-        emit(global, &built.report)?;
-    }
 
     let renderer = Renderer::new(&built.scene, &built.tree, camera, args.method, args.shadows);
     let mut buffers = renderer.buffers();
@@ -394,5 +391,9 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
         out: out.display().to_string(),
         traversal,
     };
+    // Nothing goes to stdout before everything has succeeded.
+    if !global.json {
+        emit(global, &built.report)?;
+    }
     emit(global, &report)
 }
