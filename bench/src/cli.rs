@@ -16,7 +16,7 @@ use serde::Serialize;
 
 use crate::Error;
 use crate::progress::{self, Progress};
-use crate::render::{Method, Renderer, Shadows};
+use crate::render::{FrameBuffers, FrameStats, Method, Renderer, Shadows};
 use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};
 
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
@@ -309,6 +309,60 @@ fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
 
+/// The best times over several traced frames.
+struct Timing {
+    /// The frame with the smallest total trace time.
+    best: FrameStats,
+    /// The smallest primary-pass time of any frame.
+    primary_secs: f64,
+    /// The smallest shadow-pass time of any frame (0 without shadow rays).
+    shadow_secs: f64,
+}
+
+/// Traces `frames` frames into `buffers` and keeps the best times.
+fn time_frames(renderer: &Renderer<'_>, buffers: &mut FrameBuffers, frames: u32, show: bool) -> Timing {
+    let bar = Progress::bar(u64::from(frames), "tracing frames", show);
+    let mut timing = Timing { best: FrameStats::default(), primary_secs: f64::INFINITY, shadow_secs: f64::INFINITY };
+    for frame in 0..frames {
+        let stats = renderer.trace(buffers);
+        timing.primary_secs = timing.primary_secs.min(stats.primary_secs);
+        timing.shadow_secs = timing.shadow_secs.min(stats.shadow_secs);
+        if frame == 0 || stats.trace_secs() < timing.best.trace_secs() {
+            timing.best = stats;
+        }
+        bar.inc();
+    }
+    bar.finish();
+    if timing.best.shadow_rays == 0 {
+        timing.shadow_secs = 0.0;
+    }
+    timing
+}
+
+/// Pass 3 and the file: shades (or extracts the AOV of) `buffers` and writes it to `out`,
+/// in PNG or PFM by the file's extension. Returns (shade seconds, write seconds).
+fn write_image(renderer: &Renderer<'_>, buffers: &FrameBuffers, aov: Aov, out: &Path) -> Result<(f64, f64), Error> {
+    enum Output {
+        Color(scenes::Image),
+        Scalar(scenes::ScalarImage),
+    }
+    let start = Instant::now();
+    let image = match aov {
+        Aov::Color => Output::Color(renderer.color(buffers)),
+        Aov::Depth => Output::Scalar(renderer.depth(buffers)),
+        Aov::Prim => Output::Scalar(renderer.prim(buffers)),
+    };
+    let shade_secs = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    match &image {
+        Output::Color(img) if has_extension(out, "pfm") => img.save_pfm(out)?,
+        Output::Color(img) => img.save_png(out)?,
+        Output::Scalar(img) if has_extension(out, "png") => img.save_png(out)?,
+        Output::Scalar(img) => img.save_pfm(out)?,
+    }
+    Ok((shade_secs, start.elapsed().as_secs_f64()))
+}
+
 /// `rttest render` (and `rttest` alone). The text output starts with the build report; the
 /// JSON object has the build time and triangle count only (`rttest build` has the rest).
 fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
@@ -318,46 +372,14 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
 
     let renderer = Renderer::new(&built.scene, &built.tree, camera, args.method, args.shadows);
     let mut buffers = renderer.buffers();
-    let frames = Progress::bar(u64::from(args.frames), "tracing frames", progress::enabled(global.json));
-    let mut best = None;
-    let (mut best_primary, mut best_shadow) = (f64::INFINITY, f64::INFINITY);
-    for _ in 0..args.frames {
-        let stats = renderer.trace(&mut buffers);
-        best_primary = best_primary.min(stats.primary_secs);
-        best_shadow = best_shadow.min(stats.shadow_secs);
-        if best.as_ref().is_none_or(|b: &crate::render::FrameStats| stats.trace_secs() < b.trace_secs()) {
-            best = Some(stats);
-        }
-        frames.inc();
-    }
-    frames.finish();
-    let stats = best.unwrap_or_default();
+    let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
+    let stats = timing.best;
     let traversal = args.counters.then(|| {
         let (_, primary, shadow) = renderer.trace_counted(&mut buffers);
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow)
     });
+    let (shade_secs, write_secs) = write_image(&renderer, &buffers, args.aov, &out)?;
 
-    let start = Instant::now();
-    enum Output {
-        Color(scenes::Image),
-        Scalar(scenes::ScalarImage),
-    }
-    let image = match args.aov {
-        Aov::Color => Output::Color(renderer.color(&buffers)),
-        Aov::Depth => Output::Scalar(renderer.depth(&buffers)),
-        Aov::Prim => Output::Scalar(renderer.prim(&buffers)),
-    };
-    let shade_secs = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    match &image {
-        Output::Color(img) if has_extension(&out, "pfm") => img.save_pfm(&out)?,
-        Output::Color(img) => img.save_png(&out)?,
-        Output::Scalar(img) if has_extension(&out, "png") => img.save_png(&out)?,
-        Output::Scalar(img) => img.save_pfm(&out)?,
-    }
-    let write_secs = start.elapsed().as_secs_f64();
-
-    let shadow_secs = if stats.shadow_rays > 0 { best_shadow } else { 0.0 };
     let report = RenderReport {
         scene: built.scene.name.clone(),
         method: args.method.name().to_string(),
@@ -381,11 +403,11 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
         hits: stats.hits,
         occluded: stats.occluded,
         trace_secs: stats.trace_secs(),
-        primary_secs: best_primary,
-        shadow_secs,
+        primary_secs: timing.primary_secs,
+        shadow_secs: timing.shadow_secs,
         mrays_per_s: mrays_per_s(stats.rays(), stats.trace_secs()),
-        primary_mrays_per_s: mrays_per_s(stats.primary_rays, best_primary),
-        shadow_mrays_per_s: mrays_per_s(stats.shadow_rays, shadow_secs),
+        primary_mrays_per_s: mrays_per_s(stats.primary_rays, timing.primary_secs),
+        shadow_mrays_per_s: mrays_per_s(stats.shadow_rays, timing.shadow_secs),
         shade_secs,
         write_secs,
         out: out.display().to_string(),
