@@ -242,7 +242,9 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
-    let building = Progress::bar(u64::from(repeat), &format!("building {}", scene.name), show);
+    let message = format!("building {}", scene.name);
+    let building =
+        if repeat > 1 { Progress::bar(u64::from(repeat), &message, show) } else { Progress::spinner(&message, show) };
     let mut best: Option<(KdTree, f64)> = None;
     for _ in 0..repeat {
         let start = Instant::now();

@@ -223,8 +223,13 @@ impl fmt::Display for RenderReport {
         )?;
         writeln!(
             f,
-            "trace        {:.4} s best of {} frames: {:.2} Mrays/s (primary {:.2}, shadow {:.2})",
-            self.trace_secs, self.frames, self.mrays_per_s, self.primary_mrays_per_s, self.shadow_mrays_per_s
+            "trace        {:.4} s (best of {} frame{}): {:.2} Mrays/s (primary {:.2}, shadow {:.2})",
+            self.trace_secs,
+            self.frames,
+            if self.frames == 1 { "" } else { "s" },
+            self.mrays_per_s,
+            self.primary_mrays_per_s,
+            self.shadow_mrays_per_s
         )?;
         write!(
             f,
