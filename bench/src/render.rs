@@ -389,4 +389,36 @@ mod tests {
         let image = layout.to_row_major(&buf);
         assert!(image.iter().enumerate().all(|(i, &v)| v as usize == i));
     }
+
+    /// The tiled, parallel passes give every pixel the answer of a plain per-pixel loop.
+    #[test]
+    fn frame_matches_a_per_pixel_loop() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let camera = scene.default_view().camera(37, 29).unwrap();
+        let renderer = Renderer::new(&scene, &tree, camera, Method::Mono, Shadows::Hard);
+        let mut buf = renderer.buffers();
+        let stats = renderer.trace(&mut buf);
+        let depth = renderer.depth(&buf);
+        let prim = renderer.prim(&buf);
+        let (mut hits, mut shadow_rays, mut blocked) = (0, 0, 0);
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let ray = primary_ray(&camera, x, y);
+                let hit = tree.intersect(&ray);
+                let i = (y * camera.width + x) as usize;
+                assert_eq!(depth.values[i], hit.map_or(f32::INFINITY, |h| h.t), "depth of ({x}, {y})");
+                assert_eq!(prim.values[i], hit.map_or(-1.0, |h| scene.mesh.prim_ids[h.prim as usize] as f32));
+                let Some(hit) = hit else { continue };
+                hits += 1;
+                if let Some(shadow) = shade::shadow_ray(&scene.mesh, &scene.point_light, ray.origin, ray.dir, &hit) {
+                    shadow_rays += 1;
+                    blocked += u64::from(tree.occluded(&shadow));
+                }
+            }
+        }
+        assert!(hits > 0 && shadow_rays > 0);
+        assert_eq!((stats.hits, stats.shadow_rays, stats.occluded), (hits, shadow_rays, blocked));
+        assert_eq!(stats.primary_rays, u64::from(camera.width * camera.height));
+    }
 }
