@@ -9,6 +9,9 @@ use std::time::Duration;
 
 use bench::harness::{self, Workload};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use kdtree::BuildConfig;
+use scenes::Camera;
 
 const SIZE: u32 = 1024;
 
@@ -28,7 +31,12 @@ fn mono(c: &mut Criterion) {
     drop(atrium);
     match harness::sponza_path() {
         Some(path) => {
-            let sponza = Workload::new(&path.to_string_lossy(), Some("default"), SIZE, SIZE).expect("sponza");
+            // The Embree comparison view, spelled out rather than trusted to the view name.
+            let (scene, tree, _) =
+                harness::load_and_build(&path.to_string_lossy(), &BuildConfig::default()).expect("sponza");
+            let camera = Camera::look_at(Vec3::new(-10.0, 3.0, 0.0), Vec3::new(0.0, 4.0, 0.0), 70.0, SIZE, SIZE)
+                .expect("sponza camera");
+            let sponza = Workload::with_camera(scene, tree, camera);
             bench_workload(c, "sponza", &sponza);
         }
         None => eprintln!("mono/sponza: skipped, no shared scenes folder"),
