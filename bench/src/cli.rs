@@ -22,6 +22,9 @@ use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mra
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
 pub const MAX_SIDE: u32 = 16384;
 
+/// Largest accepted pixel count (about 50 bytes of buffers each: 1.6 GB at the limit).
+pub const MAX_PIXELS: u64 = 1 << 25;
+
 /// Fast kd-tree ray tracing: build trees and render scenes (after Tsakok 2008, "RTTest").
 ///
 /// Without a command, builds the `atrium` scene, renders its default view at 512x512 with hard
@@ -167,7 +170,7 @@ pub struct CameraSpec {
     pub fovy_deg: f32,
 }
 
-/// Parses `WxH` (e.g. `1024x768`), each side in `1..=MAX_SIDE`.
+/// Parses `WxH` (e.g. `1024x768`), each side in `1..=MAX_SIDE`, at most [`MAX_PIXELS`] pixels.
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("expected WxH such as 512x512, got '{s}'"))?;
     let side = |v: &str| -> Result<u32, String> {
@@ -176,7 +179,11 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
             _ => Err(format!("'{v}' is not an image side in 1..={MAX_SIDE}")),
         }
     };
-    Ok((side(w)?, side(h)?))
+    let (w, h) = (side(w)?, side(h)?);
+    if u64::from(w) * u64::from(h) > MAX_PIXELS {
+        return Err(format!("{w}x{h} has more than {MAX_PIXELS} pixels"));
+    }
+    Ok((w, h))
 }
 
 /// Parses `ex,ey,ez,tx,ty,tz,fovy` into a camera spec (seven finite numbers).

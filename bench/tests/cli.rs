@@ -133,6 +133,7 @@ fn bad_input_gives_one_line_and_non_zero_exit() {
         &["render", "--scene", "no-such-scene"],
         &["render", "--scene", "cube", "--size", "0x5"],
         &["render", "--scene", "cube", "--size", "big"],
+        &["render", "--scene", "cube", "--size", "16384x16384"],
         &["render", "--scene", "cube", "--camera", "1,2,3"],
         &["render", "--scene", "cube", "--camera", "0,0,0,0,0,0,45"],
         &["render", "--scene", "cube", "--view", "no-such-view"],
