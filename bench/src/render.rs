@@ -90,12 +90,17 @@ impl TileLayout {
         &self.tiles
     }
 
-    /// `buf` (one entry per pixel, tile order) cut into one disjoint chunk per tile.
+    /// `buf` (one entry per pixel, tile order) cut into one chunk per tile.
+    ///
+    /// Panics if `buf` is shorter than [`TileLayout::pixel_count`] (a programming error: the
+    /// buffers come from [`Renderer::buffers`]).
     pub fn chunks<'a, T>(&self, buf: &'a [T]) -> Vec<&'a [T]> {
-        self.tiles.iter().enumerate().map(|(i, _)| &buf[self.offsets[i]..self.offsets[i + 1]]).collect()
+        self.offsets.windows(2).map(|w| &buf[w[0]..w[1]]).collect()
     }
 
-    /// `buf` (one entry per pixel, tile order) cut into one disjoint mutable chunk per tile.
+    /// `buf` (one entry per pixel, tile order) cut into one disjoint mutable chunk per tile,
+    /// so that each tile's task can write its own pixels without locking. Panics like
+    /// [`TileLayout::chunks`].
     pub fn chunks_mut<'a, T>(&self, mut buf: &'a mut [T]) -> Vec<&'a mut [T]> {
         let mut out = Vec::with_capacity(self.tiles.len());
         for t in &self.tiles {
