@@ -59,11 +59,11 @@ fn closest<T: TriangleTest>(records: &[T], ray: &Ray) -> Option<Hit> {
     let mut best: Option<Hit> = None;
     let mut t_max = ray.t_max;
     for (prim, rec) in records.iter().enumerate() {
-        if let Some((t, u, v)) = rec.intersect(ray, &data, t_max) {
-            if best.is_none_or(|b| t < b.t) {
-                best = Some(Hit { t, u, v, prim: prim as u32 });
-                t_max = t;
-            }
+        if let Some((t, u, v)) = rec.intersect(ray, &data, t_max)
+            && best.is_none_or(|b| t < b.t)
+        {
+            best = Some(Hit { t, u, v, prim: prim as u32 });
+            t_max = t;
         }
     }
     best

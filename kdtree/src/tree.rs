@@ -200,7 +200,9 @@ impl KdTree {
     }
 }
 
-/// True for a triangle of exactly zero area (its edge cross product is zero).
+/// True for a triangle of exactly zero area: its edge cross product, computed in f64 so that
+/// tiny triangles (edges near 1e-30) do not underflow to zero, is zero.
 pub fn is_degenerate(t: &[Vec3; 3]) -> bool {
-    (t[1] - t[0]).cross(t[2] - t[0]) == Vec3::ZERO
+    let (a, b, c) = (t[0].as_dvec3(), t[1].as_dvec3(), t[2].as_dvec3());
+    (b - a).cross(c - a) == glam::DVec3::ZERO
 }

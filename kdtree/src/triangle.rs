@@ -72,7 +72,9 @@ impl WaldTriangle {
     /// The record of triangle `[a, b, c]`. A zero-area triangle gets NaN coefficients, which
     /// make every test fail.
     pub fn new(tri: &[Vec3; 3]) -> WaldTriangle {
-        let [a, b, c] = *tri;
+        // Precomputed in f64 so that tiny (1e-30) and huge (1e30) triangles neither underflow
+        // nor overflow before the ratios are formed.
+        let [a, b, c] = tri.map(|p| p.as_dvec3());
         let (e1, e2) = (b - a, c - a);
         let n = e1.cross(e2);
         let abs = n.abs();
@@ -103,15 +105,15 @@ impl WaldTriangle {
         let inv = 1.0 / nk;
         WaldTriangle {
             k: k as u32,
-            n_u: n[u] * inv,
-            n_v: n[v] * inv,
-            n_d: n.dot(a) * inv,
-            a_u: a[u],
-            a_v: a[v],
-            b_nu: e2[v] * inv,
-            b_nv: -e2[u] * inv,
-            c_nu: -e1[v] * inv,
-            c_nv: e1[u] * inv,
+            n_u: (n[u] * inv) as f32,
+            n_v: (n[v] * inv) as f32,
+            n_d: (n.dot(a) * inv) as f32,
+            a_u: a[u] as f32,
+            a_v: a[v] as f32,
+            b_nu: (e2[v] * inv) as f32,
+            b_nv: (-e2[u] * inv) as f32,
+            c_nu: (-e1[v] * inv) as f32,
+            c_nv: (e1[u] * inv) as f32,
         }
     }
 }

@@ -64,24 +64,69 @@ impl Polygon {
 
     /// The `f32` box of the polygon, which lies in the box `[lo, hi]`: rounded outward, then
     /// clamped to the box.
-    #[inline]
+    #[cfg(test)]
     fn bounds(&self, lo: [f32; 3], hi: [f32; 3]) -> Bounds {
         let mut mn = self.v[0];
         let mut mx = self.v[0];
         for v in &self.v[1..self.len] {
-            for k in 0..3 {
-                mn[k] = mn[k].min(v[k]);
-                mx[k] = mx[k].max(v[k]);
-            }
+            extend(&mut mn, &mut mx, v);
         }
-        let mut bmin = [0.0f32; 3];
-        let mut bmax = [0.0f32; 3];
-        for k in 0..3 {
-            bmin[k] = round_down(mn[k]).clamp(lo[k], hi[k]);
-            bmax[k] = round_up(mx[k]).clamp(lo[k], hi[k]).max(bmin[k]);
-        }
-        (bmin, bmax)
+        to_bounds(&mn, &mx, lo, hi)
     }
+
+    /// The `f32` boxes of the parts of the polygon (inside the box `[lo, hi]`) below and above
+    /// the plane `x_k = p`, computed in one pass without building the two polygons: the
+    /// vertices on each side (those on the plane on both) and the points where edges cross.
+    #[inline]
+    fn split_bounds(&self, lo: [f32; 3], hi: [f32; 3], k: usize, p: f32) -> (Option<Bounds>, Option<Bounds>) {
+        let c = f64::from(p);
+        let (mut lmin, mut lmax) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        let (mut rmin, mut rmax) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        let mut a = self.v[self.len - 1];
+        for &b in &self.v[..self.len] {
+            if b[k] <= c {
+                extend(&mut lmin, &mut lmax, &b);
+            }
+            if b[k] >= c {
+                extend(&mut rmin, &mut rmax, &b);
+            }
+            if (a[k] < c && b[k] > c) || (a[k] > c && b[k] < c) {
+                let t = (c - a[k]) / (b[k] - a[k]);
+                let mut q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])];
+                q[k] = c;
+                extend(&mut lmin, &mut lmax, &q);
+                extend(&mut rmin, &mut rmax, &q);
+            }
+            a = b;
+        }
+        let (mut lhi, mut rlo) = (hi, lo);
+        lhi[k] = p;
+        rlo[k] = p;
+        let left = (lmin[0] <= lmax[0]).then(|| to_bounds(&lmin, &lmax, lo, lhi));
+        let right = (rmin[0] <= rmax[0]).then(|| to_bounds(&rmin, &rmax, rlo, hi));
+        (left, right)
+    }
+}
+
+/// Grows the box `[mn, mx]` to contain `v`.
+#[inline(always)]
+fn extend(mn: &mut [f64; 3], mx: &mut [f64; 3], v: &[f64; 3]) {
+    for k in 0..3 {
+        mn[k] = mn[k].min(v[k]);
+        mx[k] = mx[k].max(v[k]);
+    }
+}
+
+/// The `f64` box `[mn, mx]` rounded outward to `f32` and clamped to the box `[lo, hi]`.
+#[inline]
+fn to_bounds(mn: &[f64; 3], mx: &[f64; 3], lo: [f32; 3], hi: [f32; 3]) -> Bounds {
+    let mut bmin = [0.0f32; 3];
+    let mut bmax = [0.0f32; 3];
+    for k in 0..3 {
+        bmin[k] = round_down(mn[k]).clamp(lo[k], hi[k]);
+        bmax[k] = round_up(mx[k]).clamp(lo[k], hi[k]).max(bmin[k]);
+    }
+    (bmin, bmax)
 }
 
 /// A clipped triangle's box: `(min, max)` corners.
@@ -108,8 +153,13 @@ fn clip_to_box(tri: &[Vec3; 3], lo: [f64; 3], hi: [f64; 3], bufs: &mut [Polygon;
     bufs[0].v[..3].copy_from_slice(&t);
     let mut cur = 0;
     for k in 0..3 {
-        let tmin = t[0][k].min(t[1][k]).min(t[2][k]);
-        let tmax = t[0][k].max(t[1][k]).max(t[2][k]);
+        // The current polygon's extent: planes it no longer crosses are skipped.
+        let poly = &bufs[cur];
+        let (mut tmin, mut tmax) = (poly.v[0][k], poly.v[0][k]);
+        for v in &poly.v[1..poly.len] {
+            tmin = tmin.min(v[k]);
+            tmax = tmax.max(v[k]);
+        }
         if tmax < lo[k] || tmin > hi[k] {
             return None;
         }
@@ -182,19 +232,10 @@ pub(crate) fn clipped_split_bounds(
     p: f32,
 ) -> (Option<Bounds>, Option<Bounds>) {
     let mut bufs = [Polygon::EMPTY; 2];
-    let Some(c) = clip_to_box(tri, lo.map(f64::from), hi.map(f64::from), &mut bufs) else {
-        return (None, None);
-    };
-    let (mut lhi, mut rlo) = (hi, lo);
-    lhi[k] = p;
-    rlo[k] = p;
-    let [a, b] = &mut bufs;
-    let (poly, tmp) = if c == 0 { (&*a, b) } else { (&*b, a) };
-    poly.clip_into::<true>(tmp, k, f64::from(p));
-    let left = (tmp.len > 0).then(|| tmp.bounds(lo, lhi));
-    poly.clip_into::<false>(tmp, k, f64::from(p));
-    let right = (tmp.len > 0).then(|| tmp.bounds(rlo, hi));
-    (left, right)
+    match clip_to_box(tri, lo.map(f64::from), hi.map(f64::from), &mut bufs) {
+        Some(c) => bufs[c].split_bounds(lo, hi, k, p),
+        None => (None, None),
+    }
 }
 
 #[cfg(test)]

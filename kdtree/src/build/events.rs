@@ -102,6 +102,7 @@ impl Lists {
     }
 
     /// Merges the sorted `extra` into axis `a` in place (from the back, no buffer).
+    #[cfg(test)]
     pub fn merge(&mut self, a: usize, extra: &[u64]) {
         if extra.is_empty() {
             return;
@@ -110,15 +111,15 @@ impl Lists {
         let total = old + extra.len();
         let dst = self.writable(a, total);
         let (mut i, mut j, mut w) = (old, extra.len(), total);
+        // Branch-free: 0 sorts below every event, so an exhausted `dst` never wins.
         while j > 0 {
-            if i > 0 && dst[i - 1] > extra[j - 1] {
-                dst[w - 1] = dst[i - 1];
-                i -= 1;
-            } else {
-                dst[w - 1] = extra[j - 1];
-                j -= 1;
-            }
+            let a = if i > 0 { dst[i - 1] } else { 0 };
+            let b = extra[j - 1];
+            let take_a = a > b;
             w -= 1;
+            dst[w] = if take_a { a } else { b };
+            i -= usize::from(take_a);
+            j -= usize::from(!take_a);
         }
         self.len[a] = total;
     }

@@ -20,6 +20,8 @@ mod events;
 mod sah;
 mod split;
 
+use std::sync::Mutex;
+
 use glam::Vec3;
 use rayon::slice::ParallelSliceMut;
 
@@ -131,14 +133,40 @@ fn leaf_node(first: usize, count: usize) -> Result<KdNode, BuildError> {
     Ok(KdNode::leaf(f, c))
 }
 
-/// Shared, read-only build state.
+/// Reusable per-task buffers: the per-triangle classification array (indexed by triangle,
+/// so as large as the input) and the split step's buffers and per-depth event lists. Pooled,
+/// so a build allocates about one per thread rather than one per subtree. Their contents
+/// never carry over: every entry is written before it is read.
+#[derive(Default)]
+struct Scratch {
+    class: Vec<u8>,
+    split: SplitScratch,
+    levels: Vec<[Lists; 2]>,
+}
+
+/// Shared build state.
 struct Ctx<'a> {
     tris: &'a [[Vec3; 3]],
     costs: Costs,
     depth_limit: u32,
+    pool: Mutex<Vec<Scratch>>,
 }
 
 impl Ctx<'_> {
+    /// A scratch from the pool, or a new one.
+    fn take(&self) -> Scratch {
+        let mut s = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default();
+        if s.class.len() < self.tris.len() {
+            s.class = vec![0; self.tris.len()];
+        }
+        s
+    }
+
+    /// Returns a scratch to the pool.
+    fn give(&self, s: Scratch) {
+        self.pool.lock().unwrap_or_else(|e| e.into_inner()).push(s);
+    }
+
     /// The split of a node, or `None` for a leaf (empty, too deep, or no cheaper plane).
     fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32) -> Option<Split> {
         if n == 0 || depth >= self.depth_limit {
@@ -174,25 +202,24 @@ enum Sub {
 /// child), reused down the recursion so deep nodes allocate nothing.
 struct Seq<'c, 'a> {
     ctx: &'c Ctx<'a>,
-    class: Vec<u8>,
-    scratch: SplitScratch,
-    levels: Vec<[Lists; 2]>,
+    scratch: Scratch,
     nodes: Vec<KdNode>,
     refs: Vec<u32>,
 }
 
 impl Seq<'_, '_> {
     fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
-        let Some(s) = self.ctx.decide(&self.levels[d][side], n, &b, depth) else {
-            self.nodes[idx] = make_leaf(&self.levels[d][side], &mut self.refs)?;
+        let Scratch { class, split, levels } = &mut self.scratch;
+        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth) else {
+            self.nodes[idx] = make_leaf(&levels[d][side], &mut self.refs)?;
             return Ok(());
         };
-        if self.levels.len() < d + 2 {
-            self.levels.push(Default::default());
+        if levels.len() < d + 2 {
+            levels.push(Default::default());
         }
-        let (cur, next) = self.levels.split_at_mut(d + 1);
+        let (cur, next) = levels.split_at_mut(d + 1);
         let [l, r] = &mut next[0];
-        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, &mut self.class, &mut self.scratch, l, r);
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r);
         let c = self.nodes.len();
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
@@ -205,15 +232,15 @@ impl Seq<'_, '_> {
 /// Builds the subtree of a node with `n` triangles whose sorted events are `lists`.
 fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<Sub, BuildError> {
     if n < PAR_MIN_TRIS {
-        let mut seq = Seq {
-            ctx,
-            class: vec![0; ctx.tris.len()],
-            scratch: SplitScratch::default(),
-            levels: vec![[lists, Lists::default()]],
-            nodes: vec![KdNode::leaf(0, 0)],
-            refs: Vec::new(),
-        };
-        seq.node(0, 0, n, b, depth, 0)?;
+        let mut scratch = ctx.take();
+        if scratch.levels.is_empty() {
+            scratch.levels.push(Default::default());
+        }
+        scratch.levels[0][0] = lists;
+        let mut seq = Seq { ctx, scratch, nodes: vec![KdNode::leaf(0, 0)], refs: Vec::new() };
+        let done = seq.node(0, 0, n, b, depth, 0);
+        ctx.give(seq.scratch);
+        done?;
         return Ok(Sub::Chunk(Chunk { nodes: seq.nodes, refs: seq.refs }));
     }
     let Some(s) = ctx.decide(&lists, n, &b, depth) else {
@@ -223,9 +250,10 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
     };
     let (mut left, mut right) = (Lists::default(), Lists::default());
     let (nl, nr) = {
-        let mut class = vec![0u8; ctx.tris.len()];
-        let mut scratch = SplitScratch::default();
-        split_lists(ctx.tris, &lists, &b, &s, &mut class, &mut scratch, &mut left, &mut right)
+        let mut scratch = ctx.take();
+        let r = split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right);
+        ctx.give(scratch);
+        r
     };
     drop(lists);
     let (bl, br) = child_boxes(&b, &s);
@@ -288,6 +316,7 @@ pub(crate) fn build_nodes(
             empty_factor: 1.0 - f64::from(config.empty_bonus),
         },
         depth_limit: config.depth_limit(n),
+        pool: Mutex::new(Vec::new()),
     };
     let mut lists: [Vec<u64>; 3] = Default::default();
     for l in &mut lists {

@@ -2,7 +2,7 @@
 //! section 4.2, algorithm 4), with the planar-triangle side rule (section 3.3: triangles lying
 //! in the plane go to the side that gives the lower cost).
 
-use super::events::{END, PLANAR, START, ev_key, ev_type, key_pos};
+use super::events::{END, PLANAR, START, ev_key, ev_type, key_pos, pos_key};
 use crate::Aabb;
 
 /// The SAH terms in `f64` (thesis 2.2.1; MacDonald & Booth 1990).
@@ -55,8 +55,11 @@ pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs) 
         return None;
     }
     let inv_sa = 1.0 / sa;
-    let mut best: Option<Split> = None;
-    let mut best_cost = f64::INFINITY;
+    // Cost = c_trav + scale * (n_l * A_l + n_r * A_r) with A = SA / 2 of a child.
+    let scale = costs.c_isect * 2.0 * inv_sa;
+    let (c_trav, factor) = (costs.c_trav, costs.empty_factor);
+    let (mut best_cost, mut best_axis, mut best_key, mut best_left) = (f64::INFINITY, 3usize, 0u32, true);
+    let nf = n as f64;
     for (k, ev) in lists.iter().enumerate() {
         if e[k] <= 0.0 {
             continue;
@@ -65,45 +68,55 @@ pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs) 
         let cross = e[o1] * e[o2];
         let sum = e[o1] + e[o2];
         let (lo, hi) = (b.min[k], b.max[k]);
+        let (lo_key, hi_key) = (pos_key(lo), pos_key(hi));
         let lo64 = f64::from(lo);
-        let hi64 = f64::from(hi);
-        // Scale once: cost = c_trav + c_isect * (nl * sa_l + nr * sa_r) / sa.
-        let scale = costs.c_isect * 2.0 * inv_sa;
-        let (mut nl, mut nr) = (0usize, n);
-        let mut i = 0;
-        let len = ev.len();
-        while i < len {
-            let key = ev_key(ev[i]);
-            let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
-            while i < len && ev_key(ev[i]) == key {
-                let t = ev_type(ev[i]);
-                pe += usize::from(t == END);
-                pp += usize::from(t == PLANAR);
-                ps += usize::from(t == START);
-                i += 1;
-            }
-            nr -= pe + pp;
-            let p = key_pos(key);
-            if p > lo && p < hi {
-                let p64 = f64::from(p);
-                let sa_l = cross + (p64 - lo64) * sum;
-                let sa_r = cross + (hi64 - p64) * sum;
-                let cost_of = |l: usize, r: usize| {
-                    let c = costs.c_trav + scale * (l as f64 * sa_l + r as f64 * sa_r);
-                    if l == 0 || r == 0 { c * costs.empty_factor } else { c }
-                };
-                let c_left = cost_of(nl + pp, nr);
-                let c_right = if pp > 0 { cost_of(nl, nr + pp) } else { f64::INFINITY };
-                let (c, planar_left) = if c_left <= c_right { (c_left, true) } else { (c_right, false) };
-                if c < best_cost {
-                    best_cost = c;
-                    best = Some(Split { axis: k, pos: p, planar_left, cost: c });
+        let ext = e[k];
+        // Counts as f64: they only feed the cost, and exact up to 2^53.
+        let (mut nl, mut nr) = (0.0f64, nf);
+        let mut it = ev.iter().copied();
+        let mut next = it.next();
+        while let Some(e) = next {
+            let key = ev_key(e);
+            // The group of events at this position: ends, then planars, then starts.
+            let t = ev_type(e);
+            let (mut pe, mut pp, mut ps) = (u32::from(t == END), u32::from(t == PLANAR), u32::from(t == START));
+            loop {
+                next = it.next();
+                match next {
+                    Some(e2) if ev_key(e2) == key => {
+                        let t2 = ev_type(e2);
+                        pe += u32::from(t2 == END);
+                        pp += u32::from(t2 == PLANAR);
+                        ps += u32::from(t2 == START);
+                    }
+                    _ => break,
                 }
             }
-            nl += ps + pp;
+            let ppf = f64::from(pp);
+            nr -= f64::from(pe) + ppf;
+            if key > lo_key && key < hi_key {
+                let d = f64::from(key_pos(key)) - lo64;
+                let (a_l, a_r) = (cross + d * sum, cross + (ext - d) * sum);
+                let base = nl * a_l + nr * a_r;
+                let f_l = if nl + ppf == 0.0 || nr == 0.0 { factor } else { 1.0 };
+                let mut c = (c_trav + scale * (base + ppf * a_l)) * f_l;
+                let mut left = true;
+                if pp > 0 {
+                    let f_r = if nl == 0.0 || nr + ppf == 0.0 { factor } else { 1.0 };
+                    let c_right = (c_trav + scale * (base + ppf * a_r)) * f_r;
+                    if c_right < c {
+                        c = c_right;
+                        left = false;
+                    }
+                }
+                if c < best_cost {
+                    (best_cost, best_axis, best_key, best_left) = (c, k, key, left);
+                }
+            }
+            nl += f64::from(ps) + ppf;
         }
     }
-    best
+    (best_axis < 3).then(|| Split { axis: best_axis, pos: key_pos(best_key), planar_left: best_left, cost: best_cost })
 }
 
 #[cfg(test)]

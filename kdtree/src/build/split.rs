@@ -86,48 +86,74 @@ pub(crate) fn split_lists(
             }
         }
     }
-    // Copy the one-sided triangles' events, branch-free: every event is written to both
-    // outputs and each output's cursor advances only for its own side.
-    for a in 0..3 {
-        let src = lists.axis(a);
-        let l = left.writable(a, src.len());
-        let r = right.writable(a, src.len());
-        let (mut il, mut ir) = (0usize, 0usize);
-        for &e in src {
-            let c = class[ev_prim(e) as usize];
-            l[il] = e;
-            r[ir] = e;
-            il += usize::from(c == LEFT);
-            ir += usize::from(c == RIGHT);
-        }
-        left.set_len(a, il);
-        right.set_len(a, ir);
-    }
-    if scratch.both.is_empty() {
-        return (nl, nr);
-    }
-    let (lo, hi) = (b.min.to_array(), b.max.to_array());
+    // Clip the straddling triangles to both children first; their new events (few) are
+    // sorted and then merged into the copy below.
     let [new_l, new_r] = &mut scratch.new;
     for v in new_l.iter_mut().chain(new_r.iter_mut()) {
         v.clear();
     }
-    for &prim in &scratch.both {
-        let tri = &tris[prim as usize];
-        let (l, r) = clipped_split_bounds(tri, lo, hi, k, s.pos);
-        if let Some((lo, hi)) = l {
-            push_box_events(new_l, prim, lo, hi);
-            nl += 1;
+    if !scratch.both.is_empty() {
+        let (lo, hi) = (b.min.to_array(), b.max.to_array());
+        for &prim in &scratch.both {
+            let tri = &tris[prim as usize];
+            let (l, r) = clipped_split_bounds(tri, lo, hi, k, s.pos);
+            if let Some((lo, hi)) = l {
+                push_box_events(new_l, prim, lo, hi);
+                nl += 1;
+            }
+            if let Some((lo, hi)) = r {
+                push_box_events(new_r, prim, lo, hi);
+                nr += 1;
+            }
         }
-        if let Some((lo, hi)) = r {
-            push_box_events(new_r, prim, lo, hi);
-            nr += 1;
+        for a in 0..3 {
+            new_l[a].sort_unstable();
+            new_r[a].sort_unstable();
         }
     }
+    // Copy the one-sided triangles' events, branch-free: every event is written to both
+    // outputs and each output's cursor advances only for its own side. The new events are
+    // merged in on the way (a straddling triangle's old events are dropped: class BOTH).
     for a in 0..3 {
-        new_l[a].sort_unstable();
-        new_r[a].sort_unstable();
-        left.merge(a, &new_l[a]);
-        right.merge(a, &new_r[a]);
+        let src = lists.axis(a);
+        let (xl, xr) = (&new_l[a][..], &new_r[a][..]);
+        let l = left.writable(a, src.len() + xl.len());
+        let r = right.writable(a, src.len() + xr.len());
+        let (mut il, mut ir) = (0usize, 0usize);
+        if xl.is_empty() && xr.is_empty() {
+            for &e in src {
+                let c = class[ev_prim(e) as usize];
+                l[il] = e;
+                r[ir] = e;
+                il += usize::from(c == LEFT);
+                ir += usize::from(c == RIGHT);
+            }
+        } else {
+            let (mut jl, mut jr) = (0usize, 0usize);
+            for &e in src {
+                while jl < xl.len() && xl[jl] < e {
+                    l[il] = xl[jl];
+                    il += 1;
+                    jl += 1;
+                }
+                while jr < xr.len() && xr[jr] < e {
+                    r[ir] = xr[jr];
+                    ir += 1;
+                    jr += 1;
+                }
+                let c = class[ev_prim(e) as usize];
+                l[il] = e;
+                r[ir] = e;
+                il += usize::from(c == LEFT);
+                ir += usize::from(c == RIGHT);
+            }
+            l[il..il + xl.len() - jl].copy_from_slice(&xl[jl..]);
+            il += xl.len() - jl;
+            r[ir..ir + xr.len() - jr].copy_from_slice(&xr[jr..]);
+            ir += xr.len() - jr;
+        }
+        left.set_len(a, il);
+        right.set_len(a, ir);
     }
     (nl, nr)
 }
