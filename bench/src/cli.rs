@@ -27,10 +27,11 @@ pub const MAX_PIXELS: u64 = 1 << 25;
 
 /// Fast kd-tree ray tracing: build trees and render scenes (after Tsakok 2008, "RTTest").
 ///
-/// Without a command, builds the `atrium` scene, renders its default view at 512x512 with hard
-/// shadows into `atrium.png` and prints the build time, tree statistics and ray throughput.
+/// Without a command, builds the atrium scene, renders its default view at 512x512 with hard
+/// shadows into atrium.png and prints the build time, tree statistics and ray throughput.
+/// --threads and --json go before or after the command.
 #[derive(Debug, Parser)]
-#[command(name = "rttest", version, about, long_about = None)]
+#[command(name = "rttest", version)]
 pub struct Cli {
     /// Options of every command.
     #[command(flatten)]
