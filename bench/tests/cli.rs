@@ -57,6 +57,10 @@ fn build_json_has_the_tree_statistics() {
     assert_eq!(v["intersector"], "wald");
     let v = json(&rttest(&dir, &["build", "--scene", "cube", "--intersector", "watertight", "--json"]));
     assert_eq!(v["intersector"], "watertight");
+    // Global flags may also come before the command.
+    let v = json(&rttest(&dir, &["--threads", "1", "--json", "build", "--scene", "triangle"]));
+    assert_eq!(v["threads"], 1);
+    assert_eq!(v["triangles"], 1);
 }
 
 #[test]
