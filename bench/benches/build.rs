@@ -1,1 +1,62 @@
-fn main() {}
+//! Build-time benches: every built-in scene, Sponza when the shared scenes are present, and
+//! the atrium refined to 1, 2, 4 and 8 times its triangles (how the build scales with N).
+//!
+//! Scenes are loaded outside the timed loop; only `KdTree::build` is timed. Few samples and
+//! short measurement times keep the whole suite at a few minutes on two cores.
+
+use std::time::Duration;
+
+use bench::harness;
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use kdtree::{BuildConfig, KdTree};
+use scenes::Mesh;
+
+fn bench_mesh(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    id: BenchmarkId,
+    mesh: &Mesh,
+) {
+    let config = BuildConfig::default();
+    group.throughput(Throughput::Elements(mesh.triangle_count() as u64));
+    group.bench_with_input(id, mesh, |b, mesh| {
+        b.iter(|| KdTree::build(&mesh.positions, &mesh.triangles, &config).expect("build"))
+    });
+}
+
+fn builtin_scenes(c: &mut Criterion) {
+    let mut group = c.benchmark_group("build");
+    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2));
+    for name in scenes::builtin::NAMES {
+        let scene = scenes::load_scene(name).expect("built-in scene");
+        bench_mesh(&mut group, BenchmarkId::from_parameter(name), &scene.mesh);
+    }
+    match harness::sponza_path() {
+        Some(path) => {
+            let scene = scenes::load_scene(&path.to_string_lossy()).expect("sponza");
+            group.measurement_time(Duration::from_secs(10));
+            bench_mesh(&mut group, BenchmarkId::from_parameter("sponza"), &scene.mesh);
+        }
+        None => eprintln!("build/sponza: skipped, no shared scenes folder"),
+    }
+    group.finish();
+}
+
+fn scaling(c: &mut Criterion) {
+    let mut group = c.benchmark_group("build-scaling");
+    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+    let atrium = scenes::load_scene("atrium").expect("atrium");
+    for doublings in 0..=3 {
+        let mesh = harness::refined(&atrium.mesh, doublings);
+        let id = BenchmarkId::new("atrium", format!("{}N-{}", 1 << doublings, mesh.triangle_count()));
+        bench_mesh(&mut group, id, &mesh);
+    }
+    group.finish();
+}
+
+/// The bench group (`criterion_group!` makes an undocumented public function).
+#[allow(missing_docs)]
+mod group {
+    use super::*;
+    criterion_group!(benches, builtin_scenes, scaling);
+}
+criterion_main!(group::benches);

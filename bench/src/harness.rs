@@ -1,0 +1,109 @@
+//! Scene, tree and ray setup shared by the criterion benches (and usable from tests).
+//!
+//! Everything here runs *outside* the timed loops: a bench loads a [`Workload`] once, then
+//! times only [`trace_closest`] or [`trace_any`] over its precomputed rays.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use kdtree::{BuildConfig, KdTree, Ray};
+use rayon::prelude::*;
+use scenes::{Camera, Mesh, Scene};
+
+use crate::{Error, render, shade};
+
+/// The Sponza file in the shared scenes folder, if it is there.
+pub fn sponza_path() -> Option<PathBuf> {
+    shared_scene("sponza-dabrovic.obj.gz")
+}
+
+/// A file in the shared scenes folder ([`scenes::shared_scenes_dir`]), if it is there.
+pub fn shared_scene(file: &str) -> Option<PathBuf> {
+    let path = scenes::shared_scenes_dir()?.join(file);
+    path.is_file().then_some(path)
+}
+
+/// Loads `spec` (a built-in name or a path) and builds its tree with `config`.
+/// Returns the scene, the tree and the build time in milliseconds.
+pub fn load_and_build(spec: &str, config: &BuildConfig) -> Result<(Scene, KdTree, f64), Error> {
+    let scene = scenes::load_scene(spec)?;
+    let start = Instant::now();
+    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, config)?;
+    Ok((scene, tree, start.elapsed().as_secs_f64() * 1e3))
+}
+
+/// A scene with its tree and the rays of one frame: the primary rays of a camera and the
+/// shadow rays from their hits towards the scene's point light.
+#[derive(Debug)]
+pub struct Workload {
+    /// The scene.
+    pub scene: Scene,
+    /// Its tree (default build configuration).
+    pub tree: KdTree,
+    /// The camera the rays come from.
+    pub camera: Camera,
+    /// One primary ray per pixel, row-major.
+    pub primary: Vec<Ray>,
+    /// One shadow ray per primary hit facing the light.
+    pub shadow: Vec<Ray>,
+}
+
+impl Workload {
+    /// The workload of `spec` seen from its view `view` (its default view when `None`) at
+    /// `width` x `height`.
+    pub fn new(spec: &str, view: Option<&str>, width: u32, height: u32) -> Result<Workload, Error> {
+        let (scene, tree, _) = load_and_build(spec, &BuildConfig::default())?;
+        let view = match view {
+            Some(name) => scene.view(name)?,
+            None => scene.default_view(),
+        };
+        let camera = view
+            .camera(width, height)
+            .ok_or_else(|| Error::Usage(format!("view '{}' gives a degenerate camera", view.name)))?;
+        Ok(Self::with_camera(scene, tree, camera))
+    }
+
+    /// The workload of a loaded scene and tree seen by `camera`.
+    pub fn with_camera(scene: Scene, tree: KdTree, camera: Camera) -> Workload {
+        let primary = primary_rays(&camera);
+        let shadow = shadow_rays(&scene, &tree, &primary);
+        Workload { scene, tree, camera, primary, shadow }
+    }
+}
+
+/// The primary rays of every pixel of `camera`, row-major.
+pub fn primary_rays(camera: &Camera) -> Vec<Ray> {
+    (0..camera.height).flat_map(|y| (0..camera.width).map(move |x| render::primary_ray(camera, x, y))).collect()
+}
+
+/// The shadow rays of the hits of `primary` towards the scene's point light (one per hit
+/// facing the light), in the order of `primary`.
+pub fn shadow_rays(scene: &Scene, tree: &KdTree, primary: &[Ray]) -> Vec<Ray> {
+    primary
+        .par_iter()
+        .filter_map(|ray| {
+            let hit = tree.intersect(ray)?;
+            shade::shadow_ray(&scene.mesh, &scene.point_light, ray.origin, ray.dir, &hit)
+        })
+        .collect()
+}
+
+/// Closest-hit queries for all `rays` on the current rayon pool; returns the number of hits.
+pub fn trace_closest(tree: &KdTree, rays: &[Ray]) -> usize {
+    rays.par_chunks(256).map(|chunk| chunk.iter().filter(|r| tree.intersect(r).is_some()).count()).sum()
+}
+
+/// Any-hit queries for all `rays` on the current rayon pool; returns the number occluded.
+pub fn trace_any(tree: &KdTree, rays: &[Ray]) -> usize {
+    rays.par_chunks(256).map(|chunk| chunk.iter().filter(|r| tree.occluded(r)).count()).sum()
+}
+
+/// `mesh` with its triangle count multiplied by `2^doublings`, for build-scaling benches
+/// (each doubling is [`Mesh::split_longest_edges`]).
+pub fn refined(mesh: &Mesh, doublings: u32) -> Mesh {
+    let mut mesh = mesh.clone();
+    for _ in 0..doublings {
+        mesh = mesh.split_longest_edges();
+    }
+    mesh
+}

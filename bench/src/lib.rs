@@ -1,0 +1,45 @@
+//! The `rttest` command line tool and the shared harness of the criterion benches.
+//!
+//! The tool re-creates the "RTTest" application of Tsakok's thesis (2008): it loads a scene,
+//! builds its kd-tree, renders it with a chosen traversal method and reports build time, tree
+//! statistics and ray throughput, for people (a table) or for scripts (`--json`).
+//!
+//! ```text
+//! rttest                                   # atrium, 512x512, hard shadows -> atrium.png + report
+//! rttest build  --scene NAME|FILE.obj[.gz] [--intersector wald|watertight] [--repeat N]
+//! rttest render --scene NAME|FILE.obj[.gz] [--view NAME | --camera ex,ey,ez,tx,ty,tz,fovy]
+//!               [--size WxH] [--shadows none|hard] [--aov color|depth|prim] [--out FILE]
+//!               [--frames N] [--method mono] [--intersector wald|watertight] [--counters]
+//! global flags: --threads N (rayon pool size, default all cores), --json (one object per line)
+//! ```
+//!
+//! `build --json` keys: `scene, build_ms, load_ms, threads, intersector, triangles,
+//! triangles_in_tree, nodes, inner_nodes, leaves, empty_leaves, depth, refs,
+//! refs_per_triangle, avg_tris_per_leaf, sah_cost, bytes`.
+//!
+//! `render --json` keys: `scene, method, view, width, height, threads, intersector, shadows,
+//! aov, triangles, build_ms, frames, rays, primary_rays, shadow_rays, hits, occluded,
+//! trace_secs, primary_secs, shadow_secs, mrays_per_s, primary_mrays_per_s,
+//! shadow_mrays_per_s, shade_secs, write_secs, out` and, with `--counters`,
+//! `{primary,shadow}_{nodes,leaves,isects}_per_ray`. `trace_secs` is the best frame's ray
+//! generation + traversal + intersection (primary and shadow passes), never shading or I/O.
+//!
+//! Modules, one concept each:
+//! - [`cli`]: the command line (clap) and the driver that runs one command;
+//! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
+//!   per-pixel buffers, shading and image output come after and are timed apart;
+//! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
+//! - [`report`]: tree statistics and the text / JSON reports;
+//! - [`progress`]: progress bars that only appear for work taking more than a second;
+//! - [`harness`]: scene, tree and ray setup shared by the benches (and the tests);
+//! - [`error`]: the one error type, printed as a single line by the binary.
+
+pub mod cli;
+pub mod error;
+pub mod harness;
+pub mod progress;
+pub mod render;
+pub mod report;
+pub mod shade;
+
+pub use error::Error;

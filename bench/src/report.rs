@@ -1,0 +1,240 @@
+//! The reports: tree statistics, build and render results, as a text table or one JSON object.
+//!
+//! The JSON field names are the interface to scripts (the README tables are made from them);
+//! keep them stable. Times are in the unit their name says (`_ms`, `_secs`).
+
+use std::fmt;
+
+use kdtree::{KdTree, TraversalCounts};
+use serde::Serialize;
+
+/// The statistics of a built kd-tree, as reported by `rttest build`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct TreeSummary {
+    /// Triangles given to the build (including degenerate ones).
+    pub triangles: u64,
+    /// Non-degenerate triangles, the ones the tree holds.
+    pub triangles_in_tree: u64,
+    /// Nodes, inner and leaf.
+    pub nodes: u64,
+    /// Inner nodes.
+    pub inner_nodes: u64,
+    /// Leaves, empty or not.
+    pub leaves: u64,
+    /// Leaves without triangles.
+    pub empty_leaves: u64,
+    /// Depth of the deepest leaf (the root alone has depth 0).
+    pub depth: u64,
+    /// Triangle references in leaves.
+    pub refs: u64,
+    /// `refs / triangles_in_tree`: how often perfect splits duplicate a triangle.
+    pub refs_per_triangle: f64,
+    /// Mean triangles per non-empty leaf.
+    pub avg_tris_per_leaf: f64,
+    /// The SAH cost of the tree relative to its root box (thesis 2.2.1).
+    pub sah_cost: f64,
+    /// Memory of the tree: nodes, references and per-triangle intersection records.
+    pub bytes: u64,
+}
+
+impl TreeSummary {
+    /// The statistics of `tree`, as [`KdTree::stats`] computes them.
+    pub fn of(tree: &KdTree) -> TreeSummary {
+        let s = tree.stats();
+        TreeSummary {
+            triangles: s.triangles as u64,
+            triangles_in_tree: s.triangles_in_tree as u64,
+            nodes: s.nodes as u64,
+            inner_nodes: s.inner_nodes as u64,
+            leaves: s.leaves as u64,
+            empty_leaves: s.empty_leaves as u64,
+            depth: s.depth as u64,
+            refs: s.refs as u64,
+            refs_per_triangle: s.refs_per_triangle,
+            avg_tris_per_leaf: s.avg_tris_per_nonempty_leaf,
+            sah_cost: s.sah_cost,
+            bytes: s.bytes as u64,
+        }
+    }
+}
+
+/// The result of building one scene's tree (`rttest build`, and the head of `rttest render`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BuildReport {
+    /// Scene name.
+    pub scene: String,
+    /// Milliseconds to build the tree (the best of `--repeat` builds).
+    pub build_ms: f64,
+    /// Milliseconds to load or generate the scene.
+    pub load_ms: f64,
+    /// Threads in the pool the build ran on.
+    pub threads: usize,
+    /// The ray-triangle test the tree was built for (`wald` or `watertight`).
+    pub intersector: String,
+    /// The tree's statistics (flattened into the JSON object).
+    #[serde(flatten)]
+    pub tree: TreeSummary,
+}
+
+/// The result of rendering one scene (`rttest render`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RenderReport {
+    /// Scene name.
+    pub scene: String,
+    /// The traversal method (`mono`).
+    pub method: String,
+    /// The view rendered (`custom` for `--camera`).
+    pub view: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Threads in the pool.
+    pub threads: usize,
+    /// The ray-triangle test (`wald` or `watertight`).
+    pub intersector: String,
+    /// `none` or `hard`.
+    pub shadows: String,
+    /// `color`, `depth` or `prim`.
+    pub aov: String,
+    /// Triangles in the scene.
+    pub triangles: u64,
+    /// Milliseconds to build the tree.
+    pub build_ms: f64,
+    /// Frames traced; the times are the best (minimum) over them.
+    pub frames: u32,
+    /// Rays traced in one frame: `primary_rays + shadow_rays`.
+    pub rays: u64,
+    /// Primary rays in one frame (one per pixel).
+    pub primary_rays: u64,
+    /// Shadow rays in one frame (one per primary hit facing the light, with shadows on).
+    pub shadow_rays: u64,
+    /// Primary rays that hit.
+    pub hits: u64,
+    /// Shadow rays that found a blocker.
+    pub occluded: u64,
+    /// Best frame's seconds for ray generation, traversal and intersection (both passes).
+    pub trace_secs: f64,
+    /// Best seconds of the primary pass alone.
+    pub primary_secs: f64,
+    /// Best seconds of the shadow pass alone (0 without shadows).
+    pub shadow_secs: f64,
+    /// `rays / trace_secs / 1e6`.
+    pub mrays_per_s: f64,
+    /// `primary_rays / primary_secs / 1e6`.
+    pub primary_mrays_per_s: f64,
+    /// `shadow_rays / shadow_secs / 1e6` (0 without shadows).
+    pub shadow_mrays_per_s: f64,
+    /// Seconds to shade (or extract the AOV) into the image, once.
+    pub shade_secs: f64,
+    /// Seconds to write the image file.
+    pub write_secs: f64,
+    /// The image file written.
+    pub out: String,
+    /// Traversal work per ray, with `--counters` (flattened into the JSON object).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub traversal: Option<TraversalReport>,
+}
+
+/// Mean traversal work per ray, from one counted frame (`--counters`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct TraversalReport {
+    /// Nodes fetched per primary ray (inner and leaf).
+    pub primary_nodes_per_ray: f64,
+    /// Leaves visited per primary ray.
+    pub primary_leaves_per_ray: f64,
+    /// Ray-triangle tests per primary ray.
+    pub primary_isects_per_ray: f64,
+    /// Nodes fetched per shadow ray.
+    pub shadow_nodes_per_ray: f64,
+    /// Leaves visited per shadow ray.
+    pub shadow_leaves_per_ray: f64,
+    /// Ray-triangle tests per shadow ray.
+    pub shadow_isects_per_ray: f64,
+}
+
+impl TraversalReport {
+    /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays.
+    pub fn new(primary_rays: u64, primary: TraversalCounts, shadow_rays: u64, shadow: TraversalCounts) -> Self {
+        let per = |n: u64, rays: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
+        TraversalReport {
+            primary_nodes_per_ray: per(primary.nodes, primary_rays),
+            primary_leaves_per_ray: per(primary.leaves, primary_rays),
+            primary_isects_per_ray: per(primary.isects, primary_rays),
+            shadow_nodes_per_ray: per(shadow.nodes, shadow_rays),
+            shadow_leaves_per_ray: per(shadow.leaves, shadow_rays),
+            shadow_isects_per_ray: per(shadow.isects, shadow_rays),
+        }
+    }
+}
+
+/// Millions of rays per second, 0 when nothing was timed.
+pub fn mrays_per_s(rays: u64, secs: f64) -> f64 {
+    if secs > 0.0 { rays as f64 / secs / 1e6 } else { 0.0 }
+}
+
+/// Bytes in a human unit.
+fn human_bytes(bytes: u64) -> String {
+    const MIB: f64 = 1024.0 * 1024.0;
+    if bytes as f64 >= MIB {
+        format!("{:.1} MiB", bytes as f64 / MIB)
+    } else {
+        format!("{:.1} KiB", bytes as f64 / 1024.0)
+    }
+}
+
+impl fmt::Display for BuildReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = &self.tree;
+        writeln!(f, "scene        {} ({} triangles, {} in tree)", self.scene, t.triangles, t.triangles_in_tree)?;
+        writeln!(f, "load         {:.1} ms", self.load_ms)?;
+        writeln!(
+            f,
+            "build        {:.1} ms ({} threads, {} intersector)",
+            self.build_ms, self.threads, self.intersector
+        )?;
+        writeln!(
+            f,
+            "nodes        {} ({} inner, {} leaves of which {} empty)",
+            t.nodes, t.inner_nodes, t.leaves, t.empty_leaves
+        )?;
+        writeln!(f, "depth        {}", t.depth)?;
+        writeln!(
+            f,
+            "refs         {} ({:.2} per triangle, {:.2} per non-empty leaf)",
+            t.refs, t.refs_per_triangle, t.avg_tris_per_leaf
+        )?;
+        writeln!(f, "SAH cost     {:.2}", t.sah_cost)?;
+        write!(f, "memory       {}", human_bytes(t.bytes))
+    }
+}
+
+impl fmt::Display for RenderReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "render       {}x{}, view {}, method {}, shadows {}, {} threads",
+            self.width, self.height, self.view, self.method, self.shadows, self.threads
+        )?;
+        writeln!(
+            f,
+            "rays         {} = {} primary ({} hits) + {} shadow ({} blocked)",
+            self.rays, self.primary_rays, self.hits, self.shadow_rays, self.occluded
+        )?;
+        writeln!(
+            f,
+            "trace        {:.4} s (best of {} frame{}): {:.2} Mrays/s (primary {:.2}, shadow {:.2})",
+            self.trace_secs,
+            self.frames,
+            if self.frames == 1 { "" } else { "s" },
+            self.mrays_per_s,
+            self.primary_mrays_per_s,
+            self.shadow_mrays_per_s
+        )?;
+        write!(
+            f,
+            "output       {} ({}: shade {:.4} s, write {:.4} s)",
+            self.out, self.aov, self.shade_secs, self.write_secs
+        )
+    }
+}

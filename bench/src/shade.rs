@@ -1,0 +1,125 @@
+//! Shadow rays and the diffuse shading of the thesis's benchmark renders.
+//!
+//! The model (Tsakok 2008, 4.1): Lambertian surfaces lit by one point light with
+//! inverse-square attenuation, plus a small ambient term so that shadowed and back-facing
+//! surfaces are not pitch black. The surface normal is the triangle's geometric normal, or the
+//! interpolated vertex normal where the mesh has normals, turned to face the viewer.
+
+use glam::Vec3;
+use kdtree::{Hit, Ray};
+use scenes::{Mesh, PointLight};
+
+/// The ambient term: the fraction of the material's diffuse colour seen without any light.
+pub const AMBIENT: f32 = 0.08;
+
+/// The colour of pixels whose primary ray hits nothing.
+pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.02, 0.03);
+
+/// The geometric normal of the hit triangle, turned to face the incoming ray `dir`.
+#[inline]
+pub fn facing_normal(mesh: &Mesh, hit: &Hit, dir: Vec3) -> Vec3 {
+    let n = mesh.geometric_normal(hit.prim as usize);
+    if n.dot(dir) > 0.0 { -n } else { n }
+}
+
+/// The shadow ray from the primary hit `hit` of the ray `origin + t * dir` towards `light`,
+/// or `None` when the surface faces away from the light (it is unlit whatever lies between).
+///
+/// The origin is moved off the surface with [`kdtree::ray::offset_origin`], the workspace's
+/// one scheme; the direction is unnormalised and reaches the light at `t = 1`.
+#[inline]
+pub fn shadow_ray(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
+    let n = facing_normal(mesh, hit, dir);
+    let p = origin + hit.t * dir;
+    let to_light = light.position - p;
+    if n.dot(to_light) <= 0.0 {
+        return None;
+    }
+    let start = kdtree::ray::offset_origin(p, n, to_light);
+    Some(Ray::new(start, light.position - start, 0.0, 1.0))
+}
+
+/// The colour of the primary hit `hit` of the ray `origin + t * dir`.
+///
+/// `occluded` says whether the shadow ray found a blocker (always `false` without shadows);
+/// a surface facing away from the light gets only the ambient term either way.
+pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit, occluded: bool) -> Vec3 {
+    let prim = hit.prim as usize;
+    let diffuse = mesh
+        .material_ids
+        .get(prim)
+        .and_then(|&m| mesh.materials.get(m as usize))
+        .map_or(Vec3::splat(0.75), |m| m.diffuse);
+    let mut color = AMBIENT * diffuse;
+    if occluded {
+        return color;
+    }
+    let geometric = facing_normal(mesh, hit, dir);
+    let p = origin + hit.t * dir;
+    let to_light = light.position - p;
+    let dist2 = to_light.length_squared();
+    if geometric.dot(to_light) <= 0.0 || dist2 <= 0.0 {
+        return color;
+    }
+    let normal = shading_normal(mesh, hit).map_or(geometric, |n| if n.dot(geometric) < 0.0 { -n } else { n });
+    let cos = normal.dot(to_light) / dist2.sqrt();
+    if cos > 0.0 {
+        color += diffuse * light.intensity * (cos / dist2);
+    }
+    color
+}
+
+/// The interpolated vertex normal at the hit, where the mesh has normals and they do not
+/// cancel out.
+fn shading_normal(mesh: &Mesh, hit: &Hit) -> Option<Vec3> {
+    let normals = mesh.normals.as_ref()?;
+    let [a, b, c] = *mesh.triangles.get(hit.prim as usize)?;
+    let w = 1.0 - hit.u - hit.v;
+    let n = w * *normals.get(a as usize)? + hit.u * *normals.get(b as usize)? + hit.v * *normals.get(c as usize)?;
+    n.try_normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scenes::Material;
+
+    fn floor() -> Mesh {
+        Mesh {
+            positions: vec![Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0)],
+            triangles: vec![[0, 2, 1]],
+            normals: None,
+            material_ids: vec![0],
+            materials: vec![Material { name: "m".into(), diffuse: Vec3::ONE }],
+            prim_ids: vec![0],
+        }
+    }
+
+    #[test]
+    fn shadow_ray_leaves_the_surface_towards_the_light() {
+        let mesh = floor();
+        let light = PointLight { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::ONE };
+        let hit = Hit { t: 1.0, u: 0.3, v: 0.3, prim: 0 };
+        let ray = shadow_ray(&mesh, &light, Vec3::new(0.0, 1.0, 0.0), -Vec3::Y, &hit).unwrap();
+        assert!(ray.origin.y > 0.0);
+        assert!((ray.at(1.0) - light.position).length() < 1e-6);
+        // A light below the floor, seen from above: the surface faces away, no ray.
+        let below = PointLight { position: Vec3::new(0.0, -2.0, 0.0), intensity: Vec3::ONE };
+        assert!(shadow_ray(&mesh, &below, Vec3::new(0.0, 1.0, 0.0), -Vec3::Y, &hit).is_none());
+    }
+
+    #[test]
+    fn lit_is_brighter_than_shadowed_and_follows_inverse_square() {
+        let mesh = floor();
+        let hit = Hit { t: 1.0, u: 0.3, v: 0.3, prim: 0 };
+        let near = PointLight { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE };
+        let far = PointLight { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::ONE };
+        let o = Vec3::new(0.0, 1.0, 0.0);
+        let lit = shade(&mesh, &near, o, -Vec3::Y, &hit, false);
+        let dark = shade(&mesh, &near, o, -Vec3::Y, &hit, true);
+        assert!(lit.x > dark.x);
+        assert!((dark.x - AMBIENT).abs() < 1e-6);
+        let lit_far = shade(&mesh, &far, o, -Vec3::Y, &hit, false);
+        assert!(((lit.x - AMBIENT) / (lit_far.x - AMBIENT) - 4.0).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,170 @@
+//! End-to-end tests of the `rttest` binary on tiny scenes.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// A fresh, empty scratch folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rttest-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+/// Runs `rttest args` in `dir`.
+fn rttest(dir: &PathBuf, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rttest")).args(args).current_dir(dir).output().expect("run rttest")
+}
+
+/// The single JSON object that a successful `--json` run prints.
+fn json(out: &Output) -> serde_json::Value {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(stdout.lines().count(), 1, "stdout is not one line: {stdout}");
+    serde_json::from_str(&stdout).expect("stdout is JSON")
+}
+
+fn assert_keys(v: &serde_json::Value, keys: &[&str]) {
+    for k in keys {
+        assert!(v.get(k).is_some(), "key {k} missing from {v}");
+    }
+}
+
+#[test]
+fn build_json_has_the_tree_statistics() {
+    let dir = scratch("build");
+    let v = json(&rttest(&dir, &["build", "--scene", "cube", "--json", "--threads", "2"]));
+    assert_keys(
+        &v,
+        &[
+            "scene",
+            "triangles",
+            "build_ms",
+            "nodes",
+            "leaves",
+            "empty_leaves",
+            "depth",
+            "refs_per_triangle",
+            "sah_cost",
+            "bytes",
+            "threads",
+            "intersector",
+        ],
+    );
+    assert_eq!(v["scene"], "cube");
+    assert_eq!(v["threads"], 2);
+    assert_eq!(v["triangles"], 12);
+    assert_eq!(v["intersector"], "wald");
+    let v = json(&rttest(&dir, &["build", "--scene", "cube", "--intersector", "watertight", "--json"]));
+    assert_eq!(v["intersector"], "watertight");
+    // Global flags may also come before the command.
+    let v = json(&rttest(&dir, &["--threads", "1", "--json", "build", "--scene", "triangle"]));
+    assert_eq!(v["threads"], 1);
+    assert_eq!(v["triangles"], 1);
+}
+
+#[test]
+fn render_json_reports_rays_and_writes_the_png() {
+    let dir = scratch("render");
+    let out = rttest(&dir, &["render", "--scene", "cube", "--size", "32x24", "--frames", "2", "--json"]);
+    let v = json(&out);
+    assert_keys(
+        &v,
+        &[
+            "scene",
+            "method",
+            "width",
+            "height",
+            "threads",
+            "rays",
+            "primary_rays",
+            "shadow_rays",
+            "hits",
+            "trace_secs",
+            "mrays_per_s",
+            "shade_secs",
+            "write_secs",
+        ],
+    );
+    assert_eq!(v["method"], "mono");
+    assert_eq!(v["primary_rays"], 32 * 24);
+    let rays = v["rays"].as_u64().unwrap();
+    assert_eq!(rays, v["primary_rays"].as_u64().unwrap() + v["shadow_rays"].as_u64().unwrap());
+    assert!(v["hits"].as_u64().unwrap() > 0, "the default view sees the cube");
+    assert!(dir.join("cube.png").is_file());
+}
+
+#[test]
+fn prim_and_depth_aovs_write_pfm() {
+    let dir = scratch("aov");
+    for (aov, file) in [("prim", "triangle-prim.pfm"), ("depth", "triangle-depth.pfm")] {
+        let out =
+            rttest(&dir, &["render", "--scene", "triangle", "--size", "32x32", "--aov", aov, "--shadows", "none"]);
+        assert!(out.status.success(), "{aov}: {}", String::from_utf8_lossy(&out.stderr));
+        let bytes = std::fs::read(dir.join(file)).expect("PFM written");
+        assert!(bytes.starts_with(b"Pf\n32 32\n"), "{aov}: not a 32x32 greyscale PFM");
+        // Header "Pf\n32 32\n-1.0\n" (scale line may vary) then 32 * 32 floats.
+        assert!(bytes.len() >= 32 * 32 * 4);
+        let values: Vec<f32> = bytes[bytes.len() - 32 * 32 * 4..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        if aov == "prim" {
+            assert!(values.iter().all(|&v| v == -1.0 || v == 0.0), "one triangle: ids are 0 or -1");
+            assert!(values.contains(&0.0) && values.contains(&-1.0));
+        } else {
+            assert!(values.iter().any(|v| v.is_finite() && *v > 0.0));
+            assert!(values.contains(&f32::INFINITY));
+        }
+    }
+}
+
+#[test]
+fn custom_camera_and_named_out_file() {
+    let dir = scratch("camera");
+    let v = json(&rttest(
+        &dir,
+        &["render", "--scene", "cube", "--size", "16x16", "--camera", "-3,2,4,0,0,0,45", "--out", "x.pfm", "--json"],
+    ));
+    assert_eq!(v["view"], "custom");
+    assert!(dir.join("x.pfm").is_file());
+}
+
+#[test]
+fn bad_input_gives_one_line_and_non_zero_exit() {
+    let dir = scratch("errors");
+    let cases: &[&[&str]] = &[
+        &["render", "--scene", "no-such-scene"],
+        &["render", "--scene", "cube", "--size", "0x5"],
+        &["render", "--scene", "cube", "--size", "big"],
+        &["render", "--scene", "cube", "--size", "16384x16384"],
+        &["render", "--scene", "cube", "--camera", "1,2,3"],
+        &["render", "--scene", "cube", "--camera", "0,0,0,0,0,0,45"],
+        &["render", "--scene", "cube", "--view", "no-such-view"],
+        &["render", "--scene", "cube", "--frames", "0"],
+        &["render", "--scene", "cube", "--size", "8x8", "--out", "no/such/dir/x.png"],
+        &["build", "--scene", "missing.obj"],
+        &["build", "--threads", "0"],
+        &["--bogus"],
+        &["frobnicate"],
+    ];
+    for args in cases {
+        let out = rttest(&dir, args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: stderr is not one line: {stderr}");
+        assert!(stderr.starts_with("rttest: error: "), "{args:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "{args:?}: wrote to stdout");
+    }
+}
+
+#[test]
+fn no_arguments_renders_the_atrium() {
+    let dir = scratch("default");
+    let v = json(&rttest(&dir, &["--json", "--threads", "2"]));
+    assert_eq!(v["scene"], "atrium");
+    assert_eq!(v["width"], 512);
+    assert_eq!(v["shadows"], "hard");
+    assert!(v["shadow_rays"].as_u64().unwrap() > 0);
+    assert!(dir.join("atrium.png").is_file());
+}
