@@ -273,7 +273,10 @@ mod tests {
     fn both(tri: [Vec3; 3], ray: &Ray) -> [Option<(f32, f32, f32)>; 2] {
         let w = WaldTriangle::new(&tri);
         let wt = WatertightTriangle::new(&tri);
-        [w.intersect(ray, &WaldTriangle::prepare(ray), ray.t_max), wt.intersect(ray, &WatertightTriangle::prepare(ray), ray.t_max)]
+        [
+            w.intersect(ray, &WaldTriangle::prepare(ray), ray.t_max),
+            wt.intersect(ray, &WatertightTriangle::prepare(ray), ray.t_max),
+        ]
     }
 
     const TRI: [Vec3; 3] = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
