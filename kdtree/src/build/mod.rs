@@ -168,11 +168,12 @@ impl Ctx<'_> {
     }
 
     /// The split of a node, or `None` for a leaf (empty, too deep, or no cheaper plane).
-    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32) -> Option<Split> {
+    /// `par`: sweep the axes in parallel.
+    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32, par: bool) -> Option<Split> {
         if n == 0 || depth >= self.depth_limit {
             return None;
         }
-        let s = find_split(lists.axes(), n, b, &self.costs)?;
+        let s = find_split(lists.axes(), n, b, &self.costs, par)?;
         (s.cost < self.costs.c_isect * n as f64).then_some(s)
     }
 }
@@ -210,7 +211,7 @@ struct Seq<'c, 'a> {
 impl Seq<'_, '_> {
     fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
         let Scratch { class, split, levels } = &mut self.scratch;
-        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth) else {
+        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth, false) else {
             self.nodes[idx] = make_leaf(&levels[d][side], &mut self.refs)?;
             return Ok(());
         };
@@ -243,7 +244,7 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
         done?;
         return Ok(Sub::Chunk(Chunk { nodes: seq.nodes, refs: seq.refs }));
     }
-    let Some(s) = ctx.decide(&lists, n, &b, depth) else {
+    let Some(s) = ctx.decide(&lists, n, &b, depth, true) else {
         let mut refs = Vec::with_capacity(n);
         let leaf = make_leaf(&lists, &mut refs)?;
         return Ok(Sub::Chunk(Chunk { nodes: vec![leaf], refs }));
