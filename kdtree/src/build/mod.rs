@@ -23,13 +23,12 @@ mod split;
 use std::sync::Mutex;
 
 use glam::Vec3;
-use rayon::slice::ParallelSliceMut;
 
 use crate::node::MAX_NODE_FIELD;
 use crate::{Aabb, KdNode, triangle::Intersector};
 
 pub(crate) use clip::{Polygon, clip_triangle};
-use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events};
+use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events, radix_sort_events};
 pub(crate) use sah::surface_area64;
 use sah::{Costs, Split, find_split};
 use split::{SplitScratch, child_boxes, split_lists};
@@ -220,7 +219,7 @@ impl Seq<'_, '_> {
         }
         let (cur, next) = levels.split_at_mut(d + 1);
         let [l, r] = &mut next[0];
-        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r);
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false);
         let c = self.nodes.len();
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
@@ -252,7 +251,8 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
     let (mut left, mut right) = (Lists::default(), Lists::default());
     let (nl, nr) = {
         let mut scratch = ctx.take();
-        let r = split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right);
+        let r =
+            split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right, true);
         ctx.give(scratch);
         r
     };
@@ -328,9 +328,17 @@ pub(crate) fn build_nodes(
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
         push_box_events(&mut lists, p, lo.to_array(), hi.to_array());
     }
-    for l in &mut lists {
-        l.par_sort_unstable();
-    }
+    // Sorted once (Wald & Havran 2006, section 4.2), the three axes in parallel. The events
+    // are pushed in ascending triangle order, which the radix sort needs.
+    let sort = |l: &mut Vec<u64>| {
+        if prims.is_sorted() {
+            radix_sort_events(l, &mut Vec::new());
+        } else {
+            l.sort_unstable();
+        }
+    };
+    let [l0, l1, l2] = &mut lists;
+    rayon::join(|| sort(l0), || rayon::join(|| sort(l1), || sort(l2)));
     let lists = Lists::from_vecs(lists);
     let sub = build_par(&ctx, lists, n, bounds, 0)?;
     let mut nodes = vec![KdNode::leaf(0, 0)];
