@@ -24,6 +24,12 @@ pub(crate) struct Polygon {
     v: [[f64; 3]; MAX_VERTS],
 }
 
+impl Default for Polygon {
+    fn default() -> Self {
+        Polygon::EMPTY
+    }
+}
+
 impl Polygon {
     const EMPTY: Polygon = Polygon { len: 0, v: [[0.0; 3]; MAX_VERTS] };
 
@@ -223,16 +229,17 @@ pub(crate) fn clipped_bounds(tri: &[Vec3; 3], lo: [f32; 3], hi: [f32; 3]) -> Opt
 
 /// The clipped boxes of `tri` in the two children of the box `[lo, hi]` split on axis `k` at
 /// `p`: the triangle is clipped to the node box once and the polygon cut by the plane, which
-/// gives both children (`T ∩ child = (T ∩ node) ∩ half-space`).
+/// gives both children (`T ∩ child = (T ∩ node) ∩ half-space`). `bufs` are scratch polygons
+/// (their contents do not matter), kept by the caller so they are not cleared for every call.
 pub(crate) fn clipped_split_bounds(
     tri: &[Vec3; 3],
     lo: [f32; 3],
     hi: [f32; 3],
     k: usize,
     p: f32,
+    bufs: &mut [Polygon; 2],
 ) -> (Option<Bounds>, Option<Bounds>) {
-    let mut bufs = [Polygon::EMPTY; 2];
-    match clip_to_box(tri, lo.map(f64::from), hi.map(f64::from), &mut bufs) {
+    match clip_to_box(tri, lo.map(f64::from), hi.map(f64::from), bufs) {
         Some(c) => bufs[c].split_bounds(lo, hi, k, p),
         None => (None, None),
     }
@@ -279,7 +286,7 @@ mod tests {
                 let (mut lhi, mut rlo) = (hi, lo);
                 lhi[k] = p;
                 rlo[k] = p;
-                let (l, r) = clipped_split_bounds(&t, lo, hi, k, p);
+                let (l, r) = clipped_split_bounds(&t, lo, hi, k, p, &mut Default::default());
                 for (a, b) in [(l, clipped_bounds(&t, lo, lhi)), (r, clipped_bounds(&t, rlo, hi))] {
                     assert_eq!(a.is_some(), b.is_some());
                     let (Some(a), Some(b)) = (a, b) else { continue };

@@ -86,12 +86,19 @@ impl Lists {
     }
 
     /// A buffer of at least `n` entries for axis `a` to write into; its contents are stale.
-    #[inline]
+    #[cfg(test)]
     pub fn writable(&mut self, a: usize, n: usize) -> &mut [u64] {
         if self.buf[a].len() < n {
             self.buf[a].resize(n, 0);
         }
         &mut self.buf[a]
+    }
+
+    /// The buffers of the three axes to write into (contents stale, lengths set with
+    /// [`Lists::set_len`]).
+    #[inline]
+    pub fn bufs_mut(&mut self) -> &mut [Vec<u64>; 3] {
+        &mut self.buf
     }
 
     /// Sets the length of axis `a` (at most the buffer's).
@@ -138,6 +145,39 @@ pub(crate) fn push_box_events(lists: &mut [Vec<u64>; 3], prim: u32, lo: [f32; 3]
     }
 }
 
+/// Sorts `v`, events of ascending triangles per type (as made by [`push_box_events`] over
+/// ascending triangles), into the full `u64` order. An LSD radix sort (stable) on the bits
+/// above the triangle index, position key and type, leaves equal keys in triangle order, which
+/// is the rest of the `u64` order. `tmp` is scratch.
+pub(crate) fn radix_sort_events(v: &mut Vec<u64>, tmp: &mut Vec<u64>) {
+    // Digits of the 34 bits above the triangle index: 11 + 11 + 12.
+    const DIGITS: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
+    let mut hist = [[0usize; 1 << 12]; 3];
+    for &e in v.iter() {
+        for (h, &(shift, bits)) in hist.iter_mut().zip(&DIGITS) {
+            h[((e >> shift) & ((1 << bits) - 1)) as usize] += 1;
+        }
+    }
+    tmp.clear();
+    tmp.resize(v.len(), 0);
+    for (h, &(shift, bits)) in hist.iter_mut().zip(&DIGITS) {
+        // A digit shared by all events leaves the order as it is.
+        if h.contains(&v.len()) {
+            continue;
+        }
+        let mut sum = 0;
+        for c in h.iter_mut() {
+            (*c, sum) = (sum, sum + *c);
+        }
+        for &e in v.iter() {
+            let d = ((e >> shift) & ((1 << bits) - 1)) as usize;
+            tmp[h[d]] = e;
+            h[d] += 1;
+        }
+        std::mem::swap(v, tmp);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -162,6 +202,31 @@ mod tests {
         assert!(s < event(1.5, END, 0));
         assert_eq!((ev_type(p), ev_prim(p), key_pos(ev_key(p))), (PLANAR, 3, 1.0));
         assert_eq!(ev_prim(event(0.0, START, PRIM_MASK)), PRIM_MASK);
+    }
+
+    #[test]
+    fn radix_sort_matches_sort() {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut lists: [Vec<u64>; 3] = Default::default();
+        for prim in 0..5000u32 {
+            let mut r = || {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                // Few distinct positions, both signs, so that keys tie often.
+                ((s >> 40) % 64) as f32 * 0.25 - 8.0
+            };
+            let (a, b, c) = (r(), r(), r());
+            let (lo, hi) = ([a.min(b), b, c.min(a)], [a.max(b), b, c.max(a)]);
+            push_box_events(&mut lists, prim, lo, hi);
+        }
+        let mut tmp = Vec::new();
+        for l in &mut lists {
+            let mut want = l.clone();
+            want.sort_unstable();
+            radix_sort_events(l, &mut tmp);
+            assert_eq!(*l, want);
+        }
     }
 
     #[test]

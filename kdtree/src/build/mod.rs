@@ -23,13 +23,12 @@ mod split;
 use std::sync::Mutex;
 
 use glam::Vec3;
-use rayon::slice::ParallelSliceMut;
 
 use crate::node::MAX_NODE_FIELD;
 use crate::{Aabb, KdNode, triangle::Intersector};
 
 pub(crate) use clip::{Polygon, clip_triangle};
-use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events};
+use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events, radix_sort_events};
 pub(crate) use sah::surface_area64;
 use sah::{Costs, Split, find_split};
 use split::{SplitScratch, child_boxes, split_lists};
@@ -168,11 +167,12 @@ impl Ctx<'_> {
     }
 
     /// The split of a node, or `None` for a leaf (empty, too deep, or no cheaper plane).
-    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32) -> Option<Split> {
+    /// `par`: sweep the axes in parallel.
+    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32, par: bool) -> Option<Split> {
         if n == 0 || depth >= self.depth_limit {
             return None;
         }
-        let s = find_split(lists.axes(), n, b, &self.costs)?;
+        let s = find_split(lists.axes(), n, b, &self.costs, par)?;
         (s.cost < self.costs.c_isect * n as f64).then_some(s)
     }
 }
@@ -210,7 +210,7 @@ struct Seq<'c, 'a> {
 impl Seq<'_, '_> {
     fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
         let Scratch { class, split, levels } = &mut self.scratch;
-        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth) else {
+        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth, false) else {
             self.nodes[idx] = make_leaf(&levels[d][side], &mut self.refs)?;
             return Ok(());
         };
@@ -219,7 +219,7 @@ impl Seq<'_, '_> {
         }
         let (cur, next) = levels.split_at_mut(d + 1);
         let [l, r] = &mut next[0];
-        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r);
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false);
         let c = self.nodes.len();
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
@@ -243,7 +243,7 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
         done?;
         return Ok(Sub::Chunk(Chunk { nodes: seq.nodes, refs: seq.refs }));
     }
-    let Some(s) = ctx.decide(&lists, n, &b, depth) else {
+    let Some(s) = ctx.decide(&lists, n, &b, depth, true) else {
         let mut refs = Vec::with_capacity(n);
         let leaf = make_leaf(&lists, &mut refs)?;
         return Ok(Sub::Chunk(Chunk { nodes: vec![leaf], refs }));
@@ -251,7 +251,8 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
     let (mut left, mut right) = (Lists::default(), Lists::default());
     let (nl, nr) = {
         let mut scratch = ctx.take();
-        let r = split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right);
+        let r =
+            split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right, true);
         ctx.give(scratch);
         r
     };
@@ -261,12 +262,35 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
     Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
 }
 
-/// Writes `sub` with its root at `nodes[slot]` and its other nodes appended, depth first.
-fn flatten(sub: Sub, slot: usize, nodes: &mut Vec<KdNode>, refs: &mut Vec<u32>) -> Result<(), BuildError> {
+impl Sub {
+    /// Node and reference counts of the subtree.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Sub::Chunk(c) => (c.nodes.len(), c.refs.len()),
+            Sub::Inner { kids, .. } => {
+                let ((ln, lr), (rn, rr)) = (kids.0.size(), kids.1.size());
+                (1 + ln + rn, lr + rr)
+            }
+        }
+    }
+}
+
+/// Writes `sub` depth first: its root to `root`, its other nodes to `rest` (whose first entry
+/// is node `g` of the tree) and its references to `refs` (starting at reference `rb`). The
+/// layout is that of appending the nodes in order: an inner node's two children, then the
+/// rest of the left subtree, then the rest of the right one. Subtrees are written in
+/// parallel into their disjoint parts of the arrays.
+fn flatten(
+    sub: Sub,
+    root: &mut KdNode,
+    rest: &mut [KdNode],
+    g: usize,
+    refs: &mut [u32],
+    rb: usize,
+) -> Result<(), BuildError> {
     match sub {
         Sub::Chunk(c) => {
             // Chunk node i >= 1 goes to g + i - 1; its references move up by `rb`.
-            let (g, rb) = (nodes.len(), refs.len());
             let relocate = |n: KdNode| -> Result<KdNode, BuildError> {
                 if n.is_leaf() {
                     leaf_node(n.first_ref() + rb, n.prim_count())
@@ -274,21 +298,27 @@ fn flatten(sub: Sub, slot: usize, nodes: &mut Vec<KdNode>, refs: &mut Vec<u32>) 
                     inner_node(n.axis(), n.split(), n.left_child() + g - 1)
                 }
             };
-            nodes[slot] = relocate(c.nodes[0])?;
-            nodes.reserve(c.nodes.len() - 1);
-            for &n in &c.nodes[1..] {
-                nodes.push(relocate(n)?);
+            *root = relocate(c.nodes[0])?;
+            for (d, &n) in rest.iter_mut().zip(&c.nodes[1..]) {
+                *d = relocate(n)?;
             }
-            refs.extend_from_slice(&c.refs);
+            refs.copy_from_slice(&c.refs);
             Ok(())
         }
         Sub::Inner { axis, pos, kids } => {
-            let g = nodes.len();
-            nodes[slot] = inner_node(axis, pos, g)?;
-            nodes.extend([KdNode::leaf(0, 0); 2]);
+            *root = inner_node(axis, pos, g)?;
             let (l, r) = *kids;
-            flatten(l, g, nodes, refs)?;
-            flatten(r, g + 1, nodes, refs)
+            let ((ln, lr), rn) = (l.size(), r.size().0);
+            let (pair, rest) = rest.split_at_mut(2);
+            let [kl, kr] = pair else { unreachable!("two children") };
+            let (rest_l, rest_r) = rest.split_at_mut(ln - 1);
+            debug_assert_eq!(rest_r.len(), rn - 1);
+            let (refs_l, refs_r) = refs.split_at_mut(lr);
+            let (a, b) = rayon::join(
+                || flatten(l, kl, rest_l, g + 2, refs_l, rb),
+                || flatten(r, kr, rest_r, g + 1 + ln, refs_r, rb + lr),
+            );
+            a.and(b)
         }
     }
 }
@@ -327,14 +357,24 @@ pub(crate) fn build_nodes(
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
         push_box_events(&mut lists, p, lo.to_array(), hi.to_array());
     }
-    for l in &mut lists {
-        l.par_sort_unstable();
-    }
+    // Sorted once (Wald & Havran 2006, section 4.2), the three axes in parallel. The events
+    // are pushed in ascending triangle order, which the radix sort needs.
+    let sort = |l: &mut Vec<u64>| {
+        if prims.is_sorted() {
+            radix_sort_events(l, &mut Vec::new());
+        } else {
+            l.sort_unstable();
+        }
+    };
+    let [l0, l1, l2] = &mut lists;
+    rayon::join(|| sort(l0), || rayon::join(|| sort(l1), || sort(l2)));
     let lists = Lists::from_vecs(lists);
     let sub = build_par(&ctx, lists, n, bounds, 0)?;
-    let mut nodes = vec![KdNode::leaf(0, 0)];
-    let mut prim_refs = Vec::new();
-    flatten(sub, 0, &mut nodes, &mut prim_refs)?;
+    let (n_nodes, n_refs) = sub.size();
+    let mut nodes = vec![KdNode::leaf(0, 0); n_nodes];
+    let mut prim_refs = vec![0; n_refs];
+    let (root, rest) = nodes.split_at_mut(1);
+    flatten(sub, &mut root[0], rest, 1, &mut prim_refs, 0)?;
     Ok(BuiltNodes { nodes, prim_refs })
 }
 

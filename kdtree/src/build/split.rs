@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::clip::clipped_split_bounds;
+use super::clip::{Polygon, clipped_split_bounds};
 use super::events::{END, Lists, START, ev_key, ev_prim, ev_type, pos_key, push_box_events};
 use super::sah::Split;
 use crate::Aabb;
@@ -17,6 +17,10 @@ pub(crate) const LEFT: u8 = 1;
 /// Classification of a triangle: right (above the plane) only.
 pub(crate) const RIGHT: u8 = 2;
 
+/// Ends the new-event lists so the merge needs no bounds test: above every event (its key
+/// would be a NaN position).
+const SENTINEL: u64 = u64::MAX;
+
 /// Reusable buffers of the split step.
 #[derive(Default)]
 pub(crate) struct SplitScratch {
@@ -24,6 +28,8 @@ pub(crate) struct SplitScratch {
     both: Vec<u32>,
     /// New events of the clipped straddling triangles, left and right.
     new: [[Vec<u64>; 3]; 2],
+    /// The clipper's polygon buffers.
+    polys: [Polygon; 2],
 }
 
 /// The children boxes of `b` split by `s`.
@@ -37,7 +43,8 @@ pub(crate) fn child_boxes(b: &Aabb, s: &Split) -> (Aabb, Aabb) {
 
 /// Splits the node whose sorted events are `lists` at `s` into `left` and `right` (cleared
 /// first), returning the triangle counts of the children. `class` is indexed by triangle and
-/// only the entries of this node's triangles are written and read.
+/// only the entries of this node's triangles are written and read. With `par` the axes are
+/// copied in parallel (for big nodes); the result is the same.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn split_lists(
     tris: &[[Vec3; 3]],
@@ -48,6 +55,7 @@ pub(crate) fn split_lists(
     scratch: &mut SplitScratch,
     left: &mut Lists,
     right: &mut Lists,
+    par: bool,
 ) -> (usize, usize) {
     let k = s.axis;
     let pkey = pos_key(s.pos);
@@ -94,9 +102,12 @@ pub(crate) fn split_lists(
     }
     if !scratch.both.is_empty() {
         let (lo, hi) = (b.min.to_array(), b.max.to_array());
+        for v in new_l.iter_mut().chain(new_r.iter_mut()) {
+            v.reserve(2 * scratch.both.len() + 1);
+        }
         for &prim in &scratch.both {
             let tri = &tris[prim as usize];
-            let (l, r) = clipped_split_bounds(tri, lo, hi, k, s.pos);
+            let (l, r) = clipped_split_bounds(tri, lo, hi, k, s.pos, &mut scratch.polys);
             if let Some((lo, hi)) = l {
                 push_box_events(new_l, prim, lo, hi);
                 nl += 1;
@@ -107,53 +118,85 @@ pub(crate) fn split_lists(
             }
         }
         for a in 0..3 {
-            new_l[a].sort_unstable();
-            new_r[a].sort_unstable();
+            for v in [&mut new_l[a], &mut new_r[a]] {
+                v.sort_unstable();
+                v.push(SENTINEL);
+            }
         }
     }
-    // Copy the one-sided triangles' events, branch-free: every event is written to both
-    // outputs and each output's cursor advances only for its own side. The new events are
-    // merged in on the way (a straddling triangle's old events are dropped: class BOTH).
-    for a in 0..3 {
-        let src = lists.axis(a);
-        let (xl, xr) = (&new_l[a][..], &new_r[a][..]);
-        let l = left.writable(a, src.len() + xl.len());
-        let r = right.writable(a, src.len() + xr.len());
-        let (mut il, mut ir) = (0usize, 0usize);
-        if xl.is_empty() && xr.is_empty() {
-            for &e in src {
-                let c = class[ev_prim(e) as usize];
-                l[il] = e;
-                r[ir] = e;
-                il += usize::from(c == LEFT);
-                ir += usize::from(c == RIGHT);
-            }
-        } else {
-            let (mut jl, mut jr) = (0usize, 0usize);
-            for &e in src {
-                while jl < xl.len() && xl[jl] < e {
-                    l[il] = xl[jl];
-                    il += 1;
-                    jl += 1;
-                }
-                while jr < xr.len() && xr[jr] < e {
-                    r[ir] = xr[jr];
-                    ir += 1;
-                    jr += 1;
-                }
-                let c = class[ev_prim(e) as usize];
-                l[il] = e;
-                r[ir] = e;
-                il += usize::from(c == LEFT);
-                ir += usize::from(c == RIGHT);
-            }
-            l[il..il + xl.len() - jl].copy_from_slice(&xl[jl..]);
-            il += xl.len() - jl;
-            r[ir..ir + xr.len() - jr].copy_from_slice(&xr[jr..]);
-            ir += xr.len() - jr;
-        }
+    // Copy the one-sided triangles' events (the three axes in parallel for big nodes).
+    let class = &*class;
+    let [lb, rb] = [left.bufs_mut(), right.bufs_mut()];
+    let [l0, l1, l2] = lb;
+    let [r0, r1, r2] = rb;
+    let copy =
+        |a: usize, l: &mut Vec<u64>, r: &mut Vec<u64>| copy_axis(lists.axis(a), class, &new_l[a], &new_r[a], l, r);
+    let lens = if par {
+        let (x, (y, z)) = rayon::join(|| copy(0, l0, r0), || rayon::join(|| copy(1, l1, r1), || copy(2, l2, r2)));
+        [x, y, z]
+    } else {
+        [copy(0, l0, r0), copy(1, l1, r1), copy(2, l2, r2)]
+    };
+    for (a, (il, ir)) in lens.into_iter().enumerate() {
         left.set_len(a, il);
         right.set_len(a, ir);
     }
     (nl, nr)
+}
+
+/// Copies the events `src` of one axis of a node to its children's buffers `l` and `r` (grown
+/// as needed), dropping those of straddling triangles (class [`BOTH`]) and merging in the
+/// sorted new events `xl` and `xr` of the clipped straddling triangles (both empty, or both
+/// ended by [`SENTINEL`]). Returns the lengths.
+#[inline]
+fn copy_axis(src: &[u64], class: &[u8], xl: &[u64], xr: &[u64], l: &mut Vec<u64>, r: &mut Vec<u64>) -> (usize, usize) {
+    grow(l, src.len() + xl.len());
+    grow(r, src.len() + xr.len());
+    let (mut il, mut ir) = (0usize, 0usize);
+    debug_assert!(xl.is_empty() == xr.is_empty() && xl.last().is_none_or(|&x| x == SENTINEL));
+    // Branch-free: every event is written to both outputs and each output's cursor advances
+    // only for its own side.
+    if xl.is_empty() && xr.is_empty() {
+        for &e in src {
+            let c = class[ev_prim(e) as usize];
+            l[il] = e;
+            r[ir] = e;
+            il += usize::from(c == LEFT);
+            ir += usize::from(c == RIGHT);
+        }
+        return (il, ir);
+    }
+    let (mut jl, mut jr) = (0usize, 0usize);
+    for &e in src {
+        // The sentinel stops these loops.
+        while xl[jl] < e {
+            l[il] = xl[jl];
+            il += 1;
+            jl += 1;
+        }
+        while xr[jr] < e {
+            r[ir] = xr[jr];
+            ir += 1;
+            jr += 1;
+        }
+        let c = class[ev_prim(e) as usize];
+        l[il] = e;
+        r[ir] = e;
+        il += usize::from(c == LEFT);
+        ir += usize::from(c == RIGHT);
+    }
+    let (xl, xr) = (&xl[..xl.len() - 1], &xr[..xr.len() - 1]);
+    l[il..il + xl.len() - jl].copy_from_slice(&xl[jl..]);
+    il += xl.len() - jl;
+    r[ir..ir + xr.len() - jr].copy_from_slice(&xr[jr..]);
+    ir += xr.len() - jr;
+    (il, ir)
+}
+
+/// Grows `v` to at least `n` entries (new ones zero, old ones kept: stale contents are fine).
+#[inline]
+fn grow(v: &mut Vec<u64>, n: usize) {
+    if v.len() < n {
+        v.resize(n, 0);
+    }
 }
