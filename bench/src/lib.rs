@@ -38,6 +38,7 @@ pub mod cli;
 pub mod error;
 pub mod harness;
 pub mod progress;
+pub mod raycast;
 pub mod render;
 pub mod report;
 pub mod shade;
