@@ -1,4 +1,4 @@
-//! The command line: `rttest [render|build] ...`, and the driver that runs one command.
+//! The command line: `rttest [render|build|raycast] ...`, and the driver that runs one command.
 //!
 //! Every command runs inside one rayon pool of `--threads` threads (all cores by default),
 //! so the build, the trace passes and the shading all use the same threads. With `--json`
@@ -26,7 +26,7 @@ pub const MAX_SIDE: u32 = 16384;
 /// Largest accepted pixel count (about 50 bytes of buffers each: 1.6 GB at the limit).
 pub const MAX_PIXELS: u64 = 1 << 25;
 
-/// Fast kd-tree ray tracing: build trees and render scenes (after Tsakok 2008, "RTTest").
+/// Fast kd-tree ray tracing: build trees, render scenes and trace ray files (after Tsakok 2008, "RTTest").
 ///
 /// Without a command, builds the atrium scene, renders its default view at 512x512 with hard
 /// shadows into atrium.png and prints the build time, tree statistics and ray throughput.
@@ -61,6 +61,7 @@ pub enum Command {
     /// Build a scene's tree and report build time and tree statistics.
     Build(BuildArgs),
     /// Trace the rays of a file (text or binary) and write one result per ray.
+    #[command(after_long_help = raycast::FORMATS_HELP)]
     Raycast(RaycastArgs),
 }
 

@@ -82,6 +82,16 @@ pub const RAY_BYTES: usize = 32;
 /// Bytes per closest-hit result in the binary output: `i32` prim and three `f32`.
 pub const HIT_BYTES: usize = 16;
 
+/// The formats, as `rttest raycast --help` shows them.
+pub const FORMATS_HELP: &str = "\
+Rays, text: one per line, 'ox oy oz dx dy dz tmin tmax'; blank lines and # comments skipped; inf allowed.
+Rays, binary (.bin, .f32): 8 little-endian f32 per ray, 32 bytes, no header.
+Results, text: 'prim t u v' per line (prim: the scene file's primitive id); a miss is '-1 inf 0 0';
+  with --any-hit '1' or '0'.
+Results, binary (.bin, .f32): little-endian i32 prim, f32 t, u, v (16 bytes; a miss is -1, inf, 0, 0);
+  with --any-hit one byte 1 or 0 per ray.
+The first bad ray rejects the file: 'rttest: error: FILE:LINE: reason'. With --json, --out is required.";
+
 /// `rttest raycast` options.
 #[derive(Debug, Clone, Args)]
 pub struct RaycastArgs {
