@@ -1,4 +1,4 @@
-//! The command line: `rttest [render|build] ...`, and the driver that runs one command.
+//! The command line: `rttest [render|build|raycast] ...`, and the driver that runs one command.
 //!
 //! Every command runs inside one rayon pool of `--threads` threads (all cores by default),
 //! so the build, the trace passes and the shading all use the same threads. With `--json`
@@ -16,6 +16,7 @@ use serde::Serialize;
 
 use crate::Error;
 use crate::progress::{self, Progress};
+use crate::raycast::{self, RaycastArgs};
 use crate::render::{FrameBuffers, FrameStats, Method, Renderer, Shadows};
 use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};
 
@@ -25,7 +26,7 @@ pub const MAX_SIDE: u32 = 16384;
 /// Largest accepted pixel count (about 50 bytes of buffers each: 1.6 GB at the limit).
 pub const MAX_PIXELS: u64 = 1 << 25;
 
-/// Fast kd-tree ray tracing: build trees and render scenes (after Tsakok 2008, "RTTest").
+/// Fast kd-tree ray tracing: build trees, render scenes and trace ray files (after Tsakok 2008, "RTTest").
 ///
 /// Without a command, builds the atrium scene, renders its default view at 512x512 with hard
 /// shadows into atrium.png and prints the build time, tree statistics and ray throughput.
@@ -59,6 +60,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Build a scene's tree and report build time and tree statistics.
     Build(BuildArgs),
+    /// Trace the rays of a file (text or binary) and write one result per ray.
+    #[command(after_long_help = raycast::FORMATS_HELP)]
+    Raycast(RaycastArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -217,12 +221,15 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     pool.install(|| match cli.command {
         Some(Command::Build(args)) => build_command(&global, &args),
         Some(Command::Render(args)) => render_command(&global, &args),
+        Some(Command::Raycast(args)) => {
+            raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
+        }
         None => render_command(&global, &default_render_args()),
     })
 }
 
 /// Prints a result: its JSON object on one line, or its text table.
-fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Result<(), Error> {
+pub(crate) fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Result<(), Error> {
     let mut out = std::io::stdout().lock();
     if global.json {
         let line = serde_json::to_string(report).map_err(std::io::Error::other)?;
@@ -233,11 +240,11 @@ fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Re
     Ok(())
 }
 
-/// A loaded scene with its tree, as both commands start.
-struct Built {
-    scene: Scene,
-    tree: KdTree,
-    report: BuildReport,
+/// A loaded scene with its tree, as every command starts.
+pub(crate) struct Built {
+    pub(crate) scene: Scene,
+    pub(crate) tree: KdTree,
+    pub(crate) report: BuildReport,
 }
 
 /// Loads the scene and builds its tree `repeat` times, keeping the fastest build.

@@ -21,7 +21,18 @@ pub enum Error {
     /// Writing a report to stdout failed.
     #[error("cannot write the report: {0}")]
     Output(#[from] std::io::Error),
-    /// A file that should have been written could not be.
+    /// A bad ray in a ray file (`rttest raycast`): `rays.txt:17: ...` or
+    /// `rays.bin: ray 16 at byte 512: ...`.
+    #[error("{file}:{place}: {message}")]
+    Rays {
+        /// The ray file as given on the command line.
+        file: String,
+        /// A 1-based line number (text) or `ray N at byte B` (binary, with a leading space).
+        place: String,
+        /// What is wrong with the ray.
+        message: String,
+    },
+    /// A file that should have been read or written could not be.
     #[error("{path}: {message}")]
     File {
         /// The file.

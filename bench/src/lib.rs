@@ -10,6 +10,9 @@
 //! rttest render --scene NAME|FILE.obj[.gz] [--view NAME | --camera ex,ey,ez,tx,ty,tz,fovy]
 //!               [--size WxH] [--shadows none|hard] [--aov color|depth|prim] [--out FILE]
 //!               [--frames N] [--method mono] [--intersector wald|watertight] [--counters]
+//! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
+//!               [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
+//!               [--intersector wald|watertight]
 //! global flags: --threads N (rayon pool size, default all cores), --json (one object per line)
 //! ```
 //!
@@ -24,8 +27,24 @@
 //! `{primary,shadow}_{nodes,leaves,isects}_per_ray`. `trace_secs` is the best frame's ray
 //! generation + traversal + intersection (primary and shadow passes), never shading or I/O.
 //!
+//! `raycast` traces the rays of a file and writes one result per ray, in input order:
+//! - rays in **text**: one ray per line, `ox oy oz dx dy dz tmin tmax` (whitespace separated;
+//!   blank lines and `#` comments skipped; `inf` allowed), or **binary** (`--format binary`
+//!   or a `.bin` / `.f32` file): 8 little-endian `f32` per ray, 32 bytes, no header;
+//! - results in **text**: `prim t u v` per line, `prim` being the scene file's primitive id
+//!   and a miss `-1 inf 0 0`, or with `--any-hit` `1` / `0`; in **binary**
+//!   (`--out-format binary` or a `.bin` / `.f32` `--out`): `i32 prim, f32 t, u, v` (16
+//!   bytes, a miss `-1, inf, 0, 0`), or with `--any-hit` one byte `1` / `0` per ray;
+//! - a bad ray rejects the whole file: `rttest: error: rays.txt:17: <reason>`, exit status 1;
+//! - `--json` (needs `--out FILE`) keys: `scene, method, any_hit, intersector, threads,
+//!   triangles, build_ms, rays, hits, trace_secs, mrays_per_s, read_secs, write_secs,
+//!   rays_file, out`.
+//!
+//! See [`raycast`] for the details.
+//!
 //! Modules, one concept each:
 //! - [`cli`]: the command line (clap) and the driver that runs one command;
+//! - [`raycast`]: ray files in, one result per ray out (`rttest raycast`);
 //! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
 //!   per-pixel buffers, shading and image output come after and are timed apart;
 //! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
@@ -38,6 +57,7 @@ pub mod cli;
 pub mod error;
 pub mod harness;
 pub mod progress;
+pub mod raycast;
 pub mod render;
 pub mod report;
 pub mod shade;

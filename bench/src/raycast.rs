@@ -1,0 +1,676 @@
+//! `rttest raycast`: trace a list of rays given in a file and write one result per ray.
+//!
+//! ```text
+//! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
+//!                [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
+//!                [--intersector wald|watertight]          (global: --threads N, --json)
+//! ```
+//!
+//! ## Input: the rays
+//! - **text** (default, and for files ending in `.txt` or anything but `.bin` / `.f32`):
+//!   one ray per line, eight whitespace-separated numbers `ox oy oz dx dy dz tmin tmax`.
+//!   Blank lines and lines whose first non-blank character is `#` are skipped. Numbers are
+//!   anything Rust's `f32` parser takes, including `inf` (for `tmax`) and exponents.
+//! - **binary** (`--format binary`, or files ending in `.bin` or `.f32`): the same eight
+//!   values as little-endian `f32`, 32 bytes per ray, no header. A file whose size is not a
+//!   multiple of 32 is an error naming the size.
+//!
+//! `--rays -` reads stdin (text unless `--format binary`). The whole list is read and checked
+//! before anything is traced or written: the first bad ray rejects the file with one line,
+//! `rttest: error: rays.txt:17: <what is wrong>` for text (1-based line numbers) or
+//! `rttest: error: rays.bin: ray 16 at byte 512: <what is wrong>` for binary (0-based ray
+//! index, the row of its result). Bad rays are: a wrong number of fields, a field that is
+//! not a number, a NaN or infinite origin, a zero, NaN or infinite direction, and a NaN or
+//! empty interval (`tmin > tmax`), as [`kdtree::Ray::try_new`] decides. The direction need
+//! not be normalised; `t` is in units of it.
+//!
+//! ## Output: one result per ray, in input order
+//! - **text** (default; `--out-format text`, or an `--out` file not ending in `.bin`/`.f32`):
+//!   closest hit: one line `prim t u v` per ray, where `prim` is the hit triangle's primitive
+//!   id in the *scene file's* face numbering (`Mesh::prim_ids`; for built-in scenes the
+//!   triangle index), `t` the hit distance and `u v` the barycentric weights of the
+//!   triangle's second and third vertex. A miss is the line `-1 inf 0 0`. Numbers are
+//!   written with Rust's shortest round-tripping `f32` format, so parsing `t` gives back the
+//!   exact value. With `--any-hit`: one line `1` (something is hit in `[tmin, tmax]`) or `0`.
+//! - **binary** (`--out-format binary`, or an `--out` file ending in `.bin`/`.f32`): closest
+//!   hit: 16 bytes per ray, little-endian `i32 prim, f32 t, f32 u, f32 v`; a miss is
+//!   `-1, +inf, 0, 0`. With `--any-hit`: one byte per ray, `1` or `0`.
+//!
+//! Without `--out` (or with `--out -`) the results go to stdout. With `--json` the results
+//! must go to a file, and stdout gets one summary object with the keys `scene, method,
+//! any_hit, intersector, threads, triangles, build_ms, rays, hits, trace_secs, mrays_per_s,
+//! read_secs, write_secs, rays_file, out`. Without `--json` and with `--out FILE`, a short
+//! text summary is printed instead; with results on stdout nothing else is printed there.
+//! `hits` counts rays that hit (or, with `--any-hit`, rays that are occluded). `trace_secs`
+//! is traversal and intersection only: reading, parsing and writing are timed apart.
+//!
+//! ## How
+//! Input is read in blocks of a few MiB and each block parsed in parallel; the rays are kept
+//! (44 bytes each) and traced in one timed pass, in parallel over chunks of
+//! [`CHUNK`] rays, each chunk writing its own slice of a preallocated result buffer, so the
+//! output is in input order. The traversal [`Method`] is matched once per chunk, as in
+//! [`crate::render`]: packet methods slot in as new variants with their own chunk kernels.
+//! Results are formatted in parallel and written through one buffered writer.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args, ValueEnum};
+use glam::Vec3;
+use kdtree::{Hit, KdTree, Ray};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::Error;
+use crate::cli::SceneArgs;
+use crate::render::Method;
+
+/// Rays per parallel task when tracing (and per formatting task when writing).
+pub const CHUNK: usize = 4096;
+
+/// Bytes read from the ray file at a time; each block is parsed in parallel.
+const BLOCK: usize = 8 << 20;
+
+/// Bytes of text handed to one parsing task.
+const PARSE_PIECE: usize = 256 << 10;
+
+/// Bytes per ray in the binary input: eight little-endian `f32`.
+pub const RAY_BYTES: usize = 32;
+
+/// Bytes per closest-hit result in the binary output: `i32` prim and three `f32`.
+pub const HIT_BYTES: usize = 16;
+
+/// The formats, as `rttest raycast --help` shows them.
+pub const FORMATS_HELP: &str = "\
+Rays, text: one per line, 'ox oy oz dx dy dz tmin tmax'; blank lines and # comments skipped; inf allowed.
+Rays, binary (.bin, .f32): 8 little-endian f32 per ray, 32 bytes, no header.
+Results, text: 'prim t u v' per line (prim: the scene file's primitive id); a miss is '-1 inf 0 0';
+  with --any-hit '1' or '0'.
+Results, binary (.bin, .f32): little-endian i32 prim, f32 t, u, v (16 bytes; a miss is -1, inf, 0, 0);
+  with --any-hit one byte 1 or 0 per ray.
+The first bad ray rejects the file: 'rttest: error: FILE:LINE: reason'. With --json, --out is required.";
+
+/// `rttest raycast` options.
+#[derive(Debug, Clone, Args)]
+pub struct RaycastArgs {
+    /// The scene.
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// The rays: a text or binary file (see --format), or - for stdin.
+    #[arg(long, value_name = "FILE")]
+    pub rays: PathBuf,
+    /// Format of the ray file (default: binary for .bin and .f32 files, else text).
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub format: Option<Format>,
+    /// Where the results go (default: stdout; - is stdout too).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Format of the results (default: binary for an --out file ending in .bin or .f32, else text).
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    pub out_format: Option<Format>,
+    /// How rays traverse the tree.
+    #[arg(long, value_enum, default_value_t = Method::Mono)]
+    pub method: Method,
+    /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
+    #[arg(long)]
+    pub any_hit: bool,
+}
+
+/// `--format` / `--out-format` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// Whitespace-separated numbers, one ray (or result) per line.
+    Text,
+    /// Little-endian binary records, no header.
+    Binary,
+}
+
+impl Format {
+    /// The format of a file by its extension: binary for `.bin` and `.f32`, else text.
+    pub fn of_path(path: &Path) -> Format {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("bin") || e.eq_ignore_ascii_case("f32") => Format::Binary,
+            _ => Format::Text,
+        }
+    }
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Text => "text",
+            Format::Binary => "binary",
+        }
+    }
+}
+
+/// True for the path `-` (stdin or stdout).
+fn is_dash(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading
+
+/// A bad ray in the input: where, and what is wrong. Becomes [`Error::Rays`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct RayFileError {
+    /// `17` (a text line, 1-based) or ` ray 16 at byte 512` (binary, 0-based ray index; the
+    /// leading space makes the message read `rays.bin: ray 16 ...`).
+    pub place: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+/// Parses one text line into a ray: `None` for blank and comment lines.
+pub fn parse_line(line: &str) -> Result<Option<Ray>, String> {
+    let line = line.trim();
+    if line.is_empty() || line.starts_with('#') {
+        return Ok(None);
+    }
+    let mut v = [0.0f32; 8];
+    let mut n = 0;
+    for field in line.split_ascii_whitespace() {
+        if n < 8 {
+            v[n] = field.parse::<f32>().map_err(|_| format!("field {} '{field}' is not a number", n + 1))?;
+        }
+        n += 1;
+    }
+    if n != 8 {
+        return Err(format!("expected 8 numbers 'ox oy oz dx dy dz tmin tmax', found {n}"));
+    }
+    ray_from(&v).map(Some)
+}
+
+/// The checked ray of eight values `ox oy oz dx dy dz tmin tmax`.
+fn ray_from(v: &[f32; 8]) -> Result<Ray, String> {
+    Ray::try_new(Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), v[6], v[7]).map_err(|e| e.to_string())
+}
+
+/// Parses a piece of text made of whole lines, appending its rays to `out`. Returns the
+/// number of lines (newlines, plus one for a last line without one), or the first bad line
+/// as (1-based line number within the piece, message).
+fn parse_text_piece(piece: &[u8], out: &mut Vec<Ray>) -> Result<usize, (usize, String)> {
+    let mut lines = 0;
+    for bytes in piece.split_inclusive(|&b| b == b'\n') {
+        lines += 1;
+        let line = std::str::from_utf8(bytes).map_err(|_| (lines, "not UTF-8 text".to_string()))?;
+        if let Some(ray) = parse_line(line).map_err(|m| (lines, m))? {
+            out.push(ray);
+        }
+    }
+    Ok(lines)
+}
+
+/// Parses a block of whole text lines in parallel, appending its rays to `out` in order.
+/// `line_base` is the number of lines before the block; returns the block's line count.
+fn parse_text_block(block: &[u8], line_base: usize, out: &mut Vec<Ray>) -> Result<usize, RayFileError> {
+    // Cut the block into pieces of about PARSE_PIECE bytes at line ends.
+    let mut pieces = Vec::with_capacity(block.len() / PARSE_PIECE + 1);
+    let mut rest = block;
+    while !rest.is_empty() {
+        let cut = if rest.len() <= PARSE_PIECE {
+            rest.len()
+        } else {
+            rest[PARSE_PIECE..].iter().position(|&b| b == b'\n').map_or(rest.len(), |p| PARSE_PIECE + p + 1)
+        };
+        let (head, tail) = rest.split_at(cut);
+        pieces.push(head);
+        rest = tail;
+    }
+    let parsed: Vec<_> = pieces
+        .par_iter()
+        .map(|piece| {
+            let mut rays = Vec::with_capacity(piece.len() / 48 + 1);
+            parse_text_piece(piece, &mut rays).map(|lines| (rays, lines))
+        })
+        .collect();
+    let mut lines = line_base;
+    for piece in parsed {
+        match piece {
+            Ok((rays, n)) => {
+                out.extend_from_slice(&rays);
+                lines += n;
+            }
+            Err((line, message)) => return Err(RayFileError { place: (lines + line).to_string(), message }),
+        }
+    }
+    Ok(lines - line_base)
+}
+
+/// Parses whole 32-byte binary records in parallel, appending their rays to `out`.
+/// `ray_base` is the number of rays before the block.
+fn parse_binary_block(block: &[u8], ray_base: usize, out: &mut Vec<Ray>) -> Result<(), RayFileError> {
+    let start = out.len();
+    out.resize(start + block.len() / RAY_BYTES, Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
+    out[start..].par_chunks_mut(CHUNK).zip(block.par_chunks(CHUNK * RAY_BYTES)).enumerate().try_for_each(
+        |(c, (rays, bytes))| {
+            for (i, (slot, record)) in rays.iter_mut().zip(bytes.chunks_exact(RAY_BYTES)).enumerate() {
+                let mut v = [0.0f32; 8];
+                for (x, b) in v.iter_mut().zip(record.chunks_exact(4)) {
+                    *x = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                }
+                *slot = ray_from(&v).map_err(|message| {
+                    let index = ray_base + c * CHUNK + i;
+                    RayFileError { place: format!(" ray {index} at byte {}", index * RAY_BYTES), message }
+                })?;
+            }
+            Ok(())
+        },
+    )
+}
+
+/// Reads up to `BLOCK` more bytes onto `buf`; true at the end of the input.
+fn fill(reader: &mut dyn Read, buf: &mut Vec<u8>) -> io::Result<bool> {
+    let n = reader.take(BLOCK as u64).read_to_end(buf)?;
+    Ok(n < BLOCK)
+}
+
+/// Reads and checks every ray of `reader` in `format`. `name` is the file as shown in
+/// messages. The whole input is rejected at its first bad ray.
+pub fn read_rays(reader: &mut dyn Read, format: Format, name: &str) -> Result<Vec<Ray>, Error> {
+    let wrap = |e: RayFileError| Error::Rays { file: name.to_string(), place: e.place, message: e.message };
+    let io_err = |e: io::Error| Error::File { path: name.into(), message: format!("cannot read: {e}") };
+    let mut rays = Vec::new();
+    let mut buf: Vec<u8> = Vec::with_capacity(BLOCK + (1 << 16));
+    match format {
+        Format::Text => {
+            let mut lines = 0;
+            loop {
+                let eof = fill(reader, &mut buf).map_err(io_err)?;
+                let end = if eof { Some(buf.len()) } else { buf.iter().rposition(|&b| b == b'\n').map(|p| p + 1) };
+                // A line longer than a block: read on until it ends.
+                let Some(end) = end else { continue };
+                lines += parse_text_block(&buf[..end], lines, &mut rays).map_err(wrap)?;
+                buf.drain(..end);
+                if eof {
+                    return Ok(rays);
+                }
+            }
+        }
+        Format::Binary => {
+            let mut total = 0u64;
+            loop {
+                let before = buf.len();
+                let eof = fill(reader, &mut buf).map_err(io_err)?;
+                total += (buf.len() - before) as u64;
+                let end = buf.len() / RAY_BYTES * RAY_BYTES;
+                if eof && end != buf.len() {
+                    return Err(Error::File {
+                        path: name.into(),
+                        message: format!(
+                            "size {total} bytes is not a multiple of {RAY_BYTES} (8 little-endian f32 per ray)"
+                        ),
+                    });
+                }
+                parse_binary_block(&buf[..end], rays.len(), &mut rays).map_err(wrap)?;
+                buf.drain(..end);
+                if eof {
+                    return Ok(rays);
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Tracing
+
+/// The results of tracing a ray list, one per ray in input order.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Results {
+    /// The closest hit of each ray (`prim` is the tree's triangle index).
+    Closest(Vec<Option<Hit>>),
+    /// Whether anything is hit in each ray's interval.
+    AnyHit(Vec<bool>),
+}
+
+impl Results {
+    /// Rays that hit something.
+    pub fn hits(&self) -> u64 {
+        match self {
+            Results::Closest(h) => h.iter().filter(|h| h.is_some()).count() as u64,
+            Results::AnyHit(h) => h.iter().filter(|&&h| h).count() as u64,
+        }
+    }
+
+    /// Number of results.
+    pub fn len(&self) -> usize {
+        match self {
+            Results::Closest(h) => h.len(),
+            Results::AnyHit(h) => h.len(),
+        }
+    }
+
+    /// True if there are no results.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Traces `rays` through `tree` with `method` on the current rayon pool, in parallel over
+/// chunks of [`CHUNK`] rays: closest hits, or only whether anything is hit with `any_hit`.
+pub fn trace(tree: &KdTree, rays: &[Ray], method: Method, any_hit: bool) -> Results {
+    if any_hit {
+        let mut out = vec![false; rays.len()];
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method {
+            Method::Mono => mono_any_chunk(tree, rays, out),
+        });
+        Results::AnyHit(out)
+    } else {
+        let mut out = vec![None; rays.len()];
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method {
+            Method::Mono => mono_closest_chunk(tree, rays, out),
+        });
+        Results::Closest(out)
+    }
+}
+
+/// Single-ray closest-hit kernel of one chunk.
+fn mono_closest_chunk(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>]) {
+    for (ray, slot) in rays.iter().zip(out) {
+        *slot = tree.intersect(ray);
+    }
+}
+
+/// Single-ray any-hit kernel of one chunk.
+fn mono_any_chunk(tree: &KdTree, rays: &[Ray], out: &mut [bool]) {
+    for (ray, slot) in rays.iter().zip(out) {
+        *slot = tree.occluded(ray);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+/// The primitive id written for a hit: the file's face id of the tree's triangle `prim`.
+#[inline]
+fn file_prim(prim_ids: &[u32], prim: u32) -> u32 {
+    prim_ids.get(prim as usize).copied().unwrap_or(prim)
+}
+
+/// Formats one chunk of results into bytes.
+fn format_chunk(results: ResultsSlice<'_>, prim_ids: &[u32], format: Format) -> io::Result<Vec<u8>> {
+    let mut buf = Vec::new();
+    match (results, format) {
+        (ResultsSlice::Closest(hits), Format::Text) => {
+            buf.reserve(hits.len() * 32);
+            for hit in hits {
+                match hit {
+                    Some(h) => writeln!(buf, "{} {} {} {}", file_prim(prim_ids, h.prim), h.t, h.u, h.v)?,
+                    None => buf.extend_from_slice(b"-1 inf 0 0\n"),
+                }
+            }
+        }
+        (ResultsSlice::Closest(hits), Format::Binary) => {
+            buf.reserve(hits.len() * HIT_BYTES);
+            for hit in hits {
+                let (prim, t, u, v) = match hit {
+                    // Ids above i32::MAX are refused before tracing (see `check_prim_ids`).
+                    Some(h) => (file_prim(prim_ids, h.prim) as i32, h.t, h.u, h.v),
+                    None => (-1, f32::INFINITY, 0.0, 0.0),
+                };
+                buf.extend_from_slice(&prim.to_le_bytes());
+                for x in [t, u, v] {
+                    buf.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+        (ResultsSlice::AnyHit(hits), Format::Text) => {
+            buf.reserve(hits.len() * 2);
+            for &h in hits {
+                buf.extend_from_slice(if h { b"1\n" } else { b"0\n" });
+            }
+        }
+        (ResultsSlice::AnyHit(hits), Format::Binary) => buf.extend(hits.iter().map(|&h| u8::from(h))),
+    }
+    Ok(buf)
+}
+
+/// A borrowed chunk of [`Results`].
+#[derive(Clone, Copy)]
+enum ResultsSlice<'a> {
+    Closest(&'a [Option<Hit>]),
+    AnyHit(&'a [bool]),
+}
+
+/// Writes `results` to `out` in `format`, mapping tree triangle indices to the file's
+/// primitive ids with `prim_ids` (see the module documentation for the layouts). Chunks are
+/// formatted in parallel, a group at a time, and written in order.
+pub fn write_results(results: &Results, prim_ids: &[u32], format: Format, out: &mut dyn Write) -> io::Result<()> {
+    const GROUP: usize = 256 * CHUNK;
+    let len = results.len();
+    for start in (0..len).step_by(GROUP) {
+        let end = (start + GROUP).min(len);
+        let chunks: Vec<_> = (start..end)
+            .step_by(CHUNK)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|s| {
+                let e = (s + CHUNK).min(end);
+                let slice = match results {
+                    Results::Closest(h) => ResultsSlice::Closest(&h[s..e]),
+                    Results::AnyHit(h) => ResultsSlice::AnyHit(&h[s..e]),
+                };
+                format_chunk(slice, prim_ids, format)
+            })
+            .collect();
+        for chunk in chunks {
+            out.write_all(&chunk?)?;
+        }
+    }
+    out.flush()
+}
+
+/// Fails if a primitive id does not fit the binary output's `i32`.
+fn check_prim_ids(prim_ids: &[u32], format: Format, any_hit: bool) -> Result<(), Error> {
+    if format == Format::Binary && !any_hit && prim_ids.iter().any(|&id| id > i32::MAX as u32) {
+        return Err(Error::Usage("primitive ids above 2^31 - 1 do not fit the binary output; use text".into()));
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// The command
+
+/// The summary of one `rttest raycast` run (printed with `--json`, or as text with `--out`).
+#[derive(Clone, Debug, Serialize)]
+pub struct RaycastReport {
+    /// Scene name.
+    pub scene: String,
+    /// The traversal method (`mono`).
+    pub method: String,
+    /// True for `--any-hit` (occlusion) queries.
+    pub any_hit: bool,
+    /// The ray-triangle test (`wald` or `watertight`).
+    pub intersector: String,
+    /// Threads in the pool.
+    pub threads: usize,
+    /// Triangles in the scene.
+    pub triangles: u64,
+    /// Milliseconds to build the tree.
+    pub build_ms: f64,
+    /// Rays traced.
+    pub rays: u64,
+    /// Rays that hit (closest hit) or are occluded (`--any-hit`).
+    pub hits: u64,
+    /// Seconds of traversal and intersection for all rays.
+    pub trace_secs: f64,
+    /// `rays / trace_secs / 1e6`.
+    pub mrays_per_s: f64,
+    /// Seconds to read and check the ray file.
+    pub read_secs: f64,
+    /// Seconds to format and write the results.
+    pub write_secs: f64,
+    /// The ray file (`-` for stdin).
+    pub rays_file: String,
+    /// The results file (`-` for stdout).
+    pub out: String,
+}
+
+impl std::fmt::Display for RaycastReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "raycast      {} rays from {}, method {}, {}, {} threads",
+            self.rays,
+            self.rays_file,
+            self.method,
+            if self.any_hit { "any hit" } else { "closest hit" },
+            self.threads
+        )?;
+        writeln!(f, "hits         {}", self.hits)?;
+        writeln!(f, "trace        {:.4} s: {:.2} Mrays/s", self.trace_secs, self.mrays_per_s)?;
+        write!(f, "io           read {:.4} s, write {:.4} s, results in {}", self.read_secs, self.write_secs, self.out)
+    }
+}
+
+/// `rttest raycast`: the scene is loaded and built by `load`, after the arguments and the
+/// ray file have been checked.
+pub(crate) fn raycast_command(
+    global: &crate::cli::GlobalArgs,
+    args: &RaycastArgs,
+    load: impl FnOnce() -> Result<crate::cli::Built, Error>,
+) -> Result<(), Error> {
+    let out_path = args.out.as_ref().filter(|p| !is_dash(p));
+    if global.json && out_path.is_none() {
+        return Err(Error::Usage("--json prints a summary on stdout, so the results need --out FILE".into()));
+    }
+    let in_format =
+        args.format.unwrap_or_else(|| if is_dash(&args.rays) { Format::Text } else { Format::of_path(&args.rays) });
+    let out_format = args.out_format.unwrap_or_else(|| out_path.map_or(Format::Text, |p| Format::of_path(p)));
+    let rays_name = args.rays.display().to_string();
+
+    // Read and check every ray before building anything.
+    let start = Instant::now();
+    let rays = if is_dash(&args.rays) {
+        read_rays(&mut io::stdin().lock(), in_format, &rays_name)?
+    } else {
+        let file = File::open(&args.rays)
+            .map_err(|e| Error::File { path: args.rays.clone(), message: format!("cannot open: {e}") })?;
+        if in_format == Format::Binary
+            && let Ok(meta) = file.metadata()
+            && meta.is_file()
+            && meta.len() % RAY_BYTES as u64 != 0
+        {
+            return Err(Error::File {
+                path: args.rays.clone(),
+                message: format!(
+                    "size {} bytes is not a multiple of {RAY_BYTES} (8 little-endian f32 per ray)",
+                    meta.len()
+                ),
+            });
+        }
+        read_rays(&mut io::BufReader::with_capacity(1 << 16, file), in_format, &rays_name)?
+    };
+    let read_secs = start.elapsed().as_secs_f64();
+
+    let built = load()?;
+    let prim_ids = &built.scene.mesh.prim_ids;
+    check_prim_ids(prim_ids, out_format, args.any_hit)?;
+
+    let start = Instant::now();
+    let results = trace(&built.tree, &rays, args.method, args.any_hit);
+    let trace_secs = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    match out_path {
+        Some(path) => {
+            let file = File::create(path)
+                .map_err(|e| Error::File { path: path.clone(), message: format!("cannot create: {e}") })?;
+            let mut w = BufWriter::with_capacity(1 << 20, file);
+            write_results(&results, prim_ids, out_format, &mut w)
+                .map_err(|e| Error::File { path: path.clone(), message: format!("cannot write: {e}") })?;
+        }
+        None => write_results(&results, prim_ids, out_format, &mut io::stdout().lock())?,
+    }
+    let write_secs = start.elapsed().as_secs_f64();
+
+    let Some(path) = out_path else { return Ok(()) };
+    let report = RaycastReport {
+        scene: built.scene.name.clone(),
+        method: args.method.name().to_string(),
+        any_hit: args.any_hit,
+        intersector: built.report.intersector.clone(),
+        threads: rayon::current_num_threads(),
+        triangles: built.report.tree.triangles,
+        build_ms: built.report.build_ms,
+        rays: rays.len() as u64,
+        hits: results.hits(),
+        trace_secs,
+        mrays_per_s: crate::report::mrays_per_s(rays.len() as u64, trace_secs),
+        read_secs,
+        write_secs,
+        rays_file: rays_name,
+        out: path.display().to_string(),
+    };
+    crate::cli::emit(global, &report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_line_accepts_rays_comments_and_blanks() {
+        assert_eq!(parse_line("   "), Ok(None));
+        assert_eq!(parse_line("  # a comment"), Ok(None));
+        let ray = parse_line("0 0 -5\t0 0 1 0 inf\r\n").unwrap().unwrap();
+        assert_eq!(ray.origin, Vec3::new(0.0, 0.0, -5.0));
+        assert_eq!(ray.dir, Vec3::Z);
+        assert_eq!(ray.t_max, f32::INFINITY);
+        assert_eq!(parse_line("1e-3 2 3 1 0 0 -inf 1e30").unwrap().unwrap().t_min, f32::NEG_INFINITY);
+    }
+
+    #[test]
+    fn parse_line_rejects_bad_rays() {
+        assert!(parse_line("0 0 0 1 0 0 0").unwrap_err().contains("found 7"));
+        assert!(parse_line("0 0 0 1 0 0 0 1 2").unwrap_err().contains("found 9"));
+        assert!(parse_line("0 0 x 1 0 0 0 1").unwrap_err().contains("field 3 'x'"));
+        assert!(parse_line("nan 0 0 1 0 0 0 1").unwrap_err().contains("origin"));
+        assert!(parse_line("0 0 0 0 0 0 0 1").unwrap_err().contains("direction"));
+        assert!(parse_line("0 0 0 inf 0 0 0 1").unwrap_err().contains("direction"));
+        assert!(parse_line("0 0 0 1 0 0 2 1").unwrap_err().contains("interval"));
+        assert!(parse_line("0 0 0 1 0 0 nan 1").unwrap_err().contains("interval"));
+    }
+
+    /// Line numbers stay right across parallel pieces and blocks.
+    #[test]
+    fn text_errors_name_the_line_across_pieces() {
+        let mut text = String::new();
+        for i in 0..500_000 {
+            text.push_str(if i % 7 == 0 { "# comment\n" } else { "0 0 0 1 0 0 0 inf\n" });
+        }
+        let rays = read_rays(&mut text.as_bytes(), Format::Text, "r.txt").unwrap();
+        assert_eq!(rays.len(), 500_000 - 500_000usize.div_ceil(7));
+        text.push_str("0 0 0 1 0 0 0\n");
+        let err = read_rays(&mut text.as_bytes(), Format::Text, "r.txt").unwrap_err().to_string();
+        assert_eq!(err, "r.txt:500001: expected 8 numbers 'ox oy oz dx dy dz tmin tmax', found 7");
+        // A last line without a newline counts too.
+        let err = read_rays(&mut "\n\n1 2".as_bytes(), Format::Text, "r.txt").unwrap_err().to_string();
+        assert!(err.starts_with("r.txt:3: "), "{err}");
+    }
+
+    #[test]
+    fn binary_input_is_checked() {
+        let mut bytes = Vec::new();
+        for v in [[0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, f32::INFINITY], [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]] {
+            bytes.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        let err = read_rays(&mut &bytes[..], Format::Binary, "r.bin").unwrap_err().to_string();
+        assert!(err.starts_with("r.bin: ray 1 at byte 32: ray direction"), "{err}");
+        assert_eq!(read_rays(&mut &bytes[..32], Format::Binary, "r.bin").unwrap().len(), 1);
+        let err = read_rays(&mut &bytes[..40], Format::Binary, "r.bin").unwrap_err().to_string();
+        assert!(err.contains("size 40 bytes"), "{err}");
+    }
+
+    #[test]
+    fn formats_by_extension() {
+        assert_eq!(Format::of_path(Path::new("a.bin")), Format::Binary);
+        assert_eq!(Format::of_path(Path::new("a.F32")), Format::Binary);
+        assert_eq!(Format::of_path(Path::new("a.txt")), Format::Text);
+        assert_eq!(Format::of_path(Path::new("rays")), Format::Text);
+    }
+}
