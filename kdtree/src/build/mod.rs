@@ -42,7 +42,7 @@ pub struct BuildConfig {
     pub c_isect: f32,
     /// Fraction of the cost taken off a split that leaves one side empty (0 = off).
     pub empty_bonus: f32,
-    /// Maximum depth; `None` means `8 + 1.3 log2 N` (pbrt's rule). Capped at [`crate::MAX_DEPTH`].
+    /// Maximum depth; `None` means `8 + log2 N` (see [`BuildConfig::depth_limit`]). Capped at [`crate::MAX_DEPTH`].
     pub max_depth: Option<u32>,
     /// The ray-triangle test the tree's traversal uses.
     pub intersector: Intersector,
@@ -55,9 +55,15 @@ impl Default for BuildConfig {
 }
 
 impl BuildConfig {
-    /// The maximum depth for `n` triangles.
+    /// The maximum depth for `n` triangles: `max_depth`, or by default `8 + log2 N`.
+    ///
+    /// pbrt's `8 + 1.3 log2 N` was measured here and found too deep for perfect splits with
+    /// `C_isect = 5 C_trav`: on Sponza (66k triangles) its 29 levels against our 24 double
+    /// the nodes (856k against 251k) and references (7.6 against 5.3 per triangle) and cost
+    /// 50% more build time for 0.3% of SAH cost, with the same traversal steps (51.2 per
+    /// primary ray) and intersection tests (3.0); the atrium behaves the same way.
     pub fn depth_limit(&self, n: usize) -> u32 {
-        let d = self.max_depth.unwrap_or_else(|| (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32);
+        let d = self.max_depth.unwrap_or_else(|| (8.0 + (n.max(1) as f64).log2()).round() as u32);
         d.min(crate::MAX_DEPTH)
     }
 }
