@@ -130,13 +130,10 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
     // Per-axis ray data as 4-lane arrays: an axis `& 3` indexes them without bounds checks.
     let origin = ray.origin.extend(0.0).to_array();
     let inv_dir = ray.inv_dir.extend(0.0).to_array();
-    // 1 where the direction's sign bit is set: then the front voxel is the upper child.
-    let upper_first = [
-        ray.dir.x.is_sign_negative() as usize,
-        ray.dir.y.is_sign_negative() as usize,
-        ray.dir.z.is_sign_negative() as usize,
-        0,
-    ];
+    // Bit `axis` is set where the direction's sign bit is: then the front voxel is the upper
+    // child. A bit mask in a register, not an array, keeps the next node's address off a
+    // memory load (the traversal step is bound by this dependency chain).
+    let upper_first = ray.dir.is_negative_bitmask() as usize;
     let nodes = tree.nodes.as_slice();
     let mut stack = [StackEntry::default(); STACK_SIZE];
     let mut sp = 0usize;
@@ -153,8 +150,9 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
             let t_plane = (node.split() - origin[axis]) * inv_dir[axis];
             // The front voxel holds the ray for t < t_plane: below the plane when the
             // direction's sign bit is clear (this also sends +0.0 and -0.0 the right way).
-            let front = node.left_child() + upper_first[axis];
-            let back = node.left_child() + 1 - upper_first[axis];
+            let upper = (upper_first >> axis) & 1;
+            let front = node.left_child() + upper;
+            let back = node.left_child() + 1 - upper;
             if t_plane > t1_wide {
                 index = front;
             } else if t_plane < t0_wide {
