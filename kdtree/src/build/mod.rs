@@ -263,7 +263,8 @@ impl Seq<'_, '_> {
         let s = if n == 0 || depth >= ctx.depth_limit {
             None
         } else {
-            small_split(&items[start..], &b, &ctx.costs).filter(|s| s.cost < ctx.costs.c_isect * n as f64)
+            let limit = ctx.costs.c_isect * n as f64;
+            small_split(&items[start..], &b, &ctx.costs, limit).filter(|s| s.cost < limit)
         };
         let Some(s) = s else {
             let first = self.refs.len();

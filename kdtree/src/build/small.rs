@@ -56,9 +56,16 @@ pub(crate) fn items_from_lists(lists: &Lists, n: usize, slot: &mut [u32], out: &
     }
 }
 
-/// The cheapest split of a small node (the same as [`super::sah::find_split`] on its events),
-/// or `None` when no plane lies strictly inside the box.
-pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs) -> Option<Split> {
+/// The cheapest split of a small node if it costs less than `limit` (the same as
+/// [`super::sah::find_split`] on its events); otherwise `None` or a split that costs at least
+/// `limit`.
+///
+/// Every candidate of axis `k` costs at least `c_trav + scale * n * A_k` (each triangle is on
+/// at least one side, and each side's area is at least the box's face across `k`, `A_k`), so
+/// the axes are searched from the lowest bound and those whose bound is above `limit` or the
+/// best cost found are skipped. The bound is taken with a relative margin far above rounding
+/// errors, so a skipped axis could only have given a costlier plane.
+pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs, limit: f64) -> Option<Split> {
     let n = items.len();
     debug_assert!(n <= SMALL);
     let e = extent64(b);
@@ -70,8 +77,14 @@ pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs) -> Option<Spl
     let nf = n as f64;
     let blocks = n.div_ceil(LANES);
     let mut pick: Option<Split> = None;
-    for k in 0..3 {
-        if e[k] <= 0.0 {
+    let min_factor = costs.empty_factor.min(1.0);
+    let bound = |k: usize| (costs.c_trav + scale * (nf * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor;
+    let lb = [bound(0), bound(1), bound(2)];
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| lb[i].total_cmp(&lb[j]));
+    for k in order {
+        let best = pick.map_or(limit, |p| p.cost.min(limit));
+        if e[k] <= 0.0 || lb[k] * (1.0 - 1e-9) > best {
             continue;
         }
         // Padding never counts: `lo < x`, `hi <= x` and `lo == x` are false for infinity.
@@ -126,7 +139,8 @@ pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs) -> Option<Spl
                 }
             }
         }
-        if best_cost < f64::INFINITY && pick.is_none_or(|p| best_cost < p.cost) {
+        // Axis order breaks ties, as in the sweep.
+        if best_cost < f64::INFINITY && pick.is_none_or(|p| best_cost < p.cost || (best_cost == p.cost && k < p.axis)) {
             pick = Some(Split { axis: k, pos: best_x, planar_left: best_left, cost: best_cost });
         }
     }
@@ -214,7 +228,10 @@ mod tests {
             let lists = Lists::from_vecs(l);
             let bonus = if case % 2 == 0 { 1.0 } else { 0.8 };
             let costs = Costs { c_trav: 1.0, c_isect: 5.0 - r(2) as f64 * 4.0, empty_factor: bonus };
-            assert_eq!(small_split(&items, &b, &costs), find_split(lists.axes(), n, &b, &costs, false), "case {case}");
+            let limit = if case % 3 == 0 { f64::INFINITY } else { costs.c_isect * n as f64 };
+            let below = |s: Option<Split>| s.filter(|s| s.cost < limit);
+            let want = below(find_split(lists.axes(), n, &b, &costs, false));
+            assert_eq!(below(small_split(&items, &b, &costs, limit)), want, "case {case}");
             let mut slot = vec![0; 3 * SMALL];
             let mut back = Vec::new();
             items_from_lists(&lists, n, &mut slot, &mut back);
