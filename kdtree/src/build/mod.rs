@@ -190,8 +190,9 @@ impl Ctx<'_> {
         if n == 0 || depth >= self.depth_limit {
             return None;
         }
-        let s = find_split(lists.axes(), n, b, &self.costs, par)?;
-        (s.cost < self.costs.c_isect * n as f64).then_some(s)
+        let limit = self.costs.c_isect * n as f64;
+        let s = find_split(lists.axes(), n, b, &self.costs, par, limit)?;
+        (s.cost < limit).then_some(s)
     }
 }
 

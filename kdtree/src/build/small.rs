@@ -230,7 +230,7 @@ mod tests {
             let costs = Costs { c_trav: 1.0, c_isect: 5.0 - r(2) as f64 * 4.0, empty_factor: bonus };
             let limit = if case % 3 == 0 { f64::INFINITY } else { costs.c_isect * n as f64 };
             let below = |s: Option<Split>| s.filter(|s| s.cost < limit);
-            let want = below(find_split(lists.axes(), n, &b, &costs, false));
+            let want = below(find_split(lists.axes(), n, &b, &costs, case % 5 == 0, limit));
             assert_eq!(below(small_split(&items, &b, &costs, limit)), want, "case {case}");
             let mut slot = vec![0; 3 * SMALL];
             let mut back = Vec::new();
