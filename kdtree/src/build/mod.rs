@@ -10,6 +10,9 @@
 //!   sorted once at the root ([`events`]); each node finds its plane by a linear sweep
 //!   ([`sah`]) and hands its children their event lists still sorted ([`split`]); only the
 //!   few straddling triangles are clipped again and their new events sorted and merged.
+//! - Small nodes (at most [`small::SMALL`] triangles) drop the event lists and keep the
+//!   triangles' clipped boxes, counting each candidate directly ([`small`]); they choose the
+//!   same planes, so the tree is the same.
 //! - Parallel (rayon) over subtrees above [`PAR_MIN_TRIS`] triangles, sequential with reused
 //!   buffers below. Which nodes run in parallel depends only on their triangle counts, and
 //!   the subtrees are assembled in a fixed depth-first order, so the tree is bit-identical
@@ -18,6 +21,7 @@
 mod clip;
 mod events;
 mod sah;
+mod small;
 mod split;
 
 use std::sync::Mutex;
@@ -31,6 +35,7 @@ pub(crate) use clip::{Polygon, clip_triangle};
 use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events, radix_sort_events};
 pub(crate) use sah::surface_area64;
 use sah::{Costs, Split, find_split};
+use small::{Item, SMALL, items_from_lists, small_partition, small_split};
 use split::{SplitScratch, child_boxes, split_lists};
 
 /// Build parameters: the SAH terms with the thesis's defaults.
@@ -147,6 +152,12 @@ struct Scratch {
     class: Vec<u8>,
     split: SplitScratch,
     levels: Vec<[Lists; 2]>,
+    /// Triangle to item index of a small node (indexed by triangle, like `class`).
+    slot: Vec<u32>,
+    /// The items of the small nodes being built, a stack.
+    items: Vec<Item>,
+    /// Scratch items: a small node's own while it is split, and its left child's.
+    tmp: [Vec<Item>; 2],
 }
 
 /// Shared build state.
@@ -163,6 +174,7 @@ impl Ctx<'_> {
         let mut s = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default();
         if s.class.len() < self.tris.len() {
             s.class = vec![0; self.tris.len()];
+            s.slot = vec![0; self.tris.len()];
         }
         s
     }
@@ -178,8 +190,9 @@ impl Ctx<'_> {
         if n == 0 || depth >= self.depth_limit {
             return None;
         }
-        let s = find_split(lists.axes(), n, b, &self.costs, par)?;
-        (s.cost < self.costs.c_isect * n as f64).then_some(s)
+        let limit = self.costs.c_isect * n as f64;
+        let s = find_split(lists.axes(), n, b, &self.costs, par, limit)?;
+        (s.cost < limit).then_some(s)
     }
 }
 
@@ -215,7 +228,13 @@ struct Seq<'c, 'a> {
 
 impl Seq<'_, '_> {
     fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
-        let Scratch { class, split, levels } = &mut self.scratch;
+        if n <= SMALL {
+            let Scratch { slot, items, levels, .. } = &mut self.scratch;
+            items.clear();
+            items_from_lists(&levels[d][side], n, slot, items);
+            return self.small(0, n, b, depth, idx);
+        }
+        let Scratch { class, split, levels, .. } = &mut self.scratch;
         let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth, false) else {
             self.nodes[idx] = make_leaf(&levels[d][side], &mut self.refs)?;
             return Ok(());
@@ -232,6 +251,42 @@ impl Seq<'_, '_> {
         let (bl, br) = child_boxes(&b, &s);
         self.node(d + 1, 0, nl, bl, depth + 1, c)?;
         self.node(d + 1, 1, nr, br, depth + 1, c + 1)
+    }
+}
+
+impl Seq<'_, '_> {
+    /// Builds the subtree of a small node whose `n` items are the top of the item stack, from
+    /// `start`.
+    fn small(&mut self, start: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
+        let Scratch { split, items, tmp: [own, left], .. } = &mut self.scratch;
+        let ctx = self.ctx;
+        debug_assert_eq!(items.len(), start + n);
+        let s = if n == 0 || depth >= ctx.depth_limit {
+            None
+        } else {
+            let limit = ctx.costs.c_isect * n as f64;
+            small_split(&items[start..], &b, &ctx.costs, limit).filter(|s| s.cost < limit)
+        };
+        let Some(s) = s else {
+            let first = self.refs.len();
+            self.refs.extend(items[start..].iter().map(|it| it.prim));
+            self.refs[first..].sort_unstable();
+            items.truncate(start);
+            self.nodes[idx] = leaf_node(first, n)?;
+            return Ok(());
+        };
+        own.clear();
+        own.extend_from_slice(&items[start..]);
+        items.truncate(start);
+        let (nl, nr) = small_partition(ctx.tris, own, &b, &s, &mut split.polys, left, items);
+        let c = self.nodes.len();
+        self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
+        self.nodes.extend([KdNode::leaf(0, 0); 2]);
+        let (bl, br) = child_boxes(&b, &s);
+        // The right child's items lie below the left's: the left subtree is built first.
+        self.small(start + nr, nl, bl, depth + 1, c)?;
+        self.scratch.items.truncate(start + nr);
+        self.small(start, nr, br, depth + 1, c + 1)
     }
 }
 

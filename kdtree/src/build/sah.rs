@@ -49,7 +49,21 @@ pub(crate) fn extent64(b: &Aabb) -> [f64; 3] {
 /// or `None` when no plane lies strictly inside the box. Ties keep the first candidate in
 /// axis order, then position order, so the result is deterministic. With `par` the three
 /// axes are swept in parallel (for big nodes); the result is the same.
-pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs, par: bool) -> Option<Split> {
+///
+/// Only splits cheaper than `limit` are sought: when the cheapest costs at least `limit`,
+/// the result is `None` or a split that costs at least `limit`. Every candidate of axis `k`
+/// costs at least `c_trav + scale * n * A_k` (each triangle is on at least one side, and each
+/// side's area is at least the box's face across `k`, `A_k`), so axes whose bound, with a
+/// relative margin far above rounding errors, exceeds `limit` or (sequentially, lowest bound
+/// first) the best cost found are not swept: they could only give costlier planes.
+pub(crate) fn find_split(
+    lists: [&[u64]; 3],
+    n: usize,
+    b: &Aabb,
+    costs: &Costs,
+    par: bool,
+    limit: f64,
+) -> Option<Split> {
     let e = extent64(b);
     let sa = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]);
     if !(sa > 0.0 && sa.is_finite()) {
@@ -64,11 +78,28 @@ pub(crate) fn find_split(lists: [&[u64]; 3], n: usize, b: &Aabb, costs: &Costs, 
             sweep_axis::<true>(lists[k], k, &node)
         }
     };
+    let min_factor = costs.empty_factor.min(1.0);
+    let lb =
+        [0, 1, 2].map(|k| (costs.c_trav + node.scale * (node.nf * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor);
+    let beats = |k: usize, best: f64| lb[k] * (1.0 - 1e-9) <= best;
     let best = if par {
+        let sweep = |k: usize| if beats(k, limit) { sweep(k) } else { None };
         let (x, (y, z)) = rayon::join(|| sweep(0), || rayon::join(|| sweep(1), || sweep(2)));
         [x, y, z]
     } else {
-        [sweep(0), sweep(1), sweep(2)]
+        let mut order = [0, 1, 2];
+        order.sort_by(|&i, &j| lb[i].total_cmp(&lb[j]));
+        let mut best = [None; 3];
+        let mut bound = limit;
+        for k in order {
+            if beats(k, bound) {
+                best[k] = sweep(k);
+                if let Some((c, _, _)) = best[k] {
+                    bound = bound.min(c);
+                }
+            }
+        }
+        best
     };
     // Axis order with strict `<`: the first of equal costs wins, as in one sequential sweep.
     let mut pick: Option<Split> = None;
@@ -201,7 +232,7 @@ mod tests {
         let boxes = [([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]), ([9.0, 0.0, 0.0], [10.0, 1.0, 1.0])];
         let l = lists_of(&boxes);
         let b = Aabb::new(Vec3::ZERO, Vec3::new(10.0, 1.0, 1.0));
-        let s = find_split(l.axes(), 2, &b, &COSTS, false).unwrap();
+        let s = find_split(l.axes(), 2, &b, &COSTS, false, f64::INFINITY).unwrap();
         assert_eq!(s.axis, 0);
         assert!(s.pos == 1.0 || s.pos == 9.0, "{s:?}");
         assert!(s.cost < 10.0);
@@ -213,8 +244,8 @@ mod tests {
         let l = lists_of(&boxes);
         // A box flat in two axes has no area.
         let b = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0));
-        assert!(find_split(l.axes(), 1, &b, &COSTS, false).is_none());
-        assert!(find_split(l.axes(), 1, &Aabb::EMPTY, &COSTS, false).is_none());
+        assert!(find_split(l.axes(), 1, &b, &COSTS, false, f64::INFINITY).is_none());
+        assert!(find_split(l.axes(), 1, &Aabb::EMPTY, &COSTS, false, f64::INFINITY).is_none());
     }
 
     #[test]
@@ -223,7 +254,7 @@ mod tests {
             let boxes = [([0.0, 0.0, 0.0], [0.1 * s, 0.1 * s, 0.1 * s]), ([0.9 * s, 0.0, 0.0], [s, s, s])];
             let l = lists_of(&boxes);
             let b = Aabb::new(Vec3::splat(-s), Vec3::splat(s));
-            let sp = find_split(l.axes(), 2, &b, &COSTS, false).unwrap();
+            let sp = find_split(l.axes(), 2, &b, &COSTS, false, f64::INFINITY).unwrap();
             assert!(sp.cost.is_finite() && sp.cost > 0.0, "{s}: {sp:?}");
         }
     }

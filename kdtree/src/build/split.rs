@@ -29,7 +29,7 @@ pub(crate) struct SplitScratch {
     /// New events of the clipped straddling triangles, left and right.
     new: [[Vec<u64>; 3]; 2],
     /// The clipper's polygon buffers.
-    polys: [Polygon; 2],
+    pub polys: [Polygon; 2],
 }
 
 /// The children boxes of `b` split by `s`.

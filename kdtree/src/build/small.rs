@@ -1,0 +1,244 @@
+//! Small nodes (at most [`SMALL`] triangles) without event lists: the triangles' clipped
+//! boxes are kept instead, and each candidate plane's counts are taken by testing every box
+//! (`O(N^2)`, but branch-free and vectorised, and cheaper than keeping sorted lists at these
+//! sizes). The counts and cost terms are those of the sweep ([`super::sah`]) computed the same
+//! way, and ties are broken the same way (lowest cost, then axis order, then lowest position,
+//! then planar triangles left), so the tree is the same as with the event lists.
+
+use glam::Vec3;
+
+use super::clip::{Polygon, clipped_split_bounds};
+use super::events::{END, Lists, START, ev_key, ev_prim, ev_type, key_pos};
+use super::sah::{Costs, Split, extent64};
+use crate::Aabb;
+
+/// Nodes with at most this many triangles are built from boxes (a multiple of [`LANES`]).
+pub(crate) const SMALL: usize = 16;
+
+/// Width of the counting blocks.
+const LANES: usize = 8;
+
+/// A triangle of a small node and its box clipped to the node.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Item {
+    /// Triangle index.
+    pub prim: u32,
+    /// Clipped box minimum.
+    pub lo: [f32; 3],
+    /// Clipped box maximum.
+    pub hi: [f32; 3],
+}
+
+/// Appends the items of the node whose events are `lists` (`n` triangles) to `out`. `slot` is
+/// indexed by triangle (only this node's entries are written and read).
+pub(crate) fn items_from_lists(lists: &Lists, n: usize, slot: &mut [u32], out: &mut Vec<Item>) {
+    let base = out.len();
+    for &e in lists.axis(0) {
+        let (t, p, x) = (ev_type(e), ev_prim(e), key_pos(ev_key(e)));
+        if t == END {
+            out[base + slot[p as usize] as usize].hi[0] = x;
+        } else {
+            slot[p as usize] = (out.len() - base) as u32;
+            out.push(Item { prim: p, lo: [x; 3], hi: [x; 3] });
+        }
+    }
+    debug_assert_eq!(out.len() - base, n);
+    for a in 1..3 {
+        for &e in lists.axis(a) {
+            let (t, p, x) = (ev_type(e), ev_prim(e), key_pos(ev_key(e)));
+            let it = &mut out[base + slot[p as usize] as usize];
+            match t {
+                START => it.lo[a] = x,
+                END => it.hi[a] = x,
+                _ => (it.lo[a], it.hi[a]) = (x, x), // PLANAR
+            }
+        }
+    }
+}
+
+/// The cheapest split of a small node if it costs less than `limit` (the same as
+/// [`super::sah::find_split`] on its events); otherwise `None` or a split that costs at least
+/// `limit`.
+///
+/// Every candidate of axis `k` costs at least `c_trav + scale * n * A_k` (each triangle is on
+/// at least one side, and each side's area is at least the box's face across `k`, `A_k`), so
+/// the axes are searched from the lowest bound and those whose bound is above `limit` or the
+/// best cost found are skipped. The bound is taken with a relative margin far above rounding
+/// errors, so a skipped axis could only have given a costlier plane.
+pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs, limit: f64) -> Option<Split> {
+    let n = items.len();
+    debug_assert!(n <= SMALL);
+    let e = extent64(b);
+    let sa = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]);
+    if !(sa > 0.0 && sa.is_finite()) {
+        return None;
+    }
+    let scale = costs.c_isect * 2.0 * (1.0 / sa);
+    let nf = n as f64;
+    let blocks = n.div_ceil(LANES);
+    let mut pick: Option<Split> = None;
+    let min_factor = costs.empty_factor.min(1.0);
+    let bound = |k: usize| (costs.c_trav + scale * (nf * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor;
+    let lb = [bound(0), bound(1), bound(2)];
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| lb[i].total_cmp(&lb[j]));
+    for k in order {
+        let best = pick.map_or(limit, |p| p.cost.min(limit));
+        if e[k] <= 0.0 || lb[k] * (1.0 - 1e-9) > best {
+            continue;
+        }
+        // Padding never counts: `lo < x`, `hi <= x` and `lo == x` are false for infinity.
+        let mut lo = [[f32::INFINITY; LANES]; SMALL / LANES];
+        let mut hi = [[f32::INFINITY; LANES]; SMALL / LANES];
+        for (i, it) in items.iter().enumerate() {
+            lo[i / LANES][i % LANES] = it.lo[k];
+            hi[i / LANES][i % LANES] = it.hi[k];
+        }
+        let (lo, hi) = (&lo[..blocks], &hi[..blocks]);
+        let (o1, o2) = ((k + 1) % 3, (k + 2) % 3);
+        let (cross, sum) = (e[o1] * e[o2], e[o1] + e[o2]);
+        let (blo, bhi) = (b.min[k], b.max[k]);
+        let (lo64, ext) = (f64::from(blo), e[k]);
+        let (mut best_cost, mut best_x, mut best_left) = (f64::INFINITY, 0.0f32, true);
+        for it in items {
+            for x in [it.lo[k], it.hi[k]] {
+                if !(x > blo && x < bhi) {
+                    continue;
+                }
+                // nl: boxes starting below x; nr: n minus boxes ending at or below x;
+                // pp: boxes flat at x.
+                let (mut cl, mut ce, mut cp) = (0u32, 0u32, 0u32);
+                for (l, h) in lo.iter().zip(hi) {
+                    for j in 0..LANES {
+                        cl += u32::from(l[j] < x);
+                        ce += u32::from(h[j] <= x);
+                        cp += u32::from((l[j] == x) & (h[j] == x));
+                    }
+                }
+                let x = x + 0.0;
+                let (nl, ppf) = (f64::from(cl), f64::from(cp));
+                let nr = nf - f64::from(ce);
+                let d = f64::from(x) - lo64;
+                let (a_l, a_r) = (cross + d * sum, cross + (ext - d) * sum);
+                let base = nl * a_l + nr * a_r;
+                let factor = costs.empty_factor;
+                let bonus = factor != 1.0;
+                let f_l = if bonus && (nl + ppf == 0.0 || nr == 0.0) { factor } else { 1.0 };
+                let mut c = (costs.c_trav + scale * (base + ppf * a_l)) * f_l;
+                let mut left = true;
+                if cp > 0 {
+                    let f_r = if bonus && (nl == 0.0 || nr + ppf == 0.0) { factor } else { 1.0 };
+                    let c_right = (costs.c_trav + scale * (base + ppf * a_r)) * f_r;
+                    if c_right < c {
+                        c = c_right;
+                        left = false;
+                    }
+                }
+                if c < best_cost || (c == best_cost && x < best_x) {
+                    (best_cost, best_x, best_left) = (c, x, left);
+                }
+            }
+        }
+        // Axis order breaks ties, as in the sweep.
+        if best_cost < f64::INFINITY && pick.is_none_or(|p| best_cost < p.cost || (best_cost == p.cost && k < p.axis)) {
+            pick = Some(Split { axis: k, pos: best_x, planar_left: best_left, cost: best_cost });
+        }
+    }
+    pick
+}
+
+/// Splits the items of a small node at `s`: appends the right child's items, then the left
+/// child's, to `out` (which must not alias `items`), and returns the counts `(left, right)`.
+/// `left` is scratch.
+pub(crate) fn small_partition(
+    tris: &[[Vec3; 3]],
+    items: &[Item],
+    b: &Aabb,
+    s: &Split,
+    polys: &mut [Polygon; 2],
+    left: &mut Vec<Item>,
+    out: &mut Vec<Item>,
+) -> (usize, usize) {
+    let (k, p) = (s.axis, s.pos);
+    let start = out.len();
+    left.clear();
+    let (blo, bhi) = (b.min.to_array(), b.max.to_array());
+    for it in items {
+        let (l, h) = (it.lo[k], it.hi[k]);
+        let to_left = if l == h { l < p || (l == p && s.planar_left) } else { h <= p };
+        let to_right = if l == h { l > p || (l == p && !s.planar_left) } else { l >= p };
+        if to_left {
+            left.push(*it);
+        } else if to_right {
+            out.push(*it);
+        } else {
+            let (cl, cr) = clipped_split_bounds(&tris[it.prim as usize], blo, bhi, k, p, polys);
+            if let Some((lo, hi)) = cl {
+                left.push(Item { prim: it.prim, lo, hi });
+            }
+            if let Some((lo, hi)) = cr {
+                out.push(Item { prim: it.prim, lo, hi });
+            }
+        }
+    }
+    let nr = out.len() - start;
+    out.extend_from_slice(left);
+    (left.len(), nr)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::events::push_box_events;
+    use super::super::sah::find_split;
+    use super::*;
+
+    /// The box-counting search finds the same split as the sweep over sorted events, on
+    /// boxes with few distinct coordinates (many ties and planar boxes), with and without
+    /// an empty bonus.
+    #[test]
+    fn small_split_matches_sweep() {
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut r = move |m: u64| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 33) % m
+        };
+        for case in 0..3000 {
+            let n = 1 + r(SMALL as u64) as usize;
+            let b = Aabb::new(Vec3::ZERO, Vec3::new(8.0, 4.0 + r(5) as f32, 8.0));
+            let items: Vec<Item> = (0..n)
+                .map(|i| {
+                    let mut lo = [0.0; 3];
+                    let mut hi = [0.0; 3];
+                    for k in 0..3 {
+                        let (x, y) = (r(9) as f32 * b.max[k] / 8.0, r(9) as f32 * b.max[k] / 8.0);
+                        (lo[k], hi[k]) = (x.min(y), if r(3) == 0 { x.min(y) } else { x.max(y) });
+                    }
+                    Item { prim: i as u32 * 3, lo, hi }
+                })
+                .collect();
+            let mut l: [Vec<u64>; 3] = Default::default();
+            for it in &items {
+                push_box_events(&mut l, it.prim, it.lo, it.hi);
+            }
+            for v in &mut l {
+                v.sort_unstable();
+            }
+            let lists = Lists::from_vecs(l);
+            let bonus = if case % 2 == 0 { 1.0 } else { 0.8 };
+            let costs = Costs { c_trav: 1.0, c_isect: 5.0 - r(2) as f64 * 4.0, empty_factor: bonus };
+            let limit = if case % 3 == 0 { f64::INFINITY } else { costs.c_isect * n as f64 };
+            let below = |s: Option<Split>| s.filter(|s| s.cost < limit);
+            let want = below(find_split(lists.axes(), n, &b, &costs, case % 5 == 0, limit));
+            assert_eq!(below(small_split(&items, &b, &costs, limit)), want, "case {case}");
+            let mut slot = vec![0; 3 * SMALL];
+            let mut back = Vec::new();
+            items_from_lists(&lists, n, &mut slot, &mut back);
+            back.sort_by_key(|it| it.prim);
+            for (a, b) in back.iter().zip(&items) {
+                assert_eq!((a.prim, a.lo, a.hi), (b.prim, b.lo, b.hi));
+            }
+        }
+    }
+}
