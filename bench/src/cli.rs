@@ -75,6 +75,15 @@ pub struct SceneArgs {
     /// The ray-triangle test the tree is built for.
     #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
     pub intersector: IntersectorArg,
+    /// Maximum tree depth (default: 8 + log2 N; at most 60).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=60))]
+    pub max_depth: Option<u32>,
+    /// SAH cost of a ray-triangle test, with a traversal step costing 1 (thesis: 5).
+    #[arg(long, value_name = "X", default_value_t = 5.0)]
+    pub c_isect: f32,
+    /// SAH empty-space bonus in [0, 1): the fraction taken off a split with an empty side.
+    #[arg(long, value_name = "X", default_value_t = 0.0)]
+    pub empty_bonus: f32,
 }
 
 /// `--intersector` values.
@@ -256,7 +265,13 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
     loading.finish();
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
 
-    let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
+    let config = BuildConfig {
+        intersector: args.intersector.into(),
+        max_depth: args.max_depth,
+        c_isect: args.c_isect,
+        empty_bonus: args.empty_bonus,
+        ..BuildConfig::default()
+    };
     let message = format!("building {}", scene.name);
     let building =
         if repeat > 1 { Progress::bar(u64::from(repeat), &message, show) } else { Progress::spinner(&message, show) };

@@ -64,6 +64,21 @@ fn build_json_has_the_tree_statistics() {
 }
 
 #[test]
+fn sah_options_reach_the_builder() {
+    let dir = scratch("sah-options");
+    let deep = json(&rttest(&dir, &["build", "--scene", "sphere", "--json"]));
+    let shallow = json(&rttest(&dir, &["build", "--scene", "sphere", "--max-depth", "3", "--json"]));
+    assert!(shallow["depth"].as_u64().unwrap() <= 3);
+    assert!(shallow["nodes"].as_u64() < deep["nodes"].as_u64());
+    // Cheaper intersections make leaves hold more triangles.
+    let cheap = json(&rttest(&dir, &["build", "--scene", "sphere", "--c-isect", "0.5", "--json"]));
+    assert!(cheap["nodes"].as_u64() < deep["nodes"].as_u64());
+    let out = rttest(&dir, &["build", "--scene", "sphere", "--empty-bonus", "1.5"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("empty_bonus"));
+}
+
+#[test]
 fn render_json_reports_rays_and_writes_the_png() {
     let dir = scratch("render");
     let out = rttest(&dir, &["render", "--scene", "cube", "--size", "32x24", "--frames", "2", "--json"]);
