@@ -79,20 +79,7 @@ impl KdTree {
             b.grow(a).grow(bb).grow(c)
         });
         let built = build::build_nodes(&tris, &prims, bounds, config)?;
-        let (wald, watertight) = match config.intersector {
-            Intersector::Wald => (tris.iter().map(WaldTriangle::new).collect(), Vec::new()),
-            Intersector::Watertight => (Vec::new(), tris.iter().map(WatertightTriangle::new).collect()),
-        };
-        Ok(KdTree {
-            nodes: built.nodes,
-            prim_refs: built.prim_refs,
-            bounds,
-            intersector: config.intersector,
-            wald,
-            watertight,
-            tris,
-            config: config.clone(),
-        })
+        Ok(KdTree::assemble(tris, built.nodes, built.prim_refs, bounds, config))
     }
 
     /// A tree from node and reference arrays made elsewhere (another builder, a file), over
@@ -134,11 +121,22 @@ impl KdTree {
                 todo.push((n.left_child() + 1, depth + 1));
             }
         }
+        Ok(KdTree::assemble(tris, nodes, prim_refs, bounds, config))
+    }
+
+    /// The tree from its arrays, with the intersection records of `config.intersector`.
+    fn assemble(
+        tris: Vec<[Vec3; 3]>,
+        nodes: Vec<KdNode>,
+        prim_refs: Vec<u32>,
+        bounds: Aabb,
+        config: &BuildConfig,
+    ) -> KdTree {
         let (wald, watertight) = match config.intersector {
             Intersector::Wald => (tris.iter().map(WaldTriangle::new).collect(), Vec::new()),
             Intersector::Watertight => (Vec::new(), tris.iter().map(WatertightTriangle::new).collect()),
         };
-        Ok(KdTree {
+        KdTree {
             nodes,
             prim_refs,
             bounds,
@@ -147,7 +145,7 @@ impl KdTree {
             watertight,
             tris,
             config: config.clone(),
-        })
+        }
     }
 
     /// The nodes, root at index 0.
