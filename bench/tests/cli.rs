@@ -183,3 +183,25 @@ fn no_arguments_renders_the_atrium() {
     assert!(v["shadow_rays"].as_u64().unwrap() > 0);
     assert!(dir.join("atrium.png").is_file());
 }
+
+#[test]
+fn images_are_identical_across_runs_and_thread_counts() {
+    let dir = scratch("determinism");
+    let mut files = Vec::new();
+    for (run, threads) in [(0, "1"), (1, "2"), (2, "2"), (3, "3")] {
+        let mut run_files = Vec::new();
+        for aov in ["color", "depth", "prim"] {
+            let out = format!("{aov}-{run}.pfm");
+            let o = rttest(
+                &dir,
+                &["render", "--scene", "arena", "--size", "48x40", "--threads", threads, "--aov", aov, "--out", &out],
+            );
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            run_files.push(std::fs::read(dir.join(&out)).expect("image written"));
+        }
+        files.push(run_files);
+    }
+    for run in &files[1..] {
+        assert!(run == &files[0], "an image differs between runs or thread counts");
+    }
+}
