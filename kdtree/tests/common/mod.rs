@@ -11,49 +11,9 @@ pub fn cases(default: u32) -> u32 {
     std::env::var("PROPTEST_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }
 
-/// Compares tree and oracle on one ray: same closest distance bit for bit (both run the same
-/// triangle test), the same triangle or another at exactly that distance (a tie), and the
-/// same any-hit answer.
-///
-/// One ambiguity is allowed, and only one: a hit so close to the origin that it lies within
-/// the rounding error of the origin's own position (`t |d| <= 64 ulp(max |o|)`). Such a hit
-/// is an artefact of an origin on (or one ulp off) a surface: the triangle test may round the
-/// distance to 0 for a point the ray never reaches in exact arithmetic, and the traversal
-/// follows exact arithmetic. The tree may report it or not; past it, it must agree.
+/// Compares tree and oracle on one ray (see [`BruteForce::check`]).
 pub fn check_ray(tree: &KdTree, oracle: &BruteForce, ray: &Ray) -> Result<(), String> {
-    let got = tree.intersect(ray);
-    let want = oracle.intersect(ray);
-    let near = ray.origin.abs().max_element() * (64.0 * f32::EPSILON) / ray.dir.length();
-    if let Some(w) = want.filter(|w| w.t <= near && w.t >= ray.t_min) {
-        let beyond = oracle.intersect(&Ray::new(ray.origin, ray.dir, near.next_up(), ray.t_max));
-        let ok = match got {
-            None => beyond.is_none(),
-            Some(g) if g.t <= near => oracle.all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t),
-            Some(g) => beyond.is_some_and(|b| b.t == g.t),
-        };
-        let occ = tree.occluded(ray);
-        if !ok || (beyond.is_some() && !occ) {
-            return Err(format!("ray {ray:?}: tree {got:?} (occluded {occ}), oracle {w:?} then {beyond:?}"));
-        }
-        return Ok(());
-    }
-    match (got, want) {
-        (None, None) => {}
-        (Some(g), Some(w)) => {
-            if g.t != w.t {
-                return Err(format!("ray {ray:?}: tree hit {g:?}, oracle {w:?}"));
-            }
-            if g.prim != w.prim && !oracle.all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t) {
-                return Err(format!("ray {ray:?}: tree hit {g:?} is not an oracle hit (oracle {w:?})"));
-            }
-        }
-        (g, w) => return Err(format!("ray {ray:?}: tree {g:?}, oracle {w:?}")),
-    }
-    let occ = tree.occluded(ray);
-    if occ != want.is_some() {
-        return Err(format!("ray {ray:?}: occluded {occ}, oracle hit {want:?}"));
-    }
-    Ok(())
+    oracle.check(ray, tree.intersect(ray), tree.occluded(ray))
 }
 
 /// Checks every ray, reporting the first disagreement and the number of them.
