@@ -40,9 +40,18 @@ impl Ray {
     ///
     /// This does not check its input: traversal of a ray with NaN components returns no hit
     /// and never panics, but the answer is meaningless. Use [`Ray::try_new`] on user input.
+    ///
+    /// A direction component so tiny that its reciprocal overflows (a denormal such as
+    /// `6e-45`) is flushed to a zero of the same sign, so that traversal and the triangle
+    /// tests see one consistent direction (the fuzzer found rays whose `1 / d` was infinite
+    /// while `d` was not zero).
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
-        Ray { origin, dir, inv_dir: dir.recip(), t_min, t_max }
+        let inv_dir = dir.recip();
+        // Keep a component when its reciprocal is finite, or it is zero, or it is NaN.
+        let keep = inv_dir.is_finite_mask() | dir.cmpeq(Vec3::ZERO) | dir.is_nan_mask();
+        let dir = if keep.all() { dir } else { Vec3::select(keep, dir, Vec3::ZERO.copysign(dir)) };
+        Ray { origin, dir, inv_dir, t_min, t_max }
     }
 
     /// Like [`Ray::new`], but rejects non-finite origins, zero or non-finite directions and
@@ -128,6 +137,15 @@ mod tests {
         assert!(matches!(Ray::try_new(o, Vec3::ZERO, 0.0, 1.0), Err(RayError::BadDirection(_))));
         assert!(matches!(Ray::try_new(o, d, f32::NAN, 1.0), Err(RayError::BadInterval(..))));
         assert!(matches!(Ray::try_new(o, d, 2.0, 1.0), Err(RayError::BadInterval(..))));
+    }
+
+    #[test]
+    fn denormal_components_are_flushed_to_signed_zeros() {
+        let r = Ray::new(Vec3::ZERO, Vec3::new(5.684_224_5e32, 6e-45, -6e-45), 0.0, 1.0);
+        assert_eq!(r.dir.y.to_bits(), 0.0f32.to_bits());
+        assert_eq!(r.dir.z.to_bits(), (-0.0f32).to_bits());
+        assert_eq!((r.inv_dir.y, r.inv_dir.z), (f32::INFINITY, f32::NEG_INFINITY));
+        assert_eq!(r.dir.x, 5.684_224_5e32);
     }
 
     #[test]

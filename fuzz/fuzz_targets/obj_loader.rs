@@ -1,0 +1,12 @@
+//! OBJ bytes -> loader: never panics; whatever it accepts passes `Mesh::check`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    if let Ok((mesh, report)) = scenes::obj::parse_obj(data, std::path::Path::new("fuzz.obj")) {
+        mesh.check().expect("a loaded mesh satisfies its invariants");
+        assert_eq!(report.triangles, mesh.triangle_count());
+        assert!(mesh.triangle_count() > 0);
+    }
+});
