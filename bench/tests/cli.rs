@@ -1,19 +1,15 @@
 //! End-to-end tests of the `rttest` binary on tiny scenes.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
+
+use common::rttest;
 
 /// A fresh, empty scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rttest-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
-
-/// Runs `rttest args` in `dir`.
-fn rttest(dir: &PathBuf, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rttest")).args(args).current_dir(dir).output().expect("run rttest")
+    common::scratch("cli", name)
 }
 
 /// The single JSON object that a successful `--json` run prints.

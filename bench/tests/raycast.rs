@@ -2,22 +2,18 @@
 //! geometry and against the brute-force oracle of the kd-tree crate.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 use glam::Vec3;
 use kdtree::{BruteForce, Intersector, Ray};
 
+mod common;
+
+use common::rttest;
+
 /// A fresh, empty scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rttest-raycast-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
-
-/// Runs `rttest args` in `dir`.
-fn rttest(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rttest")).args(args).current_dir(dir).output().expect("run rttest")
+    common::scratch("raycast", name)
 }
 
 /// Runs `rttest args` in `dir` and returns its stdout, failing the test on a non-zero exit.
