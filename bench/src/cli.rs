@@ -19,6 +19,7 @@ use crate::progress::{self, Progress};
 use crate::raycast::{self, RaycastArgs};
 use crate::render::{FrameBuffers, FrameStats, Method, Renderer, Shadows};
 use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};
+use crate::tables::{self, TablesArgs};
 
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
 pub const MAX_SIDE: u32 = 16384;
@@ -63,6 +64,8 @@ pub enum Command {
     /// Trace the rays of a file (text or binary) and write one result per ray.
     #[command(after_long_help = raycast::FORMATS_HELP)]
     Raycast(RaycastArgs),
+    /// Print the thesis's Tables 4.1-4.4 (packets, frusta, culling, MFT) for our scenes.
+    Tables(TablesArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -143,10 +146,19 @@ pub struct RenderArgs {
     /// Frames traced; the reported trace time is the fastest.
     #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub frames: u32,
-    /// How rays traverse the tree.
+    /// How primary rays traverse the tree (shadow rays always go one by one).
     #[arg(long, value_enum, default_value_t = Method::Mono)]
     pub method: Method,
-    /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray.
+    /// Tile side: the work unit of a thread, and the frustum of `frustum` and `mft` (a
+    /// multiple of 4 from 4 to 64 for the packet methods).
+    #[arg(long, value_name = "N", default_value_t = crate::render::TILE_SIZE,
+          value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub tile: u32,
+    /// Turn packet/leaf culling off (frustum methods; thesis Table 4.2).
+    #[arg(long)]
+    pub no_culling: bool,
+    /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray
+    /// (and, for packet methods, per 2x2 packet).
     #[arg(long)]
     pub counters: bool,
 }
@@ -233,6 +245,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Raycast(args)) => {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
         }
+        Some(Command::Tables(args)) => tables::tables_command(&global, &args),
         None => render_command(&global, &default_render_args()),
     })
 }
@@ -402,19 +415,25 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
     let (camera, view) = camera_for(&built.scene, args)?;
     let out = out_path(&built.scene, args);
 
-    let renderer = Renderer::new(&built.scene, &built.tree, camera, args.method, args.shadows);
+    let renderer = Renderer::new(&built.scene, &built.tree, camera, args.method, args.shadows)
+        .with_tile(args.tile)
+        .map_err(|e| Error::Usage(format!("--tile: {e}")))?
+        .with_culling(!args.no_culling);
     let mut buffers = renderer.buffers();
     let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
     let stats = timing.best;
     let traversal = args.counters.then(|| {
         let (_, primary, shadow) = renderer.trace_counted(&mut buffers);
-        TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow)
+        let packets = args.method.tile_method().map(|_| renderer.packet_count());
+        TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
     let (shade_secs, write_secs) = write_image(&renderer, &buffers, args.aov, &out)?;
 
     let report = RenderReport {
         scene: built.scene.name.clone(),
         method: args.method.name().to_string(),
+        tile: args.tile,
+        culling: !args.no_culling,
         view,
         width: camera.width,
         height: camera.height,

@@ -107,3 +107,27 @@ pub fn refined(mesh: &Mesh, doublings: u32) -> Mesh {
     }
     mesh
 }
+
+/// The workloads of the packet benches: the atrium's default view and, when the shared
+/// scenes are there, Sponza from the Embree comparison view (eye (-10, 3, 0), target
+/// (0, 4, 0), fovy 70), both at `size` x `size`.
+pub fn packet_workloads(size: u32) -> Vec<(&'static str, Scene, KdTree, Camera)> {
+    let mut out = Vec::new();
+    if let Ok((scene, tree, _)) = load_and_build("atrium", &BuildConfig::default())
+        && let Some(camera) = scene.default_view().camera(size, size)
+    {
+        out.push(("atrium", scene, tree, camera));
+    }
+    match sponza_path() {
+        Some(path) => {
+            if let Ok((scene, tree, _)) = load_and_build(&path.to_string_lossy(), &BuildConfig::default())
+                && let Some(camera) =
+                    Camera::look_at(glam::Vec3::new(-10.0, 3.0, 0.0), glam::Vec3::new(0.0, 4.0, 0.0), 70.0, size, size)
+            {
+                out.push(("sponza", scene, tree, camera));
+            }
+        }
+        None => eprintln!("packet benches: Sponza skipped, no shared scenes folder"),
+    }
+    out
+}

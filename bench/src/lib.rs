@@ -9,7 +9,9 @@
 //! rttest build  --scene NAME|FILE.obj[.gz] [--intersector wald|watertight] [--repeat N]
 //! rttest render --scene NAME|FILE.obj[.gz] [--view NAME | --camera ex,ey,ez,tx,ty,tz,fovy]
 //!               [--size WxH] [--shadows none|hard] [--aov color|depth|prim] [--out FILE]
-//!               [--frames N] [--method mono] [--intersector wald|watertight] [--counters]
+//!               [--frames N] [--method mono|packet|samesign|frustum|mft] [--tile N]
+//!               [--no-culling] [--intersector wald|watertight] [--counters]
+//! rttest tables [--scene NAME|FILE ...] [--size WxH] [--frames N] [--csv]
 //! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
 //!               [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
 //!               [--intersector wald|watertight]
@@ -23,8 +25,9 @@
 //! `render --json` keys: `scene, method, view, width, height, threads, intersector, shadows,
 //! aov, triangles, build_ms, frames, rays, primary_rays, shadow_rays, hits, occluded,
 //! trace_secs, primary_secs, shadow_secs, mrays_per_s, primary_mrays_per_s,
-//! shadow_mrays_per_s, shade_secs, write_secs, out` and, with `--counters`,
-//! `{primary,shadow}_{nodes,leaves,isects}_per_ray`. `trace_secs` is the best frame's ray
+//! shadow_mrays_per_s, shade_secs, write_secs, out, tile, culling` and, with `--counters`,
+//! `{primary,shadow}_{nodes,leaves,isects}_per_ray` (for packet methods also
+//! `primary_steps_per_packet`, `primary_tests_per_packet` and, for frusta, `culled_percent`). `trace_secs` is the best frame's ray
 //! generation + traversal + intersection (primary and shadow passes), never shading or I/O.
 //!
 //! `raycast` traces the rays of a file and writes one result per ray, in input order:
@@ -47,6 +50,7 @@
 //! - [`raycast`]: ray files in, one result per ray out (`rttest raycast`);
 //! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
 //!   per-pixel buffers, shading and image output come after and are timed apart;
+//! - [`tables`]: the thesis's Tables 4.1-4.4 (`rttest tables`);
 //! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
 //! - [`report`]: tree statistics and the text / JSON reports;
 //! - [`progress`]: progress bars that only appear for work taking more than a second;
@@ -61,5 +65,6 @@ pub mod raycast;
 pub mod render;
 pub mod report;
 pub mod shade;
+pub mod tables;
 
 pub use error::Error;

@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
-//!                [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
+//!                [--out FILE|-] [--out-format text|binary]
+//!                [--method mono|packet|samesign|frustum|mft] [--any-hit]
 //!                [--intersector wald|watertight]          (global: --threads N, --json)
 //! ```
 //!
@@ -49,7 +50,10 @@
 //! (44 bytes each) and traced in one timed pass, in parallel over chunks of
 //! [`CHUNK`] rays, each chunk writing its own slice of a preallocated result buffer, so the
 //! output is in input order. The traversal [`Method`] is matched once per chunk, as in
-//! [`crate::render`]: packet methods slot in as new variants with their own chunk kernels.
+//! [`crate::render`]. Packet methods group consecutive rays of a chunk: 4 to a packet, and
+//! for the frusta runs of up to 64 rays that share an origin (see `packet_closest_chunk`);
+//! every method must give the single-ray answers, which makes a ray file a test of all of
+//! them on arbitrary rays.
 //! Results are formatted in parallel and written through one buffered writer.
 
 use std::fs::File;
@@ -59,7 +63,8 @@ use std::time::Instant;
 
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use kdtree::{Hit, KdTree, Ray};
+use kdtree::{Hit, KdTree, NoCounters, Ray};
+use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -110,7 +115,8 @@ pub struct RaycastArgs {
     /// Format of the results (default: binary for an --out file ending in .bin or .f32, else text).
     #[arg(long, value_enum, value_name = "FORMAT")]
     pub out_format: Option<Format>,
-    /// How rays traverse the tree.
+    /// How rays traverse the tree: one by one, or grouped (4 consecutive rays to a packet;
+    /// runs of up to 64 rays sharing an origin to a frustum).
     #[arg(long, value_enum, default_value_t = Method::Mono)]
     pub method: Method,
     /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
@@ -355,16 +361,89 @@ impl Results {
 pub fn trace(tree: &KdTree, rays: &[Ray], method: Method, any_hit: bool) -> Results {
     if any_hit {
         let mut out = vec![false; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method {
-            Method::Mono => mono_any_chunk(tree, rays, out),
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_method() {
+            None => mono_any_chunk(tree, rays, out),
+            Some(m) => packet_any_chunk(tree, rays, m, out),
         });
         Results::AnyHit(out)
     } else {
         let mut out = vec![None; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method {
-            Method::Mono => mono_closest_chunk(tree, rays, out),
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_method() {
+            None => mono_closest_chunk(tree, rays, out),
+            Some(m) => packet_closest_chunk(tree, rays, m, out),
         });
         Results::Closest(out)
+    }
+}
+
+/// Rays per frustum of `--method frustum|mft` on a ray file: up to 16 packets.
+const FRUSTUM_RAYS: usize = 64;
+
+/// Packet closest-hit kernel of one chunk of arbitrary rays, in file order:
+/// - `packet`: each 4 consecutive rays as an omni-directional packet when they share an
+///   origin (and start at it), else as a same-sign packet split by direction signs;
+/// - `samesign`: each 4 consecutive rays as a same-sign packet;
+/// - `frustum`, `mft`: each run of up to 64 consecutive rays sharing an origin (and starting
+///   at it) as one frustum, or four quarter-runs as MFT frusta; other rays as `packet`.
+fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &mut [Option<Hit>]) {
+    let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
+    let mut group: Vec<OmniPacket> = Vec::with_capacity(FRUSTUM_RAYS / 4);
+    let mut start = 0;
+    while start < rays.len() {
+        let origin = rays[start].origin;
+        let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
+        let run = rays[start..].iter().take(FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
+        let frustum = matches!(method, TileMethod::Frustum | TileMethod::Mft) && run > 4;
+        if frustum {
+            group.clear();
+            for four in rays[start..start + run].chunks(4) {
+                let packet = RayPacket::new(four);
+                // A shared origin and t_min >= 0 were checked for the run.
+                group.push(OmniPacket::new(packet).expect("run shares its origin"));
+            }
+            tracer.load_packets(&group).expect("run shares its origin");
+            tracer.trace(tree, method, &mut NoCounters);
+            for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
+                for (lane, slot) in slots.iter_mut().enumerate() {
+                    *slot = hits.get(lane);
+                }
+            }
+            start += run;
+            continue;
+        }
+        let end = (start + 4).min(rays.len());
+        let packet = RayPacket::new(&rays[start..end]);
+        let hits = match (method, OmniPacket::new(packet)) {
+            (TileMethod::SameSign, _) | (_, None) => samesign::intersect(tree, &packet, &mut NoCounters),
+            (_, Some(omni_packet)) => omni::intersect(tree, &omni_packet, &mut NoCounters),
+        };
+        for (lane, slot) in out[start..end].iter_mut().enumerate() {
+            *slot = hits.get(lane);
+        }
+        start = end;
+    }
+}
+
+/// Packet any-hit kernel of one chunk: omni-directional any-hit packets where 4 consecutive
+/// rays share an origin (with `packet`), else the closest-hit kernel's answer.
+fn packet_any_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &mut [bool]) {
+    if method == TileMethod::Packet {
+        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
+            let packet = RayPacket::new(rays);
+            let found = match OmniPacket::new(packet) {
+                Some(p) => omni::occluded(tree, &p, &mut NoCounters).found,
+                None => samesign::intersect(tree, &packet, &mut NoCounters).found,
+            };
+            for (lane, slot) in out.iter_mut().enumerate() {
+                *slot = found.bitmask() >> lane & 1 != 0;
+            }
+        }
+        return;
+    }
+    let mut hits = vec![None; rays.len()];
+    packet_closest_chunk(tree, rays, method, &mut hits);
+    for (slot, hit) in out.iter_mut().zip(hits) {
+        *slot = hit.is_some();
     }
 }
 

@@ -14,19 +14,23 @@
 //! [`TileLayout`] maps them back to the row-major image.
 //!
 //! The traversal [`Method`] is chosen once per frame: each pass matches on it once per tile
-//! and then runs a monomorphic loop, so there is no dynamic dispatch per ray. Packet and
-//! frustum methods slot in as new variants with their own per-tile kernels.
+//! and then runs a monomorphic loop, so there is no dynamic dispatch per ray. The packet
+//! methods (2x2 packets, frusta, MFT) trace each tile's primary rays with a
+//! [`packets::TileTracer`], one per rayon task, so the tile's frustum is the render tile
+//! (`--tile N`). Shadow rays start at different hit points, so every method traces them one
+//! at a time.
 
 use std::time::Instant;
 
 use glam::Vec3;
-use kdtree::{Counters, Hit, KdTree, NoCounters, Ray, TraversalCounts};
+use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
+use packets::{PacketCounters, TileMethod, TileTracer};
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, Tile};
 
 use crate::shade;
 
-/// Side of the square tiles handed to the threads.
+/// Side of the square tiles handed to the threads, unless `--tile` says otherwise.
 pub const TILE_SIZE: u32 = 16;
 
 /// How rays are traced through the tree.
@@ -36,6 +40,14 @@ pub enum Method {
     /// One ray at a time: [`KdTree::intersect`] and [`KdTree::occluded`].
     #[default]
     Mono,
+    /// Omni-directional 2x2 packets (thesis 4.1.2).
+    Packet,
+    /// Standard same-sign 2x2 packets, split where signs differ (thesis 2.3.1).
+    Samesign,
+    /// One frustum per tile with packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4).
+    Frustum,
+    /// Four quadrant frusta per tile in SSE lanes (thesis 4.1.5).
+    Mft,
 }
 
 impl Method {
@@ -43,6 +55,21 @@ impl Method {
     pub fn name(self) -> &'static str {
         match self {
             Method::Mono => "mono",
+            Method::Packet => "packet",
+            Method::Samesign => "samesign",
+            Method::Frustum => "frustum",
+            Method::Mft => "mft",
+        }
+    }
+
+    /// The packet method behind this one (`None` for single rays).
+    pub fn tile_method(self) -> Option<TileMethod> {
+        match self {
+            Method::Mono => None,
+            Method::Packet => Some(TileMethod::Packet),
+            Method::Samesign => Some(TileMethod::SameSign),
+            Method::Frustum => Some(TileMethod::Frustum),
+            Method::Mft => Some(TileMethod::Mft),
         }
     }
 }
@@ -178,13 +205,34 @@ pub struct Renderer<'a> {
     layout: TileLayout,
     method: Method,
     shadows: Shadows,
+    culling: bool,
+    tile_size: u32,
 }
 
 impl<'a> Renderer<'a> {
-    /// A renderer of `scene` (whose mesh `tree` was built over) seen by `camera`.
+    /// A renderer of `scene` (whose mesh `tree` was built over) seen by `camera`, in tiles of
+    /// [`TILE_SIZE`].
     pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, method: Method, shadows: Shadows) -> Self {
         let layout = TileLayout::new(camera.width, camera.height, TILE_SIZE);
-        Renderer { scene, tree, camera, layout, method, shadows }
+        Renderer { scene, tree, camera, layout, method, shadows, culling: true, tile_size: TILE_SIZE }
+    }
+
+    /// The same renderer with `size x size` tiles: the unit of work per thread, and the
+    /// frustum of the frustum methods. Packet methods need a multiple of 4 in `4..=64`.
+    pub fn with_tile(mut self, size: u32) -> Result<Self, packets::tile::TileError> {
+        if self.method.tile_method().is_some() {
+            TileTracer::new(size)?;
+        }
+        self.layout = TileLayout::new(self.camera.width, self.camera.height, size.max(1));
+        self.tile_size = size.max(1);
+        Ok(self)
+    }
+
+    /// The same renderer with packet/leaf culling (thesis 4.1.4) on or off; it is on by
+    /// default and only the frustum methods use it.
+    pub fn with_culling(mut self, on: bool) -> Self {
+        self.culling = on;
+        self
     }
 
     /// The tile layout of the per-pixel buffers.
@@ -205,8 +253,14 @@ impl<'a> Renderer<'a> {
 
     /// [`Renderer::trace`] counting traversal steps, leaves and intersection tests, for the
     /// primary and the shadow pass apart. Slower: not for timing.
-    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, TraversalCounts, TraversalCounts) {
-        self.trace_with::<TraversalCounts>(buf)
+    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, FrameCounts, FrameCounts) {
+        self.trace_with::<FrameCounts>(buf)
+    }
+
+    /// Number of 2x2 packets the primary pass of a packet method traces (the denominator of
+    /// the thesis's N and I): `ceil(w/2) * ceil(h/2)` per tile.
+    pub fn packet_count(&self) -> u64 {
+        self.layout.tiles().iter().map(|t| u64::from(t.width().div_ceil(2)) * u64::from(t.height().div_ceil(2))).sum()
     }
 
     fn trace_with<C: TileCounters>(&self, buf: &mut FrameBuffers) -> (FrameStats, C, C) {
@@ -238,18 +292,31 @@ impl<'a> Renderer<'a> {
     /// Pass 1: the closest hit of every pixel's primary ray. Returns the number of hits.
     fn primary_pass<C: TileCounters>(&self, hits: &mut [Option<Hit>]) -> (u64, C) {
         let chunks = self.layout.chunks_mut(hits);
-        self.layout
-            .tiles()
-            .par_iter()
-            .zip(chunks)
-            .map(|(tile, out)| {
-                let mut counts = C::default();
-                let hits = match self.method {
-                    Method::Mono => mono_primary_tile(self.tree, &self.camera, tile, out, &mut counts),
-                };
-                (hits, counts)
-            })
-            .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1)))
+        let tiles = self.layout.tiles().par_iter().zip(chunks);
+        match self.method.tile_method() {
+            None => tiles
+                .map(|(tile, out)| {
+                    let mut counts = C::default();
+                    let hits = mono_primary_tile(self.tree, &self.camera, tile, out, &mut counts);
+                    (hits, counts)
+                })
+                .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1))),
+            Some(method) => tiles
+                .map_init(
+                    || {
+                        // The size was checked by `with_tile`.
+                        let mut tracer = TileTracer::new(self.tile_size).expect("tile size checked");
+                        tracer.set_culling(self.culling);
+                        tracer
+                    },
+                    |tracer, (tile, out)| {
+                        let mut counts = C::default();
+                        let hits = packet_primary_tile(self.tree, &self.camera, tracer, method, tile, out, &mut counts);
+                        (hits, counts)
+                    },
+                )
+                .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1))),
+        }
     }
 
     /// Pass 2: one shadow ray per hit facing the light. Returns (rays traced, rays blocked).
@@ -261,9 +328,8 @@ impl<'a> Renderer<'a> {
             .zip(chunks)
             .map(|(tile, (hits, out))| {
                 let mut counts = C::default();
-                let (rays, blocked) = match self.method {
-                    Method::Mono => mono_shadow_tile(self.scene, self.tree, &self.camera, tile, hits, out, &mut counts),
-                };
+                let (rays, blocked) =
+                    mono_shadow_tile(self.scene, self.tree, &self.camera, tile, hits, out, &mut counts);
                 (rays, blocked, counts)
             })
             .reduce(|| (0, 0, C::default()), |a, b| (a.0 + b.0, a.1 + b.1, a.2.merge(b.2)))
@@ -310,8 +376,8 @@ impl<'a> Renderer<'a> {
 }
 
 /// Per-tile traversal counters that can be summed over tiles: [`NoCounters`] for timed
-/// frames (counting compiles away), [`TraversalCounts`] for `--counters`.
-pub trait TileCounters: Counters + Default + Send {
+/// frames (counting compiles away), [`FrameCounts`] for `--counters`.
+pub trait TileCounters: Counters + PacketCounters + Default + Send {
     /// The sum of two tiles' counts.
     fn merge(self, other: Self) -> Self;
 }
@@ -323,11 +389,68 @@ impl TileCounters for NoCounters {
     }
 }
 
-impl TileCounters for TraversalCounts {
+/// What a counted frame counts, for single rays and packet methods alike: traversal steps
+/// (per ray, per packet or per frustum), leaves, intersection tests (ray-triangle for single
+/// rays, packet-triangle for packets), and the packets considered and culled at leaves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameCounts {
+    /// Traversal steps.
+    pub nodes: u64,
+    /// Leaves visited.
+    pub leaves: u64,
+    /// Intersection tests.
+    pub isects: u64,
+    /// 2x2 packets considered at leaves (frustum methods).
+    pub leaf_packets: u64,
+    /// Of those, packets culled before any triangle test.
+    pub culled: u64,
+}
+
+impl Counters for FrameCounts {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn leaf(&mut self) {
+        self.leaves += 1;
+    }
+    #[inline(always)]
+    fn isects(&mut self, n: u64) {
+        self.isects += n;
+    }
+}
+
+impl PacketCounters for FrameCounts {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn leaf(&mut self) {
+        self.leaves += 1;
+    }
+    #[inline(always)]
+    fn tests(&mut self, n: u64) {
+        self.isects += n;
+    }
+    #[inline(always)]
+    fn leaf_packets(&mut self, considered: u64, culled: u64) {
+        self.leaf_packets += considered;
+        self.culled += culled;
+    }
+}
+
+impl TileCounters for FrameCounts {
     #[inline]
-    fn merge(mut self, other: Self) -> Self {
-        self += other;
-        self
+    fn merge(self, o: Self) -> Self {
+        FrameCounts {
+            nodes: self.nodes + o.nodes,
+            leaves: self.leaves + o.leaves,
+            isects: self.isects + o.isects,
+            leaf_packets: self.leaf_packets + o.leaf_packets,
+            culled: self.culled + o.culled,
+        }
     }
 }
 
@@ -352,6 +475,24 @@ fn mono_primary_tile<C: Counters>(
         hits += u64::from(slot.is_some());
     }
     hits
+}
+
+/// Packet kernel of one tile: loads its primary rays as 2x2 packets, traces them with
+/// `method` and writes the hits. Returns the number of hits.
+fn packet_primary_tile<C: TileCounters>(
+    tree: &KdTree,
+    camera: &Camera,
+    tracer: &mut TileTracer,
+    method: TileMethod,
+    tile: &Tile,
+    out: &mut [Option<Hit>],
+    counts: &mut C,
+) -> u64 {
+    // The layout's tiles fit the tracer (same size, inside the image).
+    tracer.load_primary(camera, tile).expect("tile fits the tracer");
+    tracer.trace(tree, method, counts);
+    tracer.write_hits(out);
+    out.iter().filter(|h| h.is_some()).count() as u64
 }
 
 /// Single-ray shadow kernel of one tile. Returns (rays traced, rays blocked).

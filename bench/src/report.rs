@@ -5,7 +5,9 @@
 
 use std::fmt;
 
-use kdtree::{KdTree, TraversalCounts};
+use kdtree::KdTree;
+
+use crate::render::FrameCounts;
 use serde::Serialize;
 
 /// The statistics of a built kd-tree, as reported by `rttest build`.
@@ -81,8 +83,13 @@ pub struct BuildReport {
 pub struct RenderReport {
     /// Scene name.
     pub scene: String,
-    /// The traversal method (`mono`).
+    /// The traversal method of the primary rays (`mono`, `packet`, `samesign`, `frustum`,
+    /// `mft`).
     pub method: String,
+    /// Tile side (the frustum of `frustum` and `mft`).
+    pub tile: u32,
+    /// Packet/leaf culling on (frustum methods).
+    pub culling: bool,
     /// The view rendered (`custom` for `--camera`).
     pub view: String,
     /// Image width.
@@ -136,9 +143,21 @@ pub struct RenderReport {
     pub traversal: Option<TraversalReport>,
 }
 
-/// Mean traversal work per ray, from one counted frame (`--counters`).
+/// Mean traversal work per ray, from one counted frame (`--counters`), and for the packet
+/// methods the thesis's per-packet figures (Tables 4.1-4.3).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct TraversalReport {
+    /// N: traversal steps per 2x2 packet of the primary pass (packet methods; a frustum's
+    /// steps are shared by its packets).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub primary_steps_per_packet: Option<f64>,
+    /// I: packet-triangle tests per 2x2 packet of the primary pass (packet methods).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub primary_tests_per_packet: Option<f64>,
+    /// Percentage of the packets considered at leaves that packet/leaf culling skipped
+    /// (frustum methods).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub culled_percent: Option<f64>,
     /// Nodes fetched per primary ray (inner and leaf).
     pub primary_nodes_per_ray: f64,
     /// Leaves visited per primary ray.
@@ -154,10 +173,22 @@ pub struct TraversalReport {
 }
 
 impl TraversalReport {
-    /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays.
-    pub fn new(primary_rays: u64, primary: TraversalCounts, shadow_rays: u64, shadow: TraversalCounts) -> Self {
+    /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays;
+    /// with `packets` (the primary pass's 2x2 packets, for packet methods) the per-packet
+    /// figures too.
+    pub fn new(
+        primary_rays: u64,
+        primary: FrameCounts,
+        shadow_rays: u64,
+        shadow: FrameCounts,
+        packets: Option<u64>,
+    ) -> Self {
         let per = |n: u64, rays: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
         TraversalReport {
+            primary_steps_per_packet: packets.map(|p| per(primary.nodes, p)),
+            primary_tests_per_packet: packets.map(|p| per(primary.isects, p)),
+            culled_percent: (primary.leaf_packets > 0)
+                .then(|| 100.0 * primary.culled as f64 / primary.leaf_packets as f64),
             primary_nodes_per_ray: per(primary.nodes, primary_rays),
             primary_leaves_per_ray: per(primary.leaves, primary_rays),
             primary_isects_per_ray: per(primary.isects, primary_rays),
@@ -213,8 +244,15 @@ impl fmt::Display for RenderReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "render       {}x{}, view {}, method {}, shadows {}, {} threads",
-            self.width, self.height, self.view, self.method, self.shadows, self.threads
+            "render       {}x{}, view {}, method {} (tile {}{}), shadows {}, {} threads",
+            self.width,
+            self.height,
+            self.view,
+            self.method,
+            self.tile,
+            if self.culling { "" } else { ", no culling" },
+            self.shadows,
+            self.threads
         )?;
         writeln!(
             f,
@@ -231,6 +269,25 @@ impl fmt::Display for RenderReport {
             self.primary_mrays_per_s,
             self.shadow_mrays_per_s
         )?;
+        if let Some(t) = &self.traversal {
+            writeln!(
+                f,
+                "per ray      primary {:.2} nodes, {:.2} leaves, {:.2} tests; shadow {:.2} nodes, {:.2} leaves, {:.2} tests",
+                t.primary_nodes_per_ray,
+                t.primary_leaves_per_ray,
+                t.primary_isects_per_ray,
+                t.shadow_nodes_per_ray,
+                t.shadow_leaves_per_ray,
+                t.shadow_isects_per_ray
+            )?;
+            if let (Some(n), Some(i)) = (t.primary_steps_per_packet, t.primary_tests_per_packet) {
+                write!(f, "per packet   N = {n:.2} steps, I = {i:.2} tests (2x2 packets)")?;
+                match t.culled_percent {
+                    Some(c) => writeln!(f, ", {c:.1}% of packets culled at leaves")?,
+                    None => writeln!(f)?,
+                }
+            }
+        }
         write!(
             f,
             "output       {} ({}: shade {:.4} s, write {:.4} s)",

@@ -158,6 +158,23 @@ impl KdTree {
         &self.prim_refs[leaf.prim_range()]
     }
 
+    /// The whole triangle-reference array (leaves index into it).
+    pub fn prim_refs(&self) -> &[u32] {
+        &self.prim_refs
+    }
+
+    /// The Wald intersection records, one per triangle (empty unless the tree was built for
+    /// [`Intersector::Wald`]).
+    pub fn wald_records(&self) -> &[WaldTriangle] {
+        &self.wald
+    }
+
+    /// The watertight intersection records, one per triangle (empty unless the tree was built
+    /// for [`Intersector::Watertight`]).
+    pub fn watertight_records(&self) -> &[WatertightTriangle] {
+        &self.watertight
+    }
+
     /// The bounds of all non-degenerate triangles (the root's box).
     pub fn bounds(&self) -> Aabb {
         self.bounds

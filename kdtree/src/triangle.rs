@@ -54,17 +54,26 @@ pub trait TriangleTest: Sync {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct WaldTriangle {
-    /// The projection axes packed as `k | u << 8 | v << 16`.
-    kuv: u32,
-    n_u: f32,
-    n_v: f32,
-    n_d: f32,
-    a_u: f32,
-    a_v: f32,
-    b_nu: f32,
-    b_nv: f32,
-    c_nu: f32,
-    c_nv: f32,
+    /// The projection axes packed as `k | u << 8 | v << 16` (see [`WaldTriangle::axes`]).
+    pub kuv: u32,
+    /// `n_u / n_k`: the plane normal's `u` component over its largest, `k`.
+    pub n_u: f32,
+    /// `n_v / n_k`.
+    pub n_v: f32,
+    /// `(n . a) / n_k`: the plane offset.
+    pub n_d: f32,
+    /// Vertex `a` projected: its `u` coordinate.
+    pub a_u: f32,
+    /// Vertex `a` projected: its `v` coordinate.
+    pub a_v: f32,
+    /// Edge coefficient of the second barycentric (`u` weight of the hit point).
+    pub b_nu: f32,
+    /// Edge coefficient of the second barycentric (`v` weight of the hit point).
+    pub b_nv: f32,
+    /// Edge coefficient of the third barycentric (`u` weight of the hit point).
+    pub c_nu: f32,
+    /// Edge coefficient of the third barycentric (`v` weight of the hit point).
+    pub c_nv: f32,
 }
 
 const _: () = assert!(std::mem::size_of::<WaldTriangle>() == 40);
@@ -119,6 +128,15 @@ impl WaldTriangle {
     }
 }
 
+impl WaldTriangle {
+    /// The projection axes `(k, u, v)`: `k` the normal's largest component, `u = k + 1`,
+    /// `v = k + 2` (mod 3). Each is below 4, so it indexes a 4-lane array without a check.
+    #[inline(always)]
+    pub fn axes(&self) -> (usize, usize, usize) {
+        ((self.kuv & 3) as usize, (self.kuv >> 8 & 3) as usize, (self.kuv >> 16 & 3) as usize)
+    }
+}
+
 /// `k | (k + 1) % 3 << 8 | (k + 2) % 3 << 16`.
 fn pack_axes(k: usize) -> u32 {
     (k | ((k + 1) % 3) << 8 | ((k + 2) % 3) << 16) as u32
@@ -152,7 +170,7 @@ impl TriangleTest for WaldTriangle {
 
     #[inline(always)]
     fn intersect(&self, ray: &Ray, r: &RayArrays, t_max: f32) -> Option<(f32, f32, f32)> {
-        let (k, u, v) = ((self.kuv & 3) as usize, (self.kuv >> 8 & 3) as usize, (self.kuv >> 16 & 3) as usize);
+        let (k, u, v) = self.axes();
         let (o, d) = (&r.o, &r.d);
         let denom = d[k] + self.n_u * d[u] + self.n_v * d[v];
         let t = (self.n_d - o[k] - self.n_u * o[u] - self.n_v * o[v]) / denom;
@@ -174,7 +192,8 @@ const MOD3: [usize; 5] = [0, 1, 2, 0, 1];
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct WatertightTriangle {
-    v: [Vec3; 3],
+    /// The vertices (NaN for a degenerate triangle).
+    pub v: [Vec3; 3],
 }
 
 impl WatertightTriangle {
@@ -195,12 +214,18 @@ impl WatertightTriangle {
 /// winding, and `(sx, sy, sz)` shear and scale the ray direction to `(0, 0, 1)`.
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay {
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    /// The axis that becomes the sheared ray's x.
+    pub kx: usize,
+    /// The axis that becomes the sheared ray's y.
+    pub ky: usize,
+    /// The axis of the direction's largest component, the sheared ray's z.
+    pub kz: usize,
+    /// `d[kx] / d[kz]`.
+    pub sx: f32,
+    /// `d[ky] / d[kz]`.
+    pub sy: f32,
+    /// `1 / d[kz]`.
+    pub sz: f32,
 }
 
 impl TriangleTest for WatertightTriangle {

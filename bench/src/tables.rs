@@ -1,0 +1,349 @@
+//! `rttest tables`: the thesis's Tables 4.1-4.4 (Tsakok 2008, 4.1.3-4.1.5) on our scenes.
+//!
+//! For each scene: primary rays of the default view at 512x512 (by default) with the thesis's
+//! simple shading (one point light with attenuation, no shadow rays), traced with single
+//! rays, omni-directional 2x2 packets, the single frustum at tiles 4 to 32 (and 8x8 without
+//! packet/leaf culling), and MFT at tiles 4 to 32. Each row has the best frame time of
+//! `--frames` frames (trace, and trace + shading as the frame rate), Mrays/s, N (traversal
+//! steps per 2x2 packet), I (packet-triangle tests per 2x2 packet) and the share of packets
+//! culled at leaves, from one extra counted frame. Markdown to stdout, or CSV with `--csv`.
+//! Where the scene is Sponza the thesis's own Sponza rows are printed beside ours.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use clap::Args;
+use kdtree::{BuildConfig, KdTree};
+use scenes::Scene;
+
+use crate::Error;
+use crate::cli::{GlobalArgs, IntersectorArg, parse_size};
+use crate::progress::{self, Progress};
+use crate::render::{Method, Renderer, Shadows};
+use crate::report::mrays_per_s;
+
+/// `rttest tables` options.
+#[derive(Debug, Clone, Args)]
+pub struct TablesArgs {
+    /// Scenes (built-in names or OBJ paths; repeatable). Default: atrium, arena,
+    /// atrium-rotated, grove and every .obj / .obj.gz in the shared scenes folder.
+    #[arg(long, value_name = "NAME|PATH")]
+    pub scene: Vec<String>,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Frames timed per configuration; the best is kept.
+    #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub frames: u32,
+    /// The ray-triangle test.
+    #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
+    pub intersector: IntersectorArg,
+    /// Print one CSV table of every row instead of the markdown tables.
+    #[arg(long)]
+    pub csv: bool,
+}
+
+/// One measured configuration of one scene.
+#[derive(Clone, Debug)]
+struct Row {
+    scene: String,
+    method: Method,
+    tile: u32,
+    culling: bool,
+    trace_ms: f64,
+    fps: f64,
+    mrays: f64,
+    n: f64,
+    i: f64,
+    culled: f64,
+}
+
+/// The thesis's Sponza figures: (method, tile, fps, N, I) from Tables 4.1 and 4.3.
+const THESIS_SPONZA: &[(Method, u32, f64, f64, f64)] = &[
+    (Method::Packet, 2, 13.60, 33.81, 3.83),
+    (Method::Frustum, 4, 17.50, 11.05, 9.86),
+    (Method::Frustum, 8, 24.00, 4.17, 22.20),
+    (Method::Frustum, 16, 20.60, 2.14, 63.71),
+    (Method::Frustum, 32, 9.90, 1.52, 226.81),
+    (Method::Mft, 4, 18.80, 10.74, 5.74),
+    (Method::Mft, 8, 26.00, 3.92, 9.96),
+    (Method::Mft, 16, 27.50, 1.93, 22.86),
+    (Method::Mft, 32, 19.50, 1.31, 68.98),
+];
+
+/// The configurations of every scene: (method, tile, culling).
+const CONFIGS: &[(Method, u32, bool)] = &[
+    (Method::Mono, 16, true),
+    (Method::Packet, 16, true),
+    (Method::Frustum, 4, true),
+    (Method::Frustum, 8, true),
+    (Method::Frustum, 16, true),
+    (Method::Frustum, 32, true),
+    (Method::Frustum, 8, false),
+    (Method::Mft, 4, true),
+    (Method::Mft, 8, true),
+    (Method::Mft, 16, true),
+    (Method::Mft, 32, true),
+];
+
+/// The scenes to run: the arguments, or the four built-in stand-ins and the shared OBJs.
+fn scene_list(args: &TablesArgs) -> Vec<String> {
+    if !args.scene.is_empty() {
+        return args.scene.clone();
+    }
+    let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove"].map(String::from).to_vec();
+    if let Some(dir) = scenes::shared_scenes_dir()
+        && let Ok(entries) = std::fs::read_dir(dir)
+    {
+        let mut files: Vec<String> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+                name.ends_with(".obj") || name.ends_with(".obj.gz")
+            })
+            .map(|p| p.display().to_string())
+            .collect();
+        files.sort();
+        list.extend(files);
+    }
+    list
+}
+
+/// Measures every configuration on one scene.
+fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<Row>, Error> {
+    let (w, h) = args.size;
+    let camera = scene
+        .default_view()
+        .camera(w, h)
+        .ok_or_else(|| Error::Usage(format!("the default view of '{}' is degenerate", scene.name)))?;
+    let bar = Progress::bar(CONFIGS.len() as u64, &format!("tables: {}", scene.name), show);
+    let mut rows = Vec::new();
+    let mut shade_secs = f64::INFINITY;
+    for &(method, tile, culling) in CONFIGS {
+        let renderer = Renderer::new(scene, tree, camera, method, Shadows::None)
+            .with_tile(tile)
+            .map_err(|e| Error::Usage(e.to_string()))?
+            .with_culling(culling);
+        let mut buffers = renderer.buffers();
+        let mut best = f64::INFINITY;
+        for _ in 0..args.frames {
+            best = best.min(renderer.trace(&mut buffers).primary_secs);
+        }
+        let start = Instant::now();
+        let _image = renderer.color(&buffers);
+        shade_secs = shade_secs.min(start.elapsed().as_secs_f64());
+        let (stats, counts, _) = renderer.trace_counted(&mut buffers);
+        let packets = renderer.packet_count() as f64;
+        let (n, i) = match method {
+            // Single rays: per ray, times four (a 2x2 packet's worth).
+            Method::Mono => (
+                4.0 * counts.nodes as f64 / stats.primary_rays as f64,
+                4.0 * counts.isects as f64 / stats.primary_rays as f64,
+            ),
+            _ => (counts.nodes as f64 / packets, counts.isects as f64 / packets),
+        };
+        rows.push(Row {
+            scene: scene.name.clone(),
+            method,
+            tile,
+            culling,
+            trace_ms: best * 1e3,
+            fps: 0.0,
+            mrays: mrays_per_s(stats.primary_rays, best),
+            n,
+            i,
+            culled: if counts.leaf_packets > 0 {
+                100.0 * counts.culled as f64 / counts.leaf_packets as f64
+            } else {
+                0.0
+            },
+        });
+        bar.inc();
+    }
+    bar.finish();
+    // The frame rate counts the trace and the (same for every method) shading pass.
+    for row in &mut rows {
+        row.fps = 1.0 / (row.trace_ms * 1e-3 + shade_secs);
+    }
+    Ok(rows)
+}
+
+/// `rttest tables`.
+pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Error> {
+    let show = progress::enabled(global.json);
+    let mut all = Vec::new();
+    for spec in scene_list(args) {
+        let scene = scenes::load_scene(&spec)?;
+        let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
+        all.extend(measure(&scene, &tree, args, show)?);
+    }
+    let text = if args.csv { csv(&all) } else { markdown(&all, args) };
+    print!("{text}");
+    Ok(())
+}
+
+fn label(r: &Row) -> String {
+    match r.method {
+        Method::Mono => "single rays".into(),
+        Method::Packet => "packet 2x2".into(),
+        m => format!("{} {}x{}{}", m.name(), r.tile, r.tile, if r.culling { "" } else { " (no culling)" }),
+    }
+}
+
+fn csv(rows: &[Row]) -> String {
+    let mut out = String::from("scene,method,tile,culling,trace_ms,fps,mrays_per_s,n,i,culled_percent\n");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{:.3},{:.2},{:.3},{:.3},{:.3},{:.2}",
+            r.scene,
+            r.method.name(),
+            r.tile,
+            r.culling,
+            r.trace_ms,
+            r.fps,
+            r.mrays,
+            r.n,
+            r.i,
+            r.culled
+        );
+    }
+    out
+}
+
+fn find<'a>(rows: &'a [Row], scene: &str, method: Method, tile: u32, culling: bool) -> Option<&'a Row> {
+    rows.iter().find(|r| {
+        r.scene == scene && r.method == method && (r.tile == tile || method == Method::Packet) && r.culling == culling
+    })
+}
+
+fn thesis(scene: &str, method: Method, tile: u32) -> Option<(f64, f64, f64)> {
+    if !scene.to_lowercase().starts_with("sponza") {
+        return None;
+    }
+    THESIS_SPONZA.iter().find(|t| t.0 == method && (t.1 == tile || method == Method::Packet)).map(|t| (t.2, t.3, t.4))
+}
+
+fn pct(new: f64, old: f64) -> f64 {
+    100.0 * (new - old) / old
+}
+
+fn markdown(rows: &[Row], args: &TablesArgs) -> String {
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let mut out = String::new();
+    let (w, h) = args.size;
+    let _ = writeln!(
+        out,
+        "Primary rays, default views, {w}x{h}, {} threads, best of {} frames. fps = 1 / (trace + shading); N = traversal steps and I = packet-triangle tests per 2x2 packet (single rays: per ray x 4).\n",
+        rayon::current_num_threads(),
+        args.frames
+    );
+
+    let _ = writeln!(out, "### Table 4.1: packets and frusta\n");
+    let _ = writeln!(out, "| scene | method | trace ms | fps | Mrays/s | N | I | thesis fps | thesis N | thesis I |");
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in rows.iter().filter(|r| r.method != Method::Mft && r.culling) {
+        let t = thesis(&r.scene, r.method, r.tile);
+        let th = |f: fn((f64, f64, f64)) -> f64| t.map_or("".into(), |t| format!("{:.2}", f(t)));
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.2} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {} | {} |",
+            r.scene,
+            label(r),
+            r.trace_ms,
+            r.fps,
+            r.mrays,
+            r.n,
+            r.i,
+            th(|t| t.0),
+            th(|t| t.1),
+            th(|t| t.2)
+        );
+    }
+
+    let _ = writeln!(out, "\n### Table 4.2: packet/leaf culling, frustum 8x8\n");
+    let _ = writeln!(
+        out,
+        "| scene | fps with culling | fps without | change from culling | packets culled | I with | I without |"
+    );
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
+    for s in &scenes {
+        if let (Some(on), Some(off)) =
+            (find(rows, s, Method::Frustum, 8, true), find(rows, s, Method::Frustum, 8, false))
+        {
+            let _ = writeln!(
+                out,
+                "| {s} | {:.1} | {:.1} | {:+.1}% | {:.1}% | {:.2} | {:.2} |",
+                on.fps,
+                off.fps,
+                pct(on.fps, off.fps),
+                on.culled,
+                on.i,
+                off.i
+            );
+        }
+    }
+
+    let _ = writeln!(out, "\n### Table 4.3: MFT against the single frustum of the same tile\n");
+    let _ = writeln!(
+        out,
+        "| scene | tile | fps | Mrays/s | N | I | % fps | % N | % I | thesis % fps | thesis % N | thesis % I |"
+    );
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in rows.iter().filter(|r| r.method == Method::Mft) {
+        let Some(f) = find(rows, &r.scene, Method::Frustum, r.tile, true) else { continue };
+        let th = match (thesis(&r.scene, Method::Mft, r.tile), thesis(&r.scene, Method::Frustum, r.tile)) {
+            (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
+            _ => " | | ".into(),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
+            r.scene,
+            r.tile,
+            r.tile,
+            r.fps,
+            r.mrays,
+            r.n,
+            r.i,
+            pct(r.fps, f.fps),
+            pct(r.n, f.n),
+            pct(r.i, f.i)
+        );
+    }
+
+    let _ = writeln!(out, "\n### Table 4.4: peak MFT against the peak single frustum\n");
+    let _ = writeln!(out, "| scene | MFT fps | MFT tile | frustum fps | frustum tile | MFT gain | thesis gain |");
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
+    for s in &scenes {
+        let best = |m: Method| {
+            rows.iter().filter(|r| r.scene == *s && r.method == m && r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
+        };
+        if let (Some(m), Some(f)) = (best(Method::Mft), best(Method::Frustum)) {
+            let th = if s.to_lowercase().starts_with("sponza") {
+                format!("{:+.1}%", pct(27.5, 24.0))
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                out,
+                "| {s} | {:.1} | {}x{} | {:.1} | {}x{} | {:+.1}% | {th} |",
+                m.fps,
+                m.tile,
+                m.tile,
+                f.fps,
+                f.tile,
+                f.tile,
+                pct(m.fps, f.fps)
+            );
+        }
+    }
+    out
+}

@@ -1,0 +1,313 @@
+//! Frustum interval traversal with packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4, Listing
+//! 4.2 with the omni-directional modification).
+//!
+//! A tile of 2x2 packets sharing one origin goes down the tree as **one interval**
+//! `[near, far]` that bounds every ray's interval, computed from the tile's *extremal rays*.
+//! Listing 4.2 takes the four corner rays of the tile and, at each split plane, the minimum
+//! and maximum of their four plane distances. We use the same bound in a form that is exact
+//! for any ray set: per axis `k`, the smallest and largest direction component over all the
+//! tile's rays, `lo[k]` and `hi[k]`. A ray with component `n` in `[lo, hi]` reaches the plane
+//! at `t = dist / n`, which is monotonic in `n` on each side of 0, so over the tile
+//! `t in [min(dist/lo, dist/hi), max(...)]` once negative distances are taken as `+inf`
+//! (modification 1; a mixed-sign range gives `+inf` at the top, as it must, since some rays
+//! are then parallel to the plane). For unnormalised pinhole rays these extremes are corner
+//! rays; for our normalised camera rays an inner ray can hold one (when the axis points into
+//! the tile), which the corner rays would miss.
+//!
+//! Front and back voxels come from the origin's side of the plane alone (modification 2). At
+//! an inner node the front voxel gets `[near, min(far, dmax)]` and the back voxel
+//! `[max(near, dmin), far]`; an empty one is skipped. At a leaf each unfinished 2x2 packet
+//! is first **culled** against the leaf's box (4.1.4): the exact slab test of its four rays,
+//! clipped to each ray's closest hit so far; only the lanes that pass are tested against the
+//! leaf's triangles. The voxel box is carried down the traversal and on the stack.
+//!
+//! **Finishing rays** (the thesis's "the tile finishes when all its rays have hit", made
+//! exact): a lane is finished when its closest hit so far lies no further than where the
+//! ray leaves the current leaf's box (moved inwards by a few ulps, so that rounding cannot
+//! finish a ray whose hit lies just beyond the box). Every voxel visited later lies beyond a split plane
+//! the ray crosses after that point, so no later voxel can hold a closer hit. The tile stops
+//! when every lane is finished; deferred voxels are also dropped when they start beyond the
+//! furthest hit of the unfinished lanes. Below an origin-on-the-plane node (the case where
+//! both children are visited over the whole interval, out of order for some rays) no lane is
+//! finished early.
+
+use glam::Vec4;
+use kdtree::triangle::{Intersector, TriangleTest};
+use kdtree::{KdTree, STACK_SIZE};
+
+use crate::packet::{widen_down, widen_down1, widen_up1};
+use crate::stats::PacketCounters;
+use crate::tile::{TileTracer, mask_of, max_where};
+use crate::triangle4::PacketTest;
+
+/// The extremal-ray bound of a set of packets: per axis the reciprocals of the smallest and
+/// largest direction component (`inv_lo[k] = 1 / lo[k]`), and the interval that holds every
+/// unfinished ray's clip to the root box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrustumBound {
+    /// `1 / lo[k]` per axis (`[x, y, z, 0]`).
+    pub inv_lo: [f32; 4],
+    /// `1 / hi[k]` per axis.
+    pub inv_hi: [f32; 4],
+    /// Start of the interval (`+inf` when no ray is left).
+    pub near: f32,
+    /// End of the interval (`-inf` when no ray is left).
+    pub far: f32,
+}
+
+/// Marks the lanes of `tracer`'s packets in `range` that miss the tree's root box as finished
+/// (no hit), and returns the bound of the others.
+pub(crate) fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
+    let b = tree.bounds();
+    let (lo_box, hi_box) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
+    let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
+    let (mut near4, mut far4) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
+    for i in range {
+        let rays = &tracer.packets[i].rays;
+        let (enter, exit) = rays.clip(lo_box, hi_box);
+        let inside = enter.cmple(exit) & !mask_of(tracer.done[i]);
+        tracer.done[i] |= (!inside.bitmask() & 0xF) as u8;
+        if !inside.any() {
+            continue;
+        }
+        // Lane-wise accumulation; the horizontal reductions come once at the end.
+        near4 = near4.min(Vec4::select(inside, enter, Vec4::INFINITY));
+        far4 = far4.max(Vec4::select(inside, exit, Vec4::NEG_INFINITY));
+        for a in 0..3 {
+            lo[a] = lo[a].min(Vec4::select(inside, rays.d[a], Vec4::INFINITY));
+            hi[a] = hi[a].max(Vec4::select(inside, rays.d[a], Vec4::NEG_INFINITY));
+        }
+    }
+    let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
+    let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
+    FrustumBound {
+        inv_lo: lo.recip().to_array(),
+        inv_hi: hi.recip().to_array(),
+        near: near4.min_element(),
+        far: far4.max_element(),
+    }
+}
+
+/// The plane distances bounding a frustum at a split plane `dist` away from the origin along
+/// an axis with direction reciprocals `inv_lo`, `inv_hi`: `(dmin, dmax)`, negative distances
+/// taken as `+inf` (modification 1), widened by a few ulps. `dist` must not be 0.
+#[inline(always)]
+pub fn plane_interval(dist: f32, inv_lo: f32, inv_hi: f32) -> (f32, f32) {
+    let fix = |d: f32| if d < 0.0 { f32::INFINITY } else { d };
+    let (a, b) = (fix(dist * inv_lo), fix(dist * inv_hi));
+    (widen_down1(a.min(b)), widen_up1(a.max(b)))
+}
+
+/// Culls and intersects the packets of quadrant `q` (or of every quadrant, `q = None`) at a
+/// leaf with box `[lo, hi]`, finishing the lanes whose closest hit lies inside the box
+/// (unless `unordered`). Returns the furthest hit of the lanes left unfinished (`+inf` while
+/// one has no hit, `-inf` when none is left; `previous`, the value before this leaf, when
+/// no packet was tested).
+///
+/// Culling runs in two steps. For a primary tile, the box's corners are projected onto the
+/// image and only the packets whose pixels fall in that rectangle (grown by a pixel) are
+/// looked at; the others cannot reach the box. Each of those then gets the exact slab test
+/// of its four rays against the box, each ray clipped to its closest hit so far, and only
+/// the lanes that pass are tested against the leaf's triangles. With culling off every
+/// unfinished lane is tested.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
+    records: &[T],
+    prims: &[u32],
+    tracer: &mut TileTracer,
+    quadrants: std::ops::Range<usize>,
+    rect: Option<[f32; 4]>,
+    lo: [f32; 4],
+    hi: [f32; 4],
+    unordered: bool,
+    previous: f32,
+    counters: &mut C,
+) -> f32 {
+    let culling = tracer.culling;
+    let (mut tested, mut closed) = (0u64, 0u64);
+    for q in quadrants.clone() {
+        let range = tracer.quadrants[q].clone();
+        let grid = tracer.grids[q];
+        let (cols, rows) = match rect {
+            Some(rect) if culling && tracer.camera.is_some() => grid.within(rect),
+            _ if tracer.camera.is_some() => (0..grid.cols, 0..grid.rows),
+            // Loaded packets: one row of all of them.
+            _ => (0..range.len() as u32, 0..1),
+        };
+        let width = if tracer.camera.is_some() { grid.cols as usize } else { range.len() };
+        for row in rows {
+            let first = range.start + row as usize * width;
+            for i in first + cols.start as usize..first + cols.end as usize {
+                let done = tracer.done[i];
+                if done == 0xF {
+                    continue;
+                }
+                let rays = &tracer.packets[i].rays;
+                let hit = &mut tracer.hits[i];
+                let open = !mask_of(done);
+                let (enter, exit) = rays.clip(lo, hi);
+                let through = open & enter.cmple(exit) & enter.cmple(hit.t);
+                if culling && !through.any() {
+                    continue;
+                }
+                tested += 1;
+                let lanes = if culling { through } else { open };
+                let data = T::prepare4(rays);
+                counters.tests(prims.len() as u64);
+                for &prim in prims {
+                    records[prim as usize].intersect4(rays, &data, lanes, hit, prim);
+                }
+                if !unordered {
+                    // Against the exit moved *inwards* (about 16 ulps below its exact value,
+                    // past the rounding of the clip and of the triangle test's t): a hit at
+                    // the voxel's far boundary may have a rival a few ulps closer in the next
+                    // voxel.
+                    let exit_inside = widen_down(widen_down(widen_down(exit)));
+                    let finished = through & hit.found & hit.t.cmple(exit_inside);
+                    let now = done | finished.bitmask() as u8;
+                    tracer.done[i] = now;
+                    closed += u64::from(now == 0xF);
+                }
+            }
+        }
+    }
+    // The furthest hit of the unfinished lanes (unchanged when no packet was tested), and the
+    // unfinished packets for the counters.
+    if tested == 0 && !C::ENABLED {
+        return previous;
+    }
+    let mut limit = f32::NEG_INFINITY;
+    let mut open_packets = 0u64;
+    for q in quadrants {
+        for i in tracer.quadrants[q].clone() {
+            let done = tracer.done[i];
+            if done != 0xF {
+                open_packets += 1;
+                limit = limit.max(max_where(!mask_of(done), tracer.hits[i].t));
+            }
+        }
+    }
+    let considered = open_packets + closed;
+    counters.leaf_packets(considered, considered - tested);
+    limit
+}
+
+/// One deferred back voxel of the single frustum.
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    unordered: bool,
+    near: f32,
+    far: f32,
+    lo: [f32; 4],
+    hi: [f32; 4],
+}
+
+/// Traces the loaded tile as one frustum.
+pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    match tree.intersector() {
+        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, counters),
+        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, counters),
+    }
+}
+
+#[inline(always)]
+fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+    tree: &KdTree,
+    records: &[T],
+    tracer: &mut TileTracer,
+    counters: &mut C,
+) {
+    let f = bound(tree, tracer, 0..tracer.packets.len());
+    let (mut near, mut far) = (f.near, f.far);
+    if near.is_nan() || far.is_nan() || near > far {
+        return;
+    }
+    let origin = tracer.origin;
+    let b = tree.bounds();
+    let (mut lo, mut hi) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
+    let mut unordered = false;
+    // The furthest hit of the unfinished lanes: deferred voxels starting beyond it are dropped.
+    let mut limit = f32::INFINITY;
+    let nodes = tree.nodes();
+    let refs = tree.prim_refs();
+    let mut stack = [Entry::default(); STACK_SIZE];
+    let mut sp = 0usize;
+    let mut index = 0usize;
+    loop {
+        let node = nodes[index];
+        counters.node();
+        if !node.is_leaf() {
+            let axis = node.axis() & 3;
+            let split = node.split();
+            let dist = split - origin[axis];
+            let left = node.left_child();
+            if dist == 0.0 || dist.is_nan() {
+                // Origin on the plane: both children over the whole interval, lower first.
+                let mut back_lo = lo;
+                back_lo[axis] = split;
+                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, unordered: true, near, far, lo: back_lo, hi };
+                sp += 1;
+                hi[axis] = split;
+                index = left;
+                unordered = true;
+                continue;
+            }
+            let (dmin, dmax) = plane_interval(dist, f.inv_lo[axis], f.inv_hi[axis]);
+            let upper_front = dist < 0.0;
+            let (front, back) = if upper_front { (left + 1, left) } else { (left, left + 1) };
+            let front_far = far.min(dmax);
+            let back_near = near.max(dmin);
+            let in_front = near <= front_far;
+            let in_back = back_near <= far;
+            // The back voxel's box, then the front's in place.
+            let (mut back_lo, mut back_hi) = (lo, hi);
+            if upper_front {
+                back_hi[axis] = split;
+                lo[axis] = split;
+            } else {
+                back_lo[axis] = split;
+                hi[axis] = split;
+            }
+            if !in_back {
+                index = front;
+                far = front_far;
+            } else if !in_front {
+                index = back;
+                near = back_near;
+                (lo, hi) = (back_lo, back_hi);
+            } else {
+                stack[sp % STACK_SIZE] =
+                    Entry { node: back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
+                sp += 1;
+                index = front;
+                far = front_far;
+            }
+            continue;
+        }
+
+        counters.leaf();
+        let prims = &refs[node.prim_range()];
+        if !prims.is_empty() {
+            let rect = tracer.screen_rect(lo, hi);
+            limit = leaf(records, prims, tracer, 0..4, rect, lo, hi, unordered, limit, counters);
+            if limit == f32::NEG_INFINITY {
+                return;
+            }
+        }
+        loop {
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            let e = stack[sp % STACK_SIZE];
+            near = e.near;
+            far = e.far.min(limit);
+            if near <= far {
+                (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
+                break;
+            }
+        }
+    }
+}

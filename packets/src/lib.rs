@@ -1,0 +1,40 @@
+//! Tracing rays in groups through the kd-tree (Tsakok 2008, sections 2.3.1-2.3.2 and
+//! 4.1.1-4.1.5).
+//!
+//! - [`packet`]: SoA packets of four rays, one glam `Vec4` (an SSE register) per coordinate,
+//!   masks as `BVec4A`, and their hits.
+//! - [`triangle4`]: the 4-ray x 1-triangle tests, for both intersectors of `kdtree`, giving
+//!   bit for bit the answers of the single-ray tests.
+//! - [`omni`]: omni-directional packet traversal (4.1.2, Listing 4.1): four rays with a common
+//!   origin and any mix of direction signs, front and back voxels chosen from the origin.
+//! - [`samesign`]: the standard packet traversal (2.3.1, Listing 2.4 corrected) beside it,
+//!   which splits a packet whose rays disagree on direction signs.
+//! - [`frustum`]: frustum interval traversal (2.3.2, Listing 4.2 with the omni modification)
+//!   of a tile of 2x2 packets, with packet/leaf culling (4.1.4).
+//! - [`mft`]: Multiple Frustum Traversal (4.1.5): the tile's four quadrant frusta in the four
+//!   lanes of a `Vec4`, masked when inactive or complete.
+//! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
+//! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant, and the
+//!   per-tile entry points the renderer calls.
+//! - [`stats`]: the counters behind the thesis's N (steps per 2x2 packet), I (ray-triangle
+//!   tests per 2x2 packet) and the share of packets culled at leaves; they compile to nothing
+//!   when off.
+//!
+//! Every method here returns exactly the closest hit (or occlusion) that single-ray
+//! traversal returns for the same rays; the tests check it against `KdTree::intersect` and
+//! the brute-force oracle. Nothing here allocates during traversal: tiles are traced in
+//! scratch space allocated once per thread ([`tile::TileTracer`]).
+
+pub mod frustum;
+pub mod mft;
+pub mod mirror;
+pub mod omni;
+pub mod packet;
+pub mod samesign;
+pub mod stats;
+pub mod tile;
+pub mod triangle4;
+
+pub use packet::{OmniPacket, PacketHit, RayPacket};
+pub use stats::{PacketCounters, PacketCounts};
+pub use tile::{TileMethod, TileTracer};

@@ -1,0 +1,185 @@
+//! Multiple Frustum Traversal (thesis 4.1.5).
+//!
+//! The tile is split into its four quadrants, each bounded as a frustum of its own (see
+//! [`crate::frustum`]), and the four frusta go down the tree together, one per lane of a
+//! `Vec4`: the interval traversal of Listing 4.2 done four times per instruction, the way a
+//! 2x2 packet traces four rays. Following the thesis's list of changes:
+//! 1. each frustum is a "ray" with its own interval `[near, far]`;
+//! 2. a frustum is active where `near <= far` and it still has unfinished rays (a complete
+//!    frustum's interval is clamped empty);
+//! 3. the four intervals are updated together at each split plane;
+//! 4. the active state is pushed with each deferred voxel (as the four intervals: a lane is
+//!    active in it where `near <= far`);
+//! 5. a child in which no frustum is active is not entered;
+//! 6. at a leaf only the packets of the active frusta are culled and intersected;
+//! 7. a frustum whose rays are all finished is masked from then on.
+//!
+//! Since the four quadrants' extremal rays are the tile's, each frustum's interval is never
+//! wider than the single frustum's, so MFT visits no node and tests no packet that the single
+//! frustum of the same tile would not (checked by the tests, tile by tile).
+
+use glam::Vec4;
+use kdtree::triangle::{Intersector, TriangleTest};
+use kdtree::{KdTree, STACK_SIZE};
+
+use crate::frustum::{FrustumBound, bound, leaf};
+use crate::packet::{widen_down, widen_up};
+use crate::stats::PacketCounters;
+use crate::tile::TileTracer;
+use crate::triangle4::PacketTest;
+
+/// One deferred back voxel: its box and the four frusta's intervals in it.
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    unordered: bool,
+    near: Vec4,
+    far: Vec4,
+    lo: [f32; 4],
+    hi: [f32; 4],
+}
+
+impl Default for Entry {
+    fn default() -> Entry {
+        Entry { node: 0, unordered: false, near: Vec4::INFINITY, far: Vec4::NEG_INFINITY, lo: [0.0; 4], hi: [0.0; 4] }
+    }
+}
+
+/// Traces the loaded tile as four quadrant frusta.
+pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    match tree.intersector() {
+        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, counters),
+        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, counters),
+    }
+}
+
+/// The four quadrants' bounds as lanes: per axis a `Vec4` of `1 / lo` and of `1 / hi`, and
+/// the initial intervals.
+struct Lanes {
+    inv_lo: [Vec4; 4],
+    inv_hi: [Vec4; 4],
+    near: Vec4,
+    far: Vec4,
+}
+
+fn lanes(bounds: &[FrustumBound; 4]) -> Lanes {
+    let axis = |a: usize, hi: bool| Vec4::from_array(bounds.map(|b| if hi { b.inv_hi[a] } else { b.inv_lo[a] }));
+    Lanes {
+        inv_lo: [axis(0, false), axis(1, false), axis(2, false), Vec4::ZERO],
+        inv_hi: [axis(0, true), axis(1, true), axis(2, true), Vec4::ZERO],
+        near: Vec4::from_array(bounds.map(|b| b.near)),
+        far: Vec4::from_array(bounds.map(|b| b.far)),
+    }
+}
+
+#[inline(always)]
+fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+    tree: &KdTree,
+    records: &[T],
+    tracer: &mut TileTracer,
+    counters: &mut C,
+) {
+    let quadrants = tracer.quadrants.clone();
+    let bounds = quadrants.map(|range| bound(tree, tracer, range));
+    let f = lanes(&bounds);
+    let (mut near, mut far) = (f.near, f.far);
+    if !near.cmple(far).any() {
+        return;
+    }
+    let origin = tracer.origin;
+    let b = tree.bounds();
+    let (mut lo, mut hi) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
+    let mut unordered = false;
+    // Per frustum, the furthest hit of its unfinished lanes (-inf once it is complete).
+    let mut limit = Vec4::INFINITY;
+    let nodes = tree.nodes();
+    let refs = tree.prim_refs();
+    let mut stack = [Entry::default(); STACK_SIZE];
+    let mut sp = 0usize;
+    let mut index = 0usize;
+    loop {
+        let node = nodes[index];
+        counters.node();
+        if !node.is_leaf() {
+            let axis = node.axis() & 3;
+            let split = node.split();
+            let dist = split - origin[axis];
+            let left = node.left_child();
+            if dist == 0.0 || dist.is_nan() {
+                // Origin on the plane: both children over the whole intervals, lower first.
+                let mut back_lo = lo;
+                back_lo[axis] = split;
+                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, unordered: true, near, far, lo: back_lo, hi };
+                sp += 1;
+                hi[axis] = split;
+                index = left;
+                unordered = true;
+                continue;
+            }
+            // Modification 1 per frustum: negative distances become +inf.
+            let fix = |d: Vec4| Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
+            let dist4 = Vec4::splat(dist);
+            let (a, c) = (fix(dist4 * f.inv_lo[axis]), fix(dist4 * f.inv_hi[axis]));
+            let (dmin, dmax) = (widen_down(a.min(c)), widen_up(a.max(c)));
+            let upper_front = dist < 0.0;
+            let (front, back) = if upper_front { (left + 1, left) } else { (left, left + 1) };
+            let front_far = far.min(dmax);
+            let back_near = near.max(dmin);
+            let in_front = near.cmple(front_far);
+            let in_back = back_near.cmple(far);
+            let (mut back_lo, mut back_hi) = (lo, hi);
+            if upper_front {
+                back_hi[axis] = split;
+                lo[axis] = split;
+            } else {
+                back_lo[axis] = split;
+                hi[axis] = split;
+            }
+            if !in_back.any() {
+                index = front;
+                far = front_far;
+            } else if !in_front.any() {
+                index = back;
+                near = back_near;
+                (lo, hi) = (back_lo, back_hi);
+            } else {
+                stack[sp % STACK_SIZE] =
+                    Entry { node: back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
+                sp += 1;
+                index = front;
+                far = front_far;
+            }
+            continue;
+        }
+
+        counters.leaf();
+        let prims = &refs[node.prim_range()];
+        if !prims.is_empty() {
+            let active = near.cmple(far).bitmask();
+            let rect = tracer.screen_rect(lo, hi);
+            let mut l = limit.to_array();
+            for (q, slot) in l.iter_mut().enumerate() {
+                if active >> q & 1 != 0 {
+                    *slot = leaf(records, prims, tracer, q..q + 1, rect, lo, hi, unordered, *slot, counters);
+                }
+            }
+            limit = Vec4::from_array(l);
+            if limit.cmpeq(Vec4::NEG_INFINITY).all() {
+                return;
+            }
+        }
+        loop {
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            let e = stack[sp % STACK_SIZE];
+            near = e.near;
+            far = e.far.min(limit);
+            if near.cmple(far).any() {
+                (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
+                break;
+            }
+        }
+    }
+}

@@ -1,0 +1,225 @@
+//! Omni-directional packet traversal (thesis 4.1.2, Listing 4.1).
+//!
+//! Four rays with a common origin `o` and *any* mix of direction signs go down the tree
+//! together, without splitting. At a split plane the packet visits the **front voxel** (the
+//! child on the origin's side, from the sign of `split - o[axis]` alone) before the **back
+//! voxel**, and each lane's plane distance `d = (split - o[axis]) / dir[axis]` is taken as
+//! `+inf` when it is negative: that ray moves away from the plane and never reaches the back
+//! voxel. Each lane keeps its own interval `[near, far]`: front `[near, min(far, d)]`, back
+//! `[max(near, d), far]`; a lane is active where `near <= far`, and a child no lane is active
+//! in is skipped.
+//!
+//! ## Hard cases
+//! - **Zero direction components**: `d = dist * (+-inf)` is `+inf` or `-inf` (never NaN,
+//!   since `dist != 0` on this path), so the lane stays in the front voxel.
+//! - **Origin on the split plane** (`dist == 0`): the sign of `dist` cannot name a front
+//!   voxel, lanes may go either way or lie in the plane. Both children are visited over the
+//!   lanes' whole intervals (lower first). Correct, since a leaf takes any hit closer than
+//!   the lane's best, and rare (the origin exactly on a split).
+//! - **Rounding**: plane distances are widened by [`kdtree::traverse::WIDEN`], so a lane is
+//!   never dropped from a child it reaches.
+//! - **Early exit**: a leaf clamps nothing; deferred back voxels are popped with each lane's
+//!   `far` clamped to its closest hit, so a lane whose hit lies before a voxel drops out of
+//!   it, and the packet stops when no lane is active (the single-ray rule, per lane).
+//! - Rays must start at the origin (`t_min >= 0`): [`OmniPacket::new`] checks it.
+
+use glam::{BVec4A, Vec4};
+use kdtree::triangle::{Intersector, TriangleTest};
+use kdtree::{KdTree, STACK_SIZE};
+
+use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
+use crate::stats::PacketCounters;
+use crate::triangle4::PacketTest;
+
+/// One deferred back voxel: node and the lanes' intervals in it.
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    near: Vec4,
+    far: Vec4,
+}
+
+impl Default for Entry {
+    fn default() -> Entry {
+        Entry { node: 0, near: Vec4::INFINITY, far: Vec4::NEG_INFINITY }
+    }
+}
+
+/// The closest hits of the packet's rays.
+#[inline]
+pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+    match tree.intersector() {
+        Intersector::Wald => traverse::<_, C, false>(tree, tree.wald_records(), packet, counters),
+        Intersector::Watertight => traverse::<_, C, false>(tree, tree.watertight_records(), packet, counters),
+    }
+}
+
+/// Which of the packet's rays are blocked (any hit: the shadow query). The returned hit's
+/// `found` lanes are the blocked rays; their `t` is the first blocker found, not the closest.
+#[inline]
+pub fn occluded<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+    match tree.intersector() {
+        Intersector::Wald => traverse::<_, C, true>(tree, tree.wald_records(), packet, counters),
+        Intersector::Watertight => traverse::<_, C, true>(tree, tree.watertight_records(), packet, counters),
+    }
+}
+
+/// The lanes' intervals inside the tree's root box (`near > far` where a lane misses it).
+#[inline(always)]
+pub(crate) fn root_interval(tree: &KdTree, rays: &RayPacket) -> (Vec4, Vec4) {
+    let b = tree.bounds();
+    rays.clip(b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array())
+}
+
+#[inline(always)]
+fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    records: &[T],
+    packet: &OmniPacket,
+    counters: &mut C,
+) -> PacketHit {
+    let rays = &packet.rays;
+    let mut hit = PacketHit::new(rays);
+    let (mut near, mut far) = root_interval(tree, rays);
+    // `limit` ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
+    let mut limit = rays.t_max;
+    let data = T::prepare4(rays);
+    let nodes = tree.nodes();
+    let refs = tree.prim_refs();
+    let mut stack = [Entry::default(); STACK_SIZE];
+    let mut sp = 0usize;
+    let mut index = 0usize;
+    if !near.cmple(far).any() {
+        return hit;
+    }
+    loop {
+        let node = nodes[index];
+        counters.node();
+        if !node.is_leaf() {
+            let axis = node.axis() & 3;
+            let dist = node.split() - packet.origin[axis];
+            let left = node.left_child();
+            if dist == 0.0 || dist.is_nan() {
+                // Origin on the plane: both children, whole intervals.
+                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, near, far };
+                sp += 1;
+                index = left;
+                continue;
+            }
+            // Modification 1: negative distances (planes behind the origin) become +inf.
+            let d = Vec4::splat(dist) * rays.inv[axis];
+            let d = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
+            // Modification 2: front and back from the origin's side of the plane.
+            let upper_front = (dist < 0.0) as usize;
+            let (front, back) = (left + upper_front, left + 1 - upper_front);
+            let front_far = far.min(widen_up(d));
+            let back_near = near.max(widen_down(d));
+            let in_front = near.cmple(front_far);
+            let in_back = back_near.cmple(far);
+            if !in_back.any() {
+                index = front;
+                far = front_far;
+            } else if !in_front.any() {
+                index = back;
+                near = back_near;
+            } else {
+                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
+                sp += 1;
+                index = front;
+                far = front_far;
+            }
+            continue;
+        }
+
+        counters.leaf();
+        let active = near.cmple(far);
+        let prims = &refs[node.prim_range()];
+        counters.tests(prims.len() as u64);
+        for &prim in prims {
+            let lanes =
+                records[prim as usize].intersect4(rays, &data, active & !hit.found.and_if(ANY_HIT), &mut hit, prim);
+            if ANY_HIT && lanes.any() {
+                limit = Vec4::select(hit.found, Vec4::NEG_INFINITY, limit);
+                if (hit.found | !rays.valid).all() {
+                    return hit;
+                }
+            }
+        }
+        if !ANY_HIT {
+            limit = hit.t;
+        }
+
+        // Next voxel: pop, with each lane clamped to its closest hit.
+        loop {
+            if sp == 0 {
+                return hit;
+            }
+            sp -= 1;
+            let entry = stack[sp % STACK_SIZE];
+            near = entry.near;
+            far = entry.far.min(limit);
+            if near.cmple(far).any() {
+                index = entry.node as usize;
+                break;
+            }
+        }
+    }
+}
+
+/// `self` where `enabled`, else all false: a mask that only applies to one query kind.
+trait AndIf {
+    fn and_if(self, enabled: bool) -> BVec4A;
+}
+
+impl AndIf for BVec4A {
+    #[inline(always)]
+    fn and_if(self, enabled: bool) -> BVec4A {
+        if enabled { self } else { BVec4A::splat(false) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+    use kdtree::counters::NoCounters;
+    use kdtree::{BuildConfig, Ray};
+
+    fn tree(intersector: Intersector) -> KdTree {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let config = BuildConfig { intersector, ..Default::default() };
+        KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap()
+    }
+
+    /// Rays from one origin in all eight octants at once, compared lane by lane with single
+    /// rays.
+    #[test]
+    fn mixed_sign_packets_match_single_rays() {
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let tree = tree(intersector);
+            let b = tree.bounds();
+            let c = 0.5 * (b.min + b.max);
+            for (i, dirs) in [
+                [
+                    Vec3::new(1.0, 0.3, 0.2),
+                    Vec3::new(-1.0, 0.2, 0.1),
+                    Vec3::new(0.1, -1.0, 0.3),
+                    Vec3::new(0.2, 0.1, -1.0),
+                ],
+                [Vec3::X, -Vec3::X, Vec3::new(0.0, -0.0, 1.0), Vec3::new(-0.0, 1.0, 0.0)],
+            ]
+            .iter()
+            .enumerate()
+            {
+                let rays = dirs.map(|d| Ray::new(c, d, 0.0, f32::INFINITY));
+                let packet = OmniPacket::new(RayPacket::new(&rays)).unwrap();
+                let hits = intersect(&tree, &packet, &mut NoCounters).hits();
+                let blocked = occluded(&tree, &packet, &mut NoCounters);
+                for (lane, ray) in rays.iter().enumerate() {
+                    assert_eq!(hits[lane], tree.intersect(ray), "{intersector:?} packet {i} lane {lane}");
+                    assert_eq!(blocked.found.bitmask() >> lane & 1 != 0, tree.occluded(ray));
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,308 @@
+//! SoA packets of four rays and their hits (thesis 2.3.1, Listings 2.5-2.6).
+//!
+//! A [`RayPacket`] keeps each coordinate of its four rays in one `Vec4` (one SSE register),
+//! so that a traversal step or a triangle test handles the four rays with the same
+//! instructions as one. Per-axis data sits in `[Vec4; 4]` arrays whose fourth entry is
+//! padding: an axis read from a node (`0..=2`, masked with `& 3`) indexes them without a
+//! bounds check.
+//!
+//! Lanes that hold no ray (at the edge of an image, or a packet of fewer than four rays) are
+//! *invalid*: they carry an empty interval (`t_min = +inf`, `t_max = -inf`) and take part in
+//! no test.
+
+use glam::{BVec4A, Vec3, Vec4};
+use kdtree::traverse::WIDEN;
+use kdtree::{Hit, Ray};
+
+/// Four rays in structure-of-arrays form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct RayPacket {
+    /// Origins: `o[axis]` holds that coordinate of the four rays (`o[3]` is padding).
+    pub o: [Vec4; 4],
+    /// Directions, as [`Ray::dir`] (denormal components flushed to signed zeros).
+    pub d: [Vec4; 4],
+    /// `1 / d`, per component (signed infinities for zero components).
+    pub inv: [Vec4; 4],
+    /// Start of each ray's interval (`+inf` in invalid lanes).
+    pub t_min: Vec4,
+    /// End of each ray's interval (`-inf` in invalid lanes).
+    pub t_max: Vec4,
+    /// The lanes that hold a ray.
+    pub valid: BVec4A,
+}
+
+impl RayPacket {
+    /// A packet of up to four rays; lanes past `rays.len()` are invalid.
+    ///
+    /// Rays with a NaN or infinite origin or direction, or a NaN interval, are kept in their
+    /// lane but marked invalid: like [`kdtree::KdTree::intersect`], the packet reports no hit
+    /// for them.
+    pub fn new(rays: &[Ray]) -> RayPacket {
+        let mut lanes = [None; 4];
+        for (slot, ray) in lanes.iter_mut().zip(rays) {
+            *slot = Some(*ray);
+        }
+        RayPacket::from_lanes(lanes)
+    }
+
+    /// A packet from four optional rays (`None` lanes are invalid).
+    pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
+        let fill = lanes.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
+        let mut o = [[0.0f32; 4]; 4];
+        let mut d = [[0.0f32; 4]; 4];
+        let mut inv = [[0.0f32; 4]; 4];
+        let mut t_min = [f32::INFINITY; 4];
+        let mut t_max = [f32::NEG_INFINITY; 4];
+        let mut valid = [false; 4];
+        for (lane, ray) in lanes.iter().enumerate() {
+            let usable =
+                ray.filter(|r| r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.t_min <= r.t_max);
+            let r = usable.unwrap_or(fill);
+            for axis in 0..3 {
+                o[axis][lane] = r.origin[axis];
+                d[axis][lane] = r.dir[axis];
+                inv[axis][lane] = r.inv_dir[axis];
+            }
+            if usable.is_some() {
+                t_min[lane] = r.t_min;
+                t_max[lane] = r.t_max;
+                valid[lane] = true;
+            }
+        }
+        RayPacket {
+            o: o.map(Vec4::from_array),
+            d: d.map(Vec4::from_array),
+            inv: inv.map(Vec4::from_array),
+            t_min: Vec4::from_array(t_min),
+            t_max: Vec4::from_array(t_max),
+            valid: BVec4A::new(valid[0], valid[1], valid[2], valid[3]),
+        }
+    }
+
+    /// The ray in `lane` (also for an invalid lane, whose content is filler).
+    pub fn ray(&self, lane: usize) -> Ray {
+        let origin = Vec3::new(self.o[0][lane], self.o[1][lane], self.o[2][lane]);
+        let dir = Vec3::new(self.d[0][lane], self.d[1][lane], self.d[2][lane]);
+        Ray::new(origin, dir, self.t_min[lane], self.t_max[lane])
+    }
+
+    /// The common origin of the valid lanes, if they all start at one point (bit for bit).
+    pub fn common_origin(&self) -> Option<Vec3> {
+        let first = self.valid.bitmask().trailing_zeros() as usize;
+        if first >= 4 {
+            return None;
+        }
+        let origin = Vec3::new(self.o[0][first], self.o[1][first], self.o[2][first]);
+        let same = (0..3).fold(BVec4A::splat(true), |m, a| m & self.o[a].cmpeq(Vec4::splat(origin[a])));
+        // Compare bits, so that -0.0 and 0.0 count as different origins only where they differ.
+        (same | !self.valid).all().then_some(origin)
+    }
+
+    /// Each lane's interval inside the box `[lo, hi]`, clipped to `[t_min, t_max]` and widened
+    /// by [`WIDEN`] like [`kdtree::traverse::clip_to_box`]: a lane misses the box where
+    /// `enter > exit`. An axis with a zero direction component constrains nothing when the
+    /// origin is inside the slab and empties the interval otherwise (no `0 * inf`).
+    #[inline(always)]
+    pub fn clip(&self, lo: [f32; 4], hi: [f32; 4]) -> (Vec4, Vec4) {
+        let (mut enter, mut exit) = (self.t_min, self.t_max);
+        for axis in 0..3 {
+            let (l, h) = (Vec4::splat(lo[axis]), Vec4::splat(hi[axis]));
+            let (o, inv) = (self.o[axis], self.inv[axis]);
+            let (t_l, t_h) = ((l - o) * inv, (h - o) * inv);
+            let zero = self.d[axis].cmpeq(Vec4::ZERO);
+            let inside = o.cmpge(l) & o.cmple(h);
+            let (open_near, open_far) = (
+                Vec4::select(inside, Vec4::NEG_INFINITY, Vec4::INFINITY),
+                Vec4::select(inside, Vec4::INFINITY, Vec4::NEG_INFINITY),
+            );
+            // Infinite distances (an overflowing product) widen to themselves, never NaN.
+            let near = Vec4::select(zero, open_near, t_l.min(t_h));
+            let far = Vec4::select(zero, open_far, t_l.max(t_h));
+            enter = enter.max(widen_down(near));
+            exit = exit.min(widen_up(far));
+        }
+        (enter, exit)
+    }
+}
+
+/// A packet whose rays share one origin: what the omni-directional traversal (4.1.2) and the
+/// frusta (4.1.3-4.1.5) need, since they choose front and back voxels from the origin alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OmniPacket {
+    /// The rays (every valid lane starts at `origin`).
+    pub rays: RayPacket,
+    /// The common origin, `[x, y, z, 0]`.
+    pub origin: [f32; 4],
+}
+
+impl OmniPacket {
+    /// The packet, if its valid lanes share one origin and none has a negative `t_min` (the
+    /// omni-directional rule "a plane behind the origin is never crossed" assumes rays start
+    /// at their origin). A packet with no valid lane qualifies (its origin is the filler's).
+    pub fn new(rays: RayPacket) -> Option<OmniPacket> {
+        let origin = match rays.common_origin() {
+            Some(o) => o,
+            None if !rays.valid.any() => Vec3::new(rays.o[0].x, rays.o[1].x, rays.o[2].x),
+            None => return None,
+        };
+        if (rays.t_min.cmplt(Vec4::ZERO) & rays.valid).any() {
+            return None;
+        }
+        Some(OmniPacket { rays, origin: origin.extend(0.0).to_array() })
+    }
+}
+
+/// The closest hits of a packet's four rays, SoA: `t = +inf` (or the ray's `t_max`) where a
+/// lane has no hit yet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct PacketHit {
+    /// Hit distance per lane; the ray's `t_max` while it has no hit.
+    pub t: Vec4,
+    /// Barycentric weight of the second vertex.
+    pub u: Vec4,
+    /// Barycentric weight of the third vertex.
+    pub v: Vec4,
+    /// Triangle index per lane (meaningful where `found` is set).
+    pub prim: [u32; 4],
+    /// Lanes that have a hit.
+    pub found: BVec4A,
+}
+
+impl PacketHit {
+    /// No hits yet: each lane's search ends at its ray's `t_max`.
+    #[inline(always)]
+    pub fn new(rays: &RayPacket) -> PacketHit {
+        PacketHit { t: rays.t_max, u: Vec4::ZERO, v: Vec4::ZERO, prim: [u32::MAX; 4], found: BVec4A::splat(false) }
+    }
+
+    /// Takes `(t, u, v, prim)` in the lanes of `mask`.
+    #[inline(always)]
+    pub fn record(&mut self, mask: BVec4A, t: Vec4, u: Vec4, v: Vec4, prim: u32) {
+        self.t = Vec4::select(mask, t, self.t);
+        self.u = Vec4::select(mask, u, self.u);
+        self.v = Vec4::select(mask, v, self.v);
+        self.found |= mask;
+        let bits = mask.bitmask();
+        for lane in 0..4 {
+            if bits >> lane & 1 != 0 {
+                self.prim[lane] = prim;
+            }
+        }
+    }
+
+    /// The hit of `lane`, as single-ray traversal reports it.
+    #[inline]
+    pub fn get(&self, lane: usize) -> Option<Hit> {
+        (self.found.bitmask() >> lane & 1 != 0).then(|| Hit {
+            t: self.t[lane],
+            u: self.u[lane],
+            v: self.v[lane],
+            prim: self.prim[lane],
+        })
+    }
+
+    /// The four lanes' hits.
+    pub fn hits(&self) -> [Option<Hit>; 4] {
+        [self.get(0), self.get(1), self.get(2), self.get(3)]
+    }
+}
+
+/// `t` moved towards `+inf` by [`WIDEN`]: `t + |t| W`, the single-ray kernel's formula;
+/// infinities stay as they are (the formula would turn `-inf` into NaN).
+#[inline(always)]
+pub fn widen_up(t: Vec4) -> Vec4 {
+    Vec4::select(t.is_finite_mask(), t + t.abs() * WIDEN, t)
+}
+
+/// `t` moved towards `-inf` by [`WIDEN`]: `t - |t| W`; infinities stay.
+#[inline(always)]
+pub fn widen_down(t: Vec4) -> Vec4 {
+    Vec4::select(t.is_finite_mask(), t - t.abs() * WIDEN, t)
+}
+
+/// Scalar [`widen_up`].
+#[inline(always)]
+pub fn widen_up1(t: f32) -> f32 {
+    if t.is_finite() { t + t.abs() * WIDEN } else { t }
+}
+
+/// Scalar [`widen_down`].
+#[inline(always)]
+pub fn widen_down1(t: f32) -> f32 {
+    if t.is_finite() { t - t.abs() * WIDEN } else { t }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kdtree::Aabb;
+    use kdtree::traverse::clip_to_box;
+
+    fn rays() -> [Ray; 4] {
+        [
+            Ray::new(Vec3::new(0.5, 0.5, -2.0), Vec3::new(0.1, 0.2, 1.0), 0.0, f32::INFINITY),
+            Ray::new(Vec3::new(0.5, 0.5, -2.0), Vec3::new(0.0, -0.0, 1.0), 0.0, 10.0),
+            Ray::new(Vec3::new(3.0, 0.5, 0.5), Vec3::new(-1.0, 0.0, 0.0), 1.0, 10.0),
+            Ray::new(Vec3::new(3.0, 3.0, 3.0), Vec3::new(0.0, 0.0, 1.0), 0.0, 10.0),
+        ]
+    }
+
+    #[test]
+    fn lanes_round_trip_and_missing_lanes_are_invalid() {
+        let r = rays();
+        let p = RayPacket::new(&r[..3]);
+        assert_eq!(p.valid.bitmask(), 0b0111);
+        for (lane, ray) in r[..3].iter().enumerate() {
+            assert_eq!(p.ray(lane), *ray);
+        }
+        assert_eq!((p.t_min[3], p.t_max[3]), (f32::INFINITY, f32::NEG_INFINITY));
+        let bad = Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 1.0);
+        assert_eq!(RayPacket::new(&[bad, r[0]]).valid.bitmask(), 0b0010);
+    }
+
+    #[test]
+    fn clip_agrees_with_the_single_ray_clip() {
+        let b = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
+        let r = rays();
+        let p = RayPacket::new(&r);
+        let (enter, exit) = p.clip(b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
+        for (lane, ray) in r.iter().enumerate() {
+            match clip_to_box(ray, &b) {
+                Some((t0, t1)) => assert_eq!((enter[lane], exit[lane]), (t0, t1), "lane {lane}"),
+                None => assert!(enter[lane] > exit[lane], "lane {lane}"),
+            }
+        }
+    }
+
+    #[test]
+    fn common_origin_needs_every_valid_lane() {
+        let r = rays();
+        assert_eq!(RayPacket::new(&r[..2]).common_origin(), Some(r[0].origin));
+        assert_eq!(RayPacket::new(&r).common_origin(), None);
+        assert!(OmniPacket::new(RayPacket::new(&r[..2])).is_some());
+        let behind = Ray::new(r[0].origin, r[0].dir, -1.0, 1.0);
+        assert!(OmniPacket::new(RayPacket::new(&[r[0], behind])).is_none());
+    }
+
+    #[test]
+    fn widening_keeps_infinities() {
+        let t = Vec4::new(f32::INFINITY, f32::NEG_INFINITY, 2.0, -2.0);
+        let (up, down) = (widen_up(t), widen_down(t));
+        assert_eq!(up.to_array()[..2], [f32::INFINITY, f32::NEG_INFINITY]);
+        assert_eq!(down.to_array()[..2], [f32::INFINITY, f32::NEG_INFINITY]);
+        assert!(up[2] > 2.0 && up[3] > -2.0 && down[2] < 2.0 && down[3] < -2.0);
+        assert_eq!((widen_up1(f32::NEG_INFINITY), widen_down1(f32::INFINITY)), (f32::NEG_INFINITY, f32::INFINITY));
+    }
+
+    #[test]
+    fn record_keeps_other_lanes() {
+        let p = RayPacket::new(&rays());
+        let mut h = PacketHit::new(&p);
+        h.record(BVec4A::new(false, true, false, true), Vec4::splat(2.0), Vec4::splat(0.25), Vec4::splat(0.5), 7);
+        assert_eq!(h.get(0), None);
+        assert_eq!(h.get(1), Some(Hit { t: 2.0, u: 0.25, v: 0.5, prim: 7 }));
+        assert_eq!(h.t[2], 10.0);
+    }
+}

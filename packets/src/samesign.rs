@@ -1,0 +1,197 @@
+//! The standard 2x2 packet traversal (thesis 2.3.1, Listing 2.4, corrected), kept beside the
+//! omni-directional one so the two can be compared on packets whose rays disagree on
+//! direction signs.
+//!
+//! All rays of a packet must agree on the sign of each direction component, because the near
+//! and far children are chosen once for the packet from the direction's sign. A packet that
+//! mixes signs is split into sub-packets of equal sign patterns (masking the other lanes),
+//! each traced on its own: up to four traversals where the omni-directional packet needs one.
+//! The rays need not share an origin.
+//!
+//! Listing 2.4 picks near/far from `dir[0]` (the x component, whatever the split axis) with
+//! the sign test the wrong way round (see `../shared/seeds/README.md`). Here, as in the
+//! single-ray kernel, the near child for axis `k` is the upper child when the sign bit of
+//! `dir[k]` is set. Each lane's interval follows the single-ray rules: front
+//! `[near, min(far, d)]`, back `[max(near, d), far]` (a negative `d` empties the front, so
+//! rays may start behind their origin, `t_min < 0`), and a lane lying in the split plane
+//! (`d` NaN) visits both children over its whole interval.
+
+use glam::{BVec4A, Vec4};
+use kdtree::triangle::{Intersector, TriangleTest};
+use kdtree::{KdTree, STACK_SIZE};
+
+use crate::omni::root_interval;
+use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
+use crate::stats::PacketCounters;
+use crate::triangle4::PacketTest;
+
+/// The closest hits of the packet's rays, splitting it by direction signs.
+#[inline]
+pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
+    let mut hit = PacketHit::new(packet);
+    for group in sign_groups(packet) {
+        let mut sub = *packet;
+        sub.valid &= group;
+        sub.t_min = Vec4::select(group, sub.t_min, Vec4::INFINITY);
+        sub.t_max = Vec4::select(group, sub.t_max, Vec4::NEG_INFINITY);
+        let part = match tree.intersector() {
+            Intersector::Wald => traverse(tree, tree.wald_records(), &sub, counters),
+            Intersector::Watertight => traverse(tree, tree.watertight_records(), &sub, counters),
+        };
+        hit.t = Vec4::select(group, part.t, hit.t);
+        hit.u = Vec4::select(group, part.u, hit.u);
+        hit.v = Vec4::select(group, part.v, hit.v);
+        hit.found |= part.found & group;
+        for lane in 0..4 {
+            if group.bitmask() >> lane & 1 != 0 {
+                hit.prim[lane] = part.prim[lane];
+            }
+        }
+    }
+    hit
+}
+
+/// The valid lanes grouped by direction sign pattern (sign bits of x, y, z): one mask per
+/// distinct pattern, at most four.
+pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
+    let signs: [u32; 4] =
+        std::array::from_fn(|lane| (0..3).fold(0, |s, a| s | u32::from(packet.d[a][lane].is_sign_negative()) << a));
+    let valid = packet.valid.bitmask();
+    let mut seen = 0u32;
+    (0..4).filter_map(move |lane| {
+        if valid >> lane & 1 == 0 || seen >> lane & 1 != 0 {
+            return None;
+        }
+        let group: [bool; 4] = std::array::from_fn(|l| valid >> l & 1 != 0 && signs[l] == signs[lane]);
+        for (l, &g) in group.iter().enumerate() {
+            seen |= u32::from(g) << l;
+        }
+        Some(BVec4A::from_array(group))
+    })
+}
+
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    near: Vec4,
+    far: Vec4,
+}
+
+impl Default for Entry {
+    fn default() -> Entry {
+        Entry { node: 0, near: Vec4::INFINITY, far: Vec4::NEG_INFINITY }
+    }
+}
+
+/// Traversal of a packet whose valid lanes share direction signs.
+#[inline(always)]
+fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+    tree: &KdTree,
+    records: &[T],
+    rays: &RayPacket,
+    counters: &mut C,
+) -> PacketHit {
+    let mut hit = PacketHit::new(rays);
+    let first = (rays.valid.bitmask().trailing_zeros() as usize).min(3);
+    // Bit `axis` set where the direction's sign bit is: then the near child is the upper one.
+    let upper_first = (0..3).fold(0usize, |m, a| m | usize::from(rays.d[a][first].is_sign_negative()) << a);
+    let (mut near, mut far) = root_interval(tree, rays);
+    let data = T::prepare4(rays);
+    let nodes = tree.nodes();
+    let refs = tree.prim_refs();
+    let mut stack = [Entry::default(); STACK_SIZE];
+    let mut sp = 0usize;
+    let mut index = 0usize;
+    if !near.cmple(far).any() {
+        return hit;
+    }
+    loop {
+        let node = nodes[index];
+        counters.node();
+        if !node.is_leaf() {
+            let axis = node.axis() & 3;
+            let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
+            let in_plane = d.cmpne(d);
+            let upper = (upper_first >> axis) & 1;
+            let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
+            let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
+            let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
+            let in_front = near.cmple(front_far);
+            let in_back = back_near.cmple(far);
+            if !in_back.any() {
+                index = front;
+                far = front_far;
+            } else if !in_front.any() {
+                index = back;
+                near = back_near;
+            } else {
+                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
+                sp += 1;
+                index = front;
+                far = front_far;
+            }
+            continue;
+        }
+
+        counters.leaf();
+        let active = near.cmple(far);
+        let prims = &refs[node.prim_range()];
+        counters.tests(prims.len() as u64);
+        for &prim in prims {
+            records[prim as usize].intersect4(rays, &data, active, &mut hit, prim);
+        }
+        loop {
+            if sp == 0 {
+                return hit;
+            }
+            sp -= 1;
+            let entry = stack[sp % STACK_SIZE];
+            near = entry.near;
+            far = entry.far.min(hit.t);
+            if near.cmple(far).any() {
+                index = entry.node as usize;
+                break;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+    use kdtree::counters::NoCounters;
+    use kdtree::{BuildConfig, Ray};
+
+    #[test]
+    fn sign_groups_partition_the_valid_lanes() {
+        let o = Vec3::ZERO;
+        let rays =
+            [Vec3::X, -Vec3::X, Vec3::new(1.0, 0.0, 0.5), Vec3::new(-0.0, 1.0, 1.0)].map(|d| Ray::new(o, d, 0.0, 1.0));
+        let groups: Vec<u32> = sign_groups(&RayPacket::new(&rays)).map(|g| g.bitmask()).collect();
+        assert_eq!(groups, vec![0b0101, 0b0010, 0b1000]);
+        let groups: Vec<u32> = sign_groups(&RayPacket::new(&rays[..1])).map(|g| g.bitmask()).collect();
+        assert_eq!(groups, vec![0b0001]);
+    }
+
+    #[test]
+    fn split_packets_match_single_rays_with_different_origins() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let config = BuildConfig { intersector, ..Default::default() };
+            let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
+            let b = tree.bounds();
+            let c = 0.5 * (b.min + b.max);
+            let rays = [
+                Ray::new(c, Vec3::new(1.0, 0.3, 0.2), 0.0, f32::INFINITY),
+                Ray::new(c + Vec3::X, Vec3::new(-1.0, 0.2, 0.1), -5.0, f32::INFINITY),
+                Ray::new(c - Vec3::Y, Vec3::new(0.1, -1.0, 0.3), 0.0, f32::INFINITY),
+                Ray::new(c, Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY),
+            ];
+            let hits = intersect(&tree, &RayPacket::new(&rays), &mut NoCounters).hits();
+            for (lane, ray) in rays.iter().enumerate() {
+                assert_eq!(hits[lane], tree.intersect(ray), "{intersector:?} lane {lane}");
+            }
+        }
+    }
+}
