@@ -692,6 +692,46 @@ pub(crate) fn raycast_command(
 mod tests {
     use super::*;
 
+    /// Every method gives the single-ray results on a ray list mixing camera rays (runs with
+    /// one origin: packets and frusta), rays from scattered origins, negative t_min and
+    /// axis-parallel rays, closest and any hit.
+    #[test]
+    fn every_method_matches_single_rays_on_a_ray_list() {
+        let scene = scenes::load_scene("arena").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        let mut rays: Vec<Ray> = crate::harness::primary_rays(&camera);
+        let mut state = 7u32;
+        let mut rnd = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1 << 24) as f32 * 2.0 - 1.0
+        };
+        for i in 0..600 {
+            let o = camera.eye + Vec3::new(rnd(), rnd(), rnd()) * 5.0;
+            let d = match i % 3 {
+                0 => Vec3::new(rnd(), 0.0, -0.0),
+                _ => Vec3::new(rnd(), rnd(), rnd()),
+            };
+            let d = if d == Vec3::ZERO { Vec3::X } else { d };
+            rays.push(Ray::new(o, d, if i % 5 == 0 { -1.0 } else { 0.0 }, 50.0));
+        }
+        let mono = trace(&tree, &rays, Method::Mono, false);
+        let mono_any = trace(&tree, &rays, Method::Mono, true);
+        for method in [Method::Packet, Method::Samesign, Method::Frustum, Method::Mft] {
+            let (Results::Closest(got), Results::Closest(want)) = (trace(&tree, &rays, method, false), &mono) else {
+                unreachable!()
+            };
+            for (i, (g, w)) in got.iter().zip(want).enumerate() {
+                let tie = matches!((g, w), (Some(g), Some(w)) if g.t == w.t);
+                assert!(g == w || tie, "{method:?} ray {i}: {g:?} vs {w:?}");
+            }
+            let (Results::AnyHit(got), Results::AnyHit(want)) = (trace(&tree, &rays, method, true), &mono_any) else {
+                unreachable!()
+            };
+            assert_eq!(&got, want, "{method:?} any hit");
+        }
+    }
+
     #[test]
     fn parse_line_accepts_rays_comments_and_blanks() {
         assert_eq!(parse_line("   "), Ok(None));
