@@ -24,7 +24,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
-use packets::{PacketCounters, TileMethod, TileTracer};
+use packets::{PacketCounters, PacketCounts, TileMethod, TileTracer};
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, Tile};
 
@@ -253,8 +253,8 @@ impl<'a> Renderer<'a> {
 
     /// [`Renderer::trace`] counting traversal steps, leaves and intersection tests, for the
     /// primary and the shadow pass apart. Slower: not for timing.
-    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, FrameCounts, FrameCounts) {
-        self.trace_with::<FrameCounts>(buf)
+    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, PacketCounts, PacketCounts) {
+        self.trace_with::<PacketCounts>(buf)
     }
 
     /// Number of 2x2 packets the primary pass of a packet method traces (the denominator of
@@ -376,7 +376,7 @@ impl<'a> Renderer<'a> {
 }
 
 /// Per-tile traversal counters that can be summed over tiles: [`NoCounters`] for timed
-/// frames (counting compiles away), [`FrameCounts`] for `--counters`.
+/// frames (counting compiles away), [`PacketCounts`] for `--counters`.
 pub trait TileCounters: Counters + PacketCounters + Default + Send {
     /// The sum of two tiles' counts.
     fn merge(self, other: Self) -> Self;
@@ -389,68 +389,11 @@ impl TileCounters for NoCounters {
     }
 }
 
-/// What a counted frame counts, for single rays and packet methods alike: traversal steps
-/// (per ray, per packet or per frustum), leaves, intersection tests (ray-triangle for single
-/// rays, packet-triangle for packets), and the packets considered and culled at leaves.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct FrameCounts {
-    /// Traversal steps.
-    pub nodes: u64,
-    /// Leaves visited.
-    pub leaves: u64,
-    /// Intersection tests.
-    pub isects: u64,
-    /// 2x2 packets considered at leaves (frustum methods).
-    pub leaf_packets: u64,
-    /// Of those, packets culled before any triangle test.
-    pub culled: u64,
-}
-
-impl Counters for FrameCounts {
-    #[inline(always)]
-    fn node(&mut self) {
-        self.nodes += 1;
-    }
-    #[inline(always)]
-    fn leaf(&mut self) {
-        self.leaves += 1;
-    }
-    #[inline(always)]
-    fn isects(&mut self, n: u64) {
-        self.isects += n;
-    }
-}
-
-impl PacketCounters for FrameCounts {
-    #[inline(always)]
-    fn node(&mut self) {
-        self.nodes += 1;
-    }
-    #[inline(always)]
-    fn leaf(&mut self) {
-        self.leaves += 1;
-    }
-    #[inline(always)]
-    fn tests(&mut self, n: u64) {
-        self.isects += n;
-    }
-    #[inline(always)]
-    fn leaf_packets(&mut self, considered: u64, culled: u64) {
-        self.leaf_packets += considered;
-        self.culled += culled;
-    }
-}
-
-impl TileCounters for FrameCounts {
+impl TileCounters for PacketCounts {
     #[inline]
-    fn merge(self, o: Self) -> Self {
-        FrameCounts {
-            nodes: self.nodes + o.nodes,
-            leaves: self.leaves + o.leaves,
-            isects: self.isects + o.isects,
-            leaf_packets: self.leaf_packets + o.leaf_packets,
-            culled: self.culled + o.culled,
-        }
+    fn merge(mut self, other: Self) -> Self {
+        self += other;
+        self
     }
 }
 

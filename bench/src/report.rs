@@ -7,7 +7,7 @@ use std::fmt;
 
 use kdtree::KdTree;
 
-use crate::render::FrameCounts;
+use packets::PacketCounts;
 use serde::Serialize;
 
 /// The statistics of a built kd-tree, as reported by `rttest build`.
@@ -178,23 +178,22 @@ impl TraversalReport {
     /// figures too.
     pub fn new(
         primary_rays: u64,
-        primary: FrameCounts,
+        primary: PacketCounts,
         shadow_rays: u64,
-        shadow: FrameCounts,
+        shadow: PacketCounts,
         packets: Option<u64>,
     ) -> Self {
         let per = |n: u64, rays: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
         TraversalReport {
-            primary_steps_per_packet: packets.map(|p| per(primary.nodes, p)),
-            primary_tests_per_packet: packets.map(|p| per(primary.isects, p)),
-            culled_percent: (primary.leaf_packets > 0)
-                .then(|| 100.0 * primary.culled as f64 / primary.leaf_packets as f64),
+            primary_steps_per_packet: packets.map(|p| primary.steps_per_packet(p)),
+            primary_tests_per_packet: packets.map(|p| primary.tests_per_packet(p)),
+            culled_percent: primary.culled_percent(),
             primary_nodes_per_ray: per(primary.nodes, primary_rays),
             primary_leaves_per_ray: per(primary.leaves, primary_rays),
-            primary_isects_per_ray: per(primary.isects, primary_rays),
+            primary_isects_per_ray: per(primary.tests, primary_rays),
             shadow_nodes_per_ray: per(shadow.nodes, shadow_rays),
             shadow_leaves_per_ray: per(shadow.leaves, shadow_rays),
-            shadow_isects_per_ray: per(shadow.isects, shadow_rays),
+            shadow_isects_per_ray: per(shadow.tests, shadow_rays),
         }
     }
 }

@@ -134,15 +134,12 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
         let _image = renderer.color(&buffers);
         shade_secs = shade_secs.min(start.elapsed().as_secs_f64());
         let (stats, counts, _) = renderer.trace_counted(&mut buffers);
-        let packets = renderer.packet_count() as f64;
-        let (n, i) = match method {
-            // Single rays: per ray, times four (a 2x2 packet's worth).
-            Method::Mono => (
-                4.0 * counts.nodes as f64 / stats.primary_rays as f64,
-                4.0 * counts.isects as f64 / stats.primary_rays as f64,
-            ),
-            _ => (counts.nodes as f64 / packets, counts.isects as f64 / packets),
+        // Single rays: a 2x2 packet's worth is four rays.
+        let packets = match method {
+            Method::Mono => stats.primary_rays as f64 / 4.0,
+            _ => renderer.packet_count() as f64,
         };
+        let (n, i) = (counts.nodes as f64 / packets, counts.tests as f64 / packets);
         rows.push(Row {
             scene: scene.name.clone(),
             method,
@@ -153,11 +150,7 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
             mrays: mrays_per_s(stats.primary_rays, best),
             n,
             i,
-            culled: if counts.leaf_packets > 0 {
-                100.0 * counts.culled as f64 / counts.leaf_packets as f64
-            } else {
-                0.0
-            },
+            culled: counts.culled_percent().unwrap_or(0.0),
         });
         bar.inc();
     }

@@ -153,7 +153,7 @@ pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
                 }
                 tested += 1;
                 let lanes = if culling { through } else { open };
-                let data = T::prepare4(rays);
+                let data = T::tile_data(&tracer.sheared, i);
                 counters.tests(prims.len() as u64);
                 for &prim in prims {
                     records[prim as usize].intersect4(rays, &data, lanes, hit, prim);
@@ -191,6 +191,31 @@ pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
     let considered = open_packets + closed;
     counters.leaf_packets(considered, considered - tested);
     limit
+}
+
+/// An inner node's children in visiting order, with their boxes: the front voxel is the
+/// child on the origin's side of the plane (modification 2), the lower child when the origin
+/// lies on it (`dist == 0`, where both are visited over the whole interval).
+pub(crate) struct Children {
+    pub(crate) front: usize,
+    pub(crate) back: usize,
+    pub(crate) front_box: ([f32; 4], [f32; 4]),
+    pub(crate) back_box: ([f32; 4], [f32; 4]),
+}
+
+/// The [`Children`] of the inner node with left child `left` splitting box `[lo, hi]` on
+/// `axis` at `split`, the origin lying `dist = split - o[axis]` below the plane.
+#[inline(always)]
+pub(crate) fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32; 4], hi: [f32; 4]) -> Children {
+    let (mut below_hi, mut above_lo) = (hi, lo);
+    below_hi[axis & 3] = split;
+    above_lo[axis & 3] = split;
+    let (below, above) = ((lo, below_hi), (above_lo, hi));
+    if dist < 0.0 {
+        Children { front: left + 1, back: left, front_box: above, back_box: below }
+    } else {
+        Children { front: left, back: left + 1, front_box: below, back_box: above }
+    }
 }
 
 /// One deferred back voxel of the single frustum.
@@ -242,47 +267,29 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             let axis = node.axis() & 3;
             let split = node.split();
             let dist = split - origin[axis];
-            let left = node.left_child();
+            let c = children(node.left_child(), axis, split, dist, lo, hi);
             if dist == 0.0 || dist.is_nan() {
                 // Origin on the plane: both children over the whole interval, lower first.
-                let mut back_lo = lo;
-                back_lo[axis] = split;
-                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, unordered: true, near, far, lo: back_lo, hi };
+                let (back_lo, back_hi) = c.back_box;
+                stack[sp % STACK_SIZE] =
+                    Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi };
                 sp += 1;
-                hi[axis] = split;
-                index = left;
-                unordered = true;
+                (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
             let (dmin, dmax) = plane_interval(dist, f.inv_lo[axis], f.inv_hi[axis]);
-            let upper_front = dist < 0.0;
-            let (front, back) = if upper_front { (left + 1, left) } else { (left, left + 1) };
             let front_far = far.min(dmax);
             let back_near = near.max(dmin);
-            let in_front = near <= front_far;
-            let in_back = back_near <= far;
-            // The back voxel's box, then the front's in place.
-            let (mut back_lo, mut back_hi) = (lo, hi);
-            if upper_front {
-                back_hi[axis] = split;
-                lo[axis] = split;
+            if back_near > far {
+                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
+            } else if near > front_far {
+                (index, near, (lo, hi)) = (c.back, back_near, c.back_box);
             } else {
-                back_lo[axis] = split;
-                hi[axis] = split;
-            }
-            if !in_back {
-                index = front;
-                far = front_far;
-            } else if !in_front {
-                index = back;
-                near = back_near;
-                (lo, hi) = (back_lo, back_hi);
-            } else {
+                let (back_lo, back_hi) = c.back_box;
                 stack[sp % STACK_SIZE] =
-                    Entry { node: back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
+                    Entry { node: c.back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
                 sp += 1;
-                index = front;
-                far = front_far;
+                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
             }
             continue;
         }

@@ -22,7 +22,7 @@ use glam::Vec4;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
-use crate::frustum::{FrustumBound, bound, leaf};
+use crate::frustum::{FrustumBound, bound, children, leaf};
 use crate::packet::{widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::tile::TileTracer;
@@ -104,50 +104,33 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             let axis = node.axis() & 3;
             let split = node.split();
             let dist = split - origin[axis];
-            let left = node.left_child();
+            let c = children(node.left_child(), axis, split, dist, lo, hi);
             if dist == 0.0 || dist.is_nan() {
                 // Origin on the plane: both children over the whole intervals, lower first.
-                let mut back_lo = lo;
-                back_lo[axis] = split;
-                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, unordered: true, near, far, lo: back_lo, hi };
+                let (back_lo, back_hi) = c.back_box;
+                stack[sp % STACK_SIZE] =
+                    Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi };
                 sp += 1;
-                hi[axis] = split;
-                index = left;
-                unordered = true;
+                (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
             // Modification 1 per frustum: negative distances become +inf.
             let fix = |d: Vec4| Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
             let dist4 = Vec4::splat(dist);
-            let (a, c) = (fix(dist4 * f.inv_lo[axis]), fix(dist4 * f.inv_hi[axis]));
-            let (dmin, dmax) = (widen_down(a.min(c)), widen_up(a.max(c)));
-            let upper_front = dist < 0.0;
-            let (front, back) = if upper_front { (left + 1, left) } else { (left, left + 1) };
+            let (a, b) = (fix(dist4 * f.inv_lo[axis]), fix(dist4 * f.inv_hi[axis]));
+            let (dmin, dmax) = (widen_down(a.min(b)), widen_up(a.max(b)));
             let front_far = far.min(dmax);
             let back_near = near.max(dmin);
-            let in_front = near.cmple(front_far);
-            let in_back = back_near.cmple(far);
-            let (mut back_lo, mut back_hi) = (lo, hi);
-            if upper_front {
-                back_hi[axis] = split;
-                lo[axis] = split;
+            if !back_near.cmple(far).any() {
+                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
+            } else if !near.cmple(front_far).any() {
+                (index, near, (lo, hi)) = (c.back, back_near, c.back_box);
             } else {
-                back_lo[axis] = split;
-                hi[axis] = split;
-            }
-            if !in_back.any() {
-                index = front;
-                far = front_far;
-            } else if !in_front.any() {
-                index = back;
-                near = back_near;
-                (lo, hi) = (back_lo, back_hi);
-            } else {
+                let (back_lo, back_hi) = c.back_box;
                 stack[sp % STACK_SIZE] =
-                    Entry { node: back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
+                    Entry { node: c.back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
                 sp += 1;
-                index = front;
-                far = front_far;
+                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
             }
             continue;
         }

@@ -6,21 +6,20 @@
 //! off a planar mirror are a packet with a common origin, whatever their direction signs:
 //! exactly what the omni-directional traversal takes, without splitting. A reflected ray is
 //! `virtual_eye + t * reflect(d)` for `t` past the primary hit distance `t_hit` (the point
-//! where it leaves the mirror, since reflection keeps lengths); its interval starts at
-//! `t_hit * (1 + 2^-16)`, a relative offset like the workspace's shadow-ray offset, so the
-//! mirror itself is never hit again.
+//! where it leaves the mirror, since reflection keeps lengths). Its interval starts past the
+//! mirror by the distance of the workspace's one spawn offset
+//! ([`kdtree::ray::offset_origin`]) at the mirror point, so the mirror itself is never hit
+//! again and the offset scales like every other spawned ray's.
 //!
 //! The plane of each lane is that of the triangle it hit, computed in f64 and rounded, so
 //! lanes that hit coplanar triangles share a virtual eye bit for bit; lanes with different
 //! virtual eyes go in different packets ([`reflections`] groups them).
 
 use glam::{DVec3, Vec3};
+use kdtree::ray::offset_origin;
 use kdtree::{Hit, KdTree, Ray};
 
 use crate::packet::{OmniPacket, RayPacket};
-
-/// The relative offset of a reflected ray's interval past the mirror.
-pub const MIRROR_OFFSET: f32 = 1.0 / 65536.0;
 
 /// A mirror plane `normal . p = offset` (unit normal).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,9 +50,14 @@ impl Mirror {
         (d - 2.0 * d.dot(self.normal) * self.normal).as_vec3()
     }
 
-    /// The reflected ray of a primary ray `dir` from `eye` that hit the mirror at `t_hit`.
+    /// The reflected ray of a primary ray `dir` from `eye` that hit the mirror at `t_hit`:
+    /// from the virtual eye, starting where [`offset_origin`] would put a ray leaving the
+    /// mirror point.
     pub fn reflected_ray(&self, eye: Vec3, dir: Vec3, t_hit: f32) -> Ray {
-        Ray::new(self.virtual_eye(eye), self.reflect(dir), t_hit + t_hit.abs() * MIRROR_OFFSET, f32::INFINITY)
+        let reflected = self.reflect(dir);
+        let p = eye + t_hit * dir;
+        let offset = (offset_origin(p, self.normal.as_vec3(), reflected) - p).length() / reflected.length();
+        Ray::new(self.virtual_eye(eye), reflected, t_hit + offset, f32::INFINITY)
     }
 }
 

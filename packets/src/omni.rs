@@ -31,12 +31,13 @@ use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
 
-/// One deferred back voxel: node and the lanes' intervals in it.
+/// One deferred back voxel of a 2x2 packet (omni-directional or same-sign): node and the
+/// lanes' intervals in it.
 #[derive(Clone, Copy)]
-struct Entry {
-    node: u32,
-    near: Vec4,
-    far: Vec4,
+pub(crate) struct Entry {
+    pub(crate) node: u32,
+    pub(crate) near: Vec4,
+    pub(crate) far: Vec4,
 }
 
 impl Default for Entry {
@@ -150,20 +151,27 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
         }
 
         // Next voxel: pop, with each lane clamped to its closest hit.
-        loop {
-            if sp == 0 {
-                return hit;
-            }
-            sp -= 1;
-            let entry = stack[sp % STACK_SIZE];
-            near = entry.near;
-            far = entry.far.min(limit);
-            if near.cmple(far).any() {
-                index = entry.node as usize;
-                break;
-            }
+        match pop(&stack, &mut sp, limit) {
+            Some((node, n, f)) => (index, near, far) = (node, n, f),
+            None => return hit,
         }
     }
+}
+
+/// Pops the next deferred voxel in which some lane is active once each lane's interval is
+/// clamped to `limit` (its closest hit): `(node, near, far)`, or `None` when the stack runs
+/// out. Entries where no lane is left active are dropped.
+#[inline(always)]
+pub(crate) fn pop(stack: &[Entry; STACK_SIZE], sp: &mut usize, limit: Vec4) -> Option<(usize, Vec4, Vec4)> {
+    while *sp > 0 {
+        *sp -= 1;
+        let entry = stack[*sp % STACK_SIZE];
+        let far = entry.far.min(limit);
+        if entry.near.cmple(far).any() {
+            return Some((entry.node as usize, entry.near, far));
+        }
+    }
+    None
 }
 
 /// `self` where `enabled`, else all false: a mask that only applies to one query kind.

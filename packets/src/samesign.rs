@@ -20,7 +20,7 @@ use glam::{BVec4A, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
-use crate::omni::root_interval;
+use crate::omni::{Entry, pop, root_interval};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
@@ -68,19 +68,6 @@ pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
         }
         Some(BVec4A::from_array(group))
     })
-}
-
-#[derive(Clone, Copy)]
-struct Entry {
-    node: u32,
-    near: Vec4,
-    far: Vec4,
-}
-
-impl Default for Entry {
-    fn default() -> Entry {
-        Entry { node: 0, near: Vec4::INFINITY, far: Vec4::NEG_INFINITY }
-    }
 }
 
 /// Traversal of a packet whose valid lanes share direction signs.
@@ -140,18 +127,9 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
         for &prim in prims {
             records[prim as usize].intersect4(rays, &data, active, &mut hit, prim);
         }
-        loop {
-            if sp == 0 {
-                return hit;
-            }
-            sp -= 1;
-            let entry = stack[sp % STACK_SIZE];
-            near = entry.near;
-            far = entry.far.min(hit.t);
-            if near.cmple(far).any() {
-                index = entry.node as usize;
-                break;
-            }
+        match pop(&stack, &mut sp, hit.t) {
+            Some((node, n, f)) => (index, near, far) = (node, n, f),
+            None => return hit,
         }
     }
 }

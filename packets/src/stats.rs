@@ -5,7 +5,7 @@
 //! counts once. Table 4.2 adds the share of packets culled at leaves (4.1.4). The kernels
 //! take a `C: PacketCounters`; with [`kdtree::NoCounters`] every call is empty and inlined.
 
-use kdtree::NoCounters;
+use kdtree::{Counters, NoCounters};
 
 /// What the packet and frustum kernels count.
 pub trait PacketCounters {
@@ -34,7 +34,8 @@ impl PacketCounters for NoCounters {
     fn leaf_packets(&mut self, _considered: u64, _culled: u64) {}
 }
 
-/// The counts, summed over packets or tiles.
+/// The counts, summed over packets or tiles. It also counts single rays (as
+/// [`kdtree::Counters`]: a ray-triangle test is one test), so one type serves every method.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PacketCounts {
     /// Traversal steps.
@@ -69,6 +70,21 @@ impl PacketCounters for PacketCounts {
     }
 }
 
+impl Counters for PacketCounts {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn leaf(&mut self) {
+        self.leaves += 1;
+    }
+    #[inline(always)]
+    fn isects(&mut self, n: u64) {
+        self.tests += n;
+    }
+}
+
 impl std::ops::AddAssign for PacketCounts {
     fn add_assign(&mut self, o: PacketCounts) {
         self.nodes += o.nodes;
@@ -90,8 +106,9 @@ impl PacketCounts {
         self.tests as f64 / packets.max(1) as f64
     }
 
-    /// Percentage of the packets considered at leaves that were culled.
-    pub fn culled_percent(&self) -> f64 {
-        100.0 * self.culled as f64 / self.leaf_packets.max(1) as f64
+    /// Percentage of the packets considered at leaves that were culled (`None` when no
+    /// packet was considered: single rays, 2x2 packets).
+    pub fn culled_percent(&self) -> Option<f64> {
+        (self.leaf_packets > 0).then(|| 100.0 * self.culled as f64 / self.leaf_packets as f64)
     }
 }

@@ -14,11 +14,13 @@
 use std::ops::Range;
 
 use glam::{BVec4A, Vec4};
+use kdtree::triangle::{Intersector, WatertightTriangle};
 use kdtree::{Hit, KdTree};
 use scenes::{Camera, Tile};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket};
 use crate::stats::PacketCounters;
+use crate::triangle4::{PacketTest, ShearedPacket};
 use crate::{frustum, mft, omni, samesign};
 
 /// How a tile's rays are traced.
@@ -82,6 +84,9 @@ pub struct TileTracer {
     pub(crate) camera: Option<Camera>,
     /// The common origin of every ray, `[x, y, z, 0]`.
     pub(crate) origin: [f32; 4],
+    /// Each packet's watertight shear, made once per trace for the frustum methods on a
+    /// watertight tree (empty otherwise).
+    pub(crate) sheared: Vec<ShearedPacket>,
     /// Packet/leaf culling on (the default) or off (Table 4.2).
     pub(crate) culling: bool,
 }
@@ -103,6 +108,7 @@ impl TileTracer {
             quadrants: [0..0, 0..0, 0..0, 0..0],
             grids: [Grid::default(); 4],
             camera: None,
+            sheared: Vec::with_capacity(packets),
             origin: [0.0; 4],
             culling: true,
         })
@@ -227,6 +233,10 @@ impl TileTracer {
     /// Traces the loaded tile's closest hits with `method`.
     pub fn trace<C: PacketCounters>(&mut self, tree: &KdTree, method: TileMethod, counters: &mut C) {
         self.reset();
+        self.sheared.clear();
+        if tree.intersector() == Intersector::Watertight && matches!(method, TileMethod::Frustum | TileMethod::Mft) {
+            self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
+        }
         match method {
             TileMethod::Packet => {
                 for (packet, hit) in self.packets.iter().zip(&mut self.hits) {

@@ -24,6 +24,10 @@ pub trait PacketTest: TriangleTest {
     type PacketData: Copy;
     /// The per-packet precomputation.
     fn prepare4(rays: &RayPacket) -> Self::PacketData;
+    /// The precomputation of packet `i` of a tile, looked up in the per-trace table
+    /// `sheared` that [`TileTracer::trace`](crate::TileTracer::trace) fills for watertight
+    /// trees (not remade at every leaf the packet meets).
+    fn tile_data(sheared: &[ShearedPacket], i: usize) -> Self::PacketData;
     /// Tests the lanes of `active`; each lane that hits at `t` in `[t_min, hit.t]` records the
     /// hit as triangle `prim`. Returns the lanes that hit.
     fn intersect4(
@@ -41,6 +45,9 @@ impl PacketTest for WaldTriangle {
 
     #[inline(always)]
     fn prepare4(_rays: &RayPacket) {}
+
+    #[inline(always)]
+    fn tile_data(_sheared: &[ShearedPacket], _i: usize) {}
 
     #[inline(always)]
     fn intersect4(&self, r: &RayPacket, _: &(), active: BVec4A, hit: &mut PacketHit, prim: u32) -> BVec4A {
@@ -103,6 +110,11 @@ impl PacketTest for WatertightTriangle {
             sz: Vec4::from_array(lanes.map(|s| s.sz)),
             lanes,
         }
+    }
+
+    #[inline(always)]
+    fn tile_data(sheared: &[ShearedPacket], i: usize) -> ShearedPacket {
+        sheared[i]
     }
 
     #[inline(always)]
