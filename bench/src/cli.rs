@@ -84,6 +84,10 @@ pub struct SceneArgs {
     /// SAH empty-space bonus in [0, 1): the fraction taken off a split with an empty side.
     #[arg(long, value_name = "X", default_value_t = 0.0)]
     pub empty_bonus: f32,
+    /// Stop the build with an error before its buffers (tree included, the scene not) would
+    /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
+    #[arg(long, value_name = "BYTES", value_parser = crate::report::parse_bytes)]
+    pub memory_budget: Option<u64>,
 }
 
 /// `--intersector` values.
@@ -270,6 +274,7 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
         max_depth: args.max_depth,
         c_isect: args.c_isect,
         empty_bonus: args.empty_bonus,
+        memory_budget: args.memory_budget,
         ..BuildConfig::default()
     };
     let message = format!("building {}", scene.name);
