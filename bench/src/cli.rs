@@ -60,6 +60,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Build a scene's tree and report build time and tree statistics.
     Build(BuildArgs),
+    /// Shoot rays exactly at shared edges and vertices of closed meshes and count the leaks.
+    Leaks(crate::leaks::LeaksArgs),
     /// Trace the rays of a file (text or binary) and write one result per ray.
     #[command(after_long_help = raycast::FORMATS_HELP)]
     Raycast(RaycastArgs),
@@ -233,6 +235,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     let global = cli.global;
     pool.install(|| match cli.command {
         Some(Command::Build(args)) => build_command(&global, &args),
+        Some(Command::Leaks(args)) => crate::leaks::leaks_command(&global, &args),
         Some(Command::Render(args)) => render_command(&global, &args),
         Some(Command::Raycast(args)) => {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
