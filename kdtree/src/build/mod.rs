@@ -364,7 +364,8 @@ impl Seq<'_, '_> {
         }
         let (cur, next) = levels.split_at_mut(d + 1);
         let [l, r] = &mut next[0];
-        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false);
+        // Sequential nodes reuse their scratch's buffers: small, not metered.
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false, &mut |_| Ok(()))?;
         let c = self.nodes.len();
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
@@ -446,35 +447,46 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
         ctx.meter.take(chunk.heap_bytes(), "a leaf's references")?;
         return Ok(Sub::Chunk(chunk));
     };
-    // The children's lists: per child and axis at most the parent's events plus two per
-    // triangle (the straddlers' new events), and a sentinel. Taken before, settled after.
-    let bound = 2 * 3 * 8 * (n as u64 * 2 + 2 * n as u64 + 1);
-    if let Err(e) = ctx.meter.take(bound, "a node's children's event lists") {
-        ctx.meter.give(list_bytes);
-        return Err(e);
-    }
+    // The children's lists are taken from the meter by `split_lists` before they grow (the
+    // parent's events plus the straddlers' new ones), and settled to their capacity after.
     let (mut left, mut right) = (Lists::default(), Lists::default());
-    let (nl, nr) = {
-        let mut scratch = match ctx.take() {
-            Ok(s) => s,
-            Err(e) => {
-                ctx.meter.give(list_bytes + bound);
-                return Err(e);
-            }
-        };
-        let r =
-            split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right, true);
-        ctx.give(scratch);
-        r
+    let mut reserved = 0u64;
+    let split = match ctx.take() {
+        Ok(mut scratch) => {
+            let mut reserve = |bytes: u64| {
+                ctx.meter.take(bytes, "a node's children's event lists")?;
+                reserved = bytes;
+                Ok(())
+            };
+            let r = split_lists(
+                ctx.tris,
+                &lists,
+                &b,
+                &s,
+                &mut scratch.class,
+                &mut scratch.split,
+                &mut left,
+                &mut right,
+                true,
+                &mut reserve,
+            );
+            ctx.give(scratch);
+            r
+        }
+        Err(e) => Err(e),
     };
     drop(lists);
-    ctx.meter.give(list_bytes + bound);
+    ctx.meter.give(list_bytes);
+    let (nl, nr) = match split {
+        Ok(counts) => counts,
+        Err(e) => {
+            ctx.meter.give(reserved);
+            return Err(e);
+        }
+    };
     let children = left.heap_bytes() + right.heap_bytes();
-    ctx.meter.take(left.heap_bytes(), "a node's left event lists")?;
-    if let Err(e) = ctx.meter.take(right.heap_bytes(), "a node's right event lists") {
-        ctx.meter.give(children - right.heap_bytes());
-        return Err(e);
-    }
+    ctx.meter.give(reserved);
+    ctx.meter.take(children, "a node's children's event lists")?;
     let (bl, br) = child_boxes(&b, &s);
     let (l, r) = rayon::join(|| build_par(ctx, left, nl, bl, depth + 1), || build_par(ctx, right, nr, br, depth + 1));
     Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
