@@ -61,6 +61,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Build a scene's tree and report build time and tree statistics.
     Build(BuildArgs),
+    /// Shoot rays exactly at shared edges and vertices of closed meshes and count the leaks.
+    Leaks(crate::leaks::LeaksArgs),
     /// Trace the rays of a file (text or binary) and write one result per ray.
     #[command(after_long_help = raycast::FORMATS_HELP)]
     Raycast(RaycastArgs),
@@ -87,6 +89,10 @@ pub struct SceneArgs {
     /// SAH empty-space bonus in [0, 1): the fraction taken off a split with an empty side.
     #[arg(long, value_name = "X", default_value_t = 0.0)]
     pub empty_bonus: f32,
+    /// Stop the build with an error before its buffers (tree included, the scene not) would
+    /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
+    #[arg(long, value_name = "BYTES", value_parser = crate::report::parse_bytes)]
+    pub memory_budget: Option<u64>,
 }
 
 /// `--intersector` values.
@@ -241,6 +247,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     let global = cli.global;
     pool.install(|| match cli.command {
         Some(Command::Build(args)) => build_command(&global, &args),
+        Some(Command::Leaks(args)) => crate::leaks::leaks_command(&global, &args),
         Some(Command::Render(args)) => render_command(&global, &args),
         Some(Command::Raycast(args)) => {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
@@ -283,6 +290,7 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
         max_depth: args.max_depth,
         c_isect: args.c_isect,
         empty_bonus: args.empty_bonus,
+        memory_budget: args.memory_budget,
         ..BuildConfig::default()
     };
     let message = format!("building {}", scene.name);

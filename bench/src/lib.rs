@@ -15,12 +15,14 @@
 //! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
 //!               [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
 //!               [--intersector wald|watertight]
+//! rttest leaks  [--rays N] [--meshes NAME,...]
 //! global flags: --threads N (rayon pool size, default all cores), --json (one object per line)
 //! ```
 //!
 //! `build --json` keys: `scene, build_ms, load_ms, threads, intersector, triangles,
 //! triangles_in_tree, nodes, inner_nodes, leaves, empty_leaves, depth, refs,
-//! refs_per_triangle, avg_tris_per_leaf, sah_cost, bytes`.
+//! refs_per_triangle, avg_tris_per_leaf, sah_cost, bytes, bytes_per_triangle,
+//! build_peak_bytes, peak_rss_bytes` (the last `null` where `/proc/self/status` is missing).
 //!
 //! `render --json` keys: `scene, method, view, width, height, threads, intersector, shadows,
 //! aov, triangles, build_ms, frames, rays, primary_rays, shadow_rays, hits, occluded,
@@ -55,11 +57,13 @@
 //! - [`report`]: tree statistics and the text / JSON reports;
 //! - [`progress`]: progress bars that only appear for work taking more than a second;
 //! - [`harness`]: scene, tree and ray setup shared by the benches (and the tests);
+//! - [`leaks`]: watertightness measured, rays at shared edges and vertices (`rttest leaks`);
 //! - [`error`]: the one error type, printed as a single line by the binary.
 
 pub mod cli;
 pub mod error;
 pub mod harness;
+pub mod leaks;
 pub mod progress;
 pub mod raycast;
 pub mod render;

@@ -37,6 +37,14 @@ pub struct TreeSummary {
     pub sah_cost: f64,
     /// Memory of the tree: nodes, references and per-triangle intersection records.
     pub bytes: u64,
+    /// `bytes / triangles` (0 without triangles).
+    pub bytes_per_triangle: f64,
+    /// The most bytes the build held at once in its large buffers (event lists, scratch,
+    /// subtree arrays, the tree and its triangles): what `--memory-budget` limits.
+    pub build_peak_bytes: Option<u64>,
+    /// The process's peak resident memory so far (`VmHWM` of `/proc/self/status`: scene, build
+    /// and tree), read when the summary is made; `None` where there is no such file.
+    pub peak_rss_bytes: Option<u64>,
 }
 
 impl TreeSummary {
@@ -56,8 +64,55 @@ impl TreeSummary {
             avg_tris_per_leaf: s.avg_tris_per_nonempty_leaf,
             sah_cost: s.sah_cost,
             bytes: s.bytes as u64,
+            bytes_per_triangle: if s.triangles > 0 { s.bytes as f64 / s.triangles as f64 } else { 0.0 },
+            build_peak_bytes: tree.build_peak_bytes(),
+            peak_rss_bytes: peak_rss_bytes(),
         }
     }
+}
+
+/// The process's peak resident set size in bytes: `VmHWM` of `/proc/self/status` (Linux);
+/// `None` elsewhere or if the line cannot be read.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    parse_vm_hwm(&status)
+}
+
+/// The `VmHWM:   1234 kB` line of a `/proc/self/status` text, in bytes.
+pub fn parse_vm_hwm(status: &str) -> Option<u64> {
+    let line = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?;
+    let kb: u64 = line.trim().strip_suffix("kB")?.trim().parse().ok()?;
+    kb.checked_mul(1024)
+}
+
+/// Parses a byte count: a whole number of bytes (`1500000000`), or a number with a binary
+/// unit `KiB`, `MiB`, `GiB` or `TiB` (`512MiB`, `1.5GiB`, case-insensitive, a space allowed),
+/// for `--memory-budget`. Errors name the input.
+pub fn parse_bytes(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(t.len());
+    let (number, unit) = (&t[..split], t[split..].trim());
+    let scale: u64 = match unit.to_ascii_lowercase().as_str() {
+        "" | "b" => 1,
+        "kib" => 1 << 10,
+        "mib" => 1 << 20,
+        "gib" => 1 << 30,
+        "tib" => 1 << 40,
+        _ => return Err(format!("'{s}': expected bytes, or a number with KiB, MiB, GiB or TiB")),
+    };
+    let bad = || format!("'{s}' is not a byte count (such as 1500000000, 512MiB or 1.5GiB)");
+    if number.is_empty() || number.starts_with('.') || number.matches('.').count() > 1 {
+        return Err(bad());
+    }
+    if scale == 1 {
+        return number.parse::<u64>().map_err(|_| bad());
+    }
+    let value: f64 = number.parse().map_err(|_| bad())?;
+    let bytes = (value * scale as f64).floor();
+    if !(bytes.is_finite() && bytes < u64::MAX as f64) {
+        return Err(format!("'{s}' is too large"));
+    }
+    Ok(bytes as u64)
 }
 
 /// The result of building one scene's tree (`rttest build`, and the head of `rttest render`).
@@ -206,7 +261,10 @@ pub fn mrays_per_s(rays: u64, secs: f64) -> f64 {
 /// Bytes in a human unit.
 fn human_bytes(bytes: u64) -> String {
     const MIB: f64 = 1024.0 * 1024.0;
-    if bytes as f64 >= MIB {
+    const GIB: f64 = 1024.0 * MIB;
+    if bytes as f64 >= GIB {
+        format!("{:.2} GiB", bytes as f64 / GIB)
+    } else if bytes as f64 >= MIB {
         format!("{:.1} MiB", bytes as f64 / MIB)
     } else {
         format!("{:.1} KiB", bytes as f64 / 1024.0)
@@ -235,7 +293,9 @@ impl fmt::Display for BuildReport {
             t.refs, t.refs_per_triangle, t.avg_tris_per_leaf
         )?;
         writeln!(f, "SAH cost     {:.2}", t.sah_cost)?;
-        write!(f, "memory       {}", human_bytes(t.bytes))
+        writeln!(f, "memory       {} ({:.1} bytes per triangle)", human_bytes(t.bytes), t.bytes_per_triangle)?;
+        let peak = |b: Option<u64>| b.map_or("unknown".to_string(), human_bytes);
+        write!(f, "peak memory  build {}, process {}", peak(t.build_peak_bytes), peak(t.peak_rss_bytes))
     }
 }
 

@@ -25,17 +25,20 @@ pub fn facing_normal(mesh: &Mesh, hit: &Hit, dir: Vec3) -> Vec3 {
 /// The shadow ray from the primary hit `hit` of the ray `origin + t * dir` towards `light`,
 /// or `None` when the surface faces away from the light (it is unlit whatever lies between).
 ///
-/// The origin is moved off the surface with [`kdtree::ray::offset_origin`], the workspace's
-/// one scheme; the direction is unnormalised and reaches the light at `t = 1`.
+/// The origin comes from [`kdtree::ray::offset_origin`], the workspace's one scheme: the hit
+/// point from its barycentrics, moved off the surface by 32 ulps of the triangle's
+/// coordinates. The direction is unnormalised and reaches the light at `t = 1`. The primary
+/// ray's origin is not used (the point comes from the barycentrics); it stays in the
+/// signature for the callers.
 #[inline]
-pub fn shadow_ray(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
+pub fn shadow_ray(mesh: &Mesh, light: &PointLight, _origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
     let n = facing_normal(mesh, hit, dir);
-    let p = origin + hit.t * dir;
-    let to_light = light.position - p;
+    let tri = mesh.triangle(hit.prim as usize);
+    let to_light = light.position - kdtree::ray::surface_point(&tri, hit);
     if n.dot(to_light) <= 0.0 {
         return None;
     }
-    let start = kdtree::ray::offset_origin(p, n, to_light);
+    let start = kdtree::ray::offset_origin(&tri, hit, to_light);
     Some(Ray::new(start, light.position - start, 0.0, 1.0))
 }
 

@@ -29,7 +29,7 @@ pub mod triangle;
 mod validate;
 
 pub use aabb::Aabb;
-pub use build::{BuildConfig, BuildError};
+pub use build::{BuildConfig, BuildError, first_phase_bytes, human_bytes};
 pub use counters::{Counters, NoCounters, TraversalCounts};
 pub use node::KdNode;
 pub use oracle::BruteForce;

@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 
-use crate::build::{self, BuildConfig, BuildError};
+use crate::build::{self, BuildConfig, BuildError, Meter};
 use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle};
 use crate::{Aabb, KdNode};
 
@@ -22,6 +22,9 @@ pub struct KdTree {
     /// Triangle vertices, kept for validation, statistics and the oracle twin.
     pub(crate) tris: Vec<[Vec3; 3]>,
     pub(crate) config: BuildConfig,
+    /// The most bytes the build held at once in its metered buffers (`None` for a tree made
+    /// by [`KdTree::from_parts`]).
+    pub(crate) build_peak_bytes: Option<u64>,
 }
 
 impl KdTree {
@@ -29,7 +32,10 @@ impl KdTree {
     ///
     /// Degenerate (zero-area) triangles are kept in the numbering but left out of the tree:
     /// no ray can hit them. Non-finite positions and out-of-range indices are rejected with
-    /// an error naming the vertex or triangle; nothing here panics on user input.
+    /// an error naming the vertex or triangle; nothing here panics on user input. With a
+    /// [`BuildConfig::memory_budget`], a build whose first phase alone is estimated over it
+    /// ([`build::first_phase_bytes`]) is refused before anything is allocated, and a build that
+    /// would pass it stops; both with [`BuildError::OverBudget`].
     pub fn build(positions: &[Vec3], triangles: &[[u32; 3]], config: &BuildConfig) -> Result<KdTree, BuildError> {
         if let Some(index) = positions.iter().position(|p| !p.is_finite()) {
             return Err(BuildError::NonFiniteVertex { index, position: positions[index] });
@@ -46,6 +52,21 @@ impl KdTree {
         if u32::try_from(triangles.len()).is_err() {
             return Err(BuildError::TooLarge(format!("{} triangles do not fit 32-bit ids", triangles.len())));
         }
+        if let Some(budget) = config.memory_budget {
+            let estimate = build::first_phase_bytes(positions, triangles);
+            if estimate > budget {
+                return Err(BuildError::OverBudget {
+                    estimate,
+                    budget,
+                    stage: format!(
+                        "estimate before the build: {} triangles' vertices, root events and their sort",
+                        triangles.len()
+                    ),
+                });
+            }
+        }
+        let meter = Meter::new(config.memory_budget);
+        meter.take(36 * triangles.len() as u64, "the triangles' vertices")?;
         let mut tris = Vec::with_capacity(triangles.len());
         for (t, tri) in triangles.iter().enumerate() {
             let mut v = [Vec3::ZERO; 3];
@@ -58,7 +79,7 @@ impl KdTree {
             }
             tris.push(v);
         }
-        Self::build_from_triangles(tris, config)
+        Self::build_from_triangles(tris, config, &meter)
     }
 
     /// Builds the tree over a triangle soup given as vertex triples.
@@ -67,19 +88,34 @@ impl KdTree {
             let k = v.iter().position(|p| !p.is_finite()).unwrap_or(0);
             return Err(BuildError::NonFiniteVertex { index: 3 * t + k, position: v[k] });
         }
+        // Vertex indices 3t, 3t + 1, 3t + 2 must fit u32: checked, not wrapped.
+        if tris.len() > (u32::MAX as usize).div_ceil(3) {
+            return Err(BuildError::TooLarge(format!("{} triangles' vertices do not fit 32-bit indices", tris.len())));
+        }
         let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
         let indices: Vec<[u32; 3]> = (0..tris.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
         Self::build(&positions, &indices, config)
     }
 
-    fn build_from_triangles(tris: Vec<[Vec3; 3]>, config: &BuildConfig) -> Result<KdTree, BuildError> {
+    fn build_from_triangles(tris: Vec<[Vec3; 3]>, config: &BuildConfig, meter: &Meter) -> Result<KdTree, BuildError> {
+        let n_prims = tris.iter().filter(|t| !is_degenerate(t)).count();
+        meter.take(4 * n_prims as u64, "the list of non-degenerate triangles")?;
         let prims: Vec<u32> = (0..tris.len() as u32).filter(|&t| !is_degenerate(&tris[t as usize])).collect();
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, &t| {
             let [a, bb, c] = tris[t as usize];
             b.grow(a).grow(bb).grow(c)
         });
-        let built = build::build_nodes(&tris, &prims, bounds, config)?;
-        Ok(KdTree::assemble(tris, built.nodes, built.prim_refs, bounds, config))
+        let built = build::build_nodes(&tris, &prims, bounds, config, meter)?;
+        drop(prims);
+        meter.give(4 * n_prims as u64);
+        let record = match config.intersector {
+            Intersector::Wald => std::mem::size_of::<WaldTriangle>(),
+            Intersector::Watertight => std::mem::size_of::<WatertightTriangle>(),
+        };
+        meter.take(record as u64 * tris.len() as u64, "the intersection records")?;
+        let mut tree = KdTree::assemble(tris, built.nodes, built.prim_refs, bounds, config);
+        tree.build_peak_bytes = Some(meter.peak());
+        Ok(tree)
     }
 
     /// A tree from node and reference arrays made elsewhere (another builder, a file), over
@@ -145,6 +181,7 @@ impl KdTree {
             watertight,
             tris,
             config: config.clone(),
+            build_peak_bytes: None,
         }
     }
 
@@ -188,6 +225,13 @@ impl KdTree {
     /// The configuration the tree was built with.
     pub fn config(&self) -> &BuildConfig {
         &self.config
+    }
+
+    /// The most bytes the build held at once in its large buffers (the triangles, event
+    /// lists, scratch, subtree arrays, final arrays and records; what
+    /// [`BuildConfig::memory_budget`] limits). `None` for a tree from [`KdTree::from_parts`].
+    pub fn build_peak_bytes(&self) -> Option<u64> {
+        self.build_peak_bytes
     }
 
     /// Number of triangles given to the build (including degenerate ones).

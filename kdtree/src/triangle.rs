@@ -264,15 +264,22 @@ impl TriangleTest for WatertightTriangle {
         let mut u = cx * by - cy * bx;
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
-        // An exact zero may be a rounding artefact: redo that edge in double precision, so
-        // that a ray through a shared edge lands on one side of it consistently.
+        // In f32 each edge function has the right sign or is zero (rounding is monotonic, and
+        // a difference of floats is zero only when they are equal). An exact zero may be a
+        // rounding artefact (products that underflowed, or rounded to equal): redo the edges
+        // in double precision, where the products of f32 values are exact and the sign of
+        // their difference is therefore exact, so that a ray through a shared edge lands on one
+        // side of it consistently. The signs are taken in f64: converting first would flush a
+        // tiny non-zero value (a ray passing 1e-40 beside an edge) back to zero, and report a
+        // hit outside the triangle (a fuzz finding).
         if u == 0.0 || v == 0.0 || w == 0.0 {
             let (ax, ay, bx, by, cx, cy) = (ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64);
-            u = (cx * by - cy * bx) as f32;
-            v = (ax * cy - ay * cx) as f32;
-            w = (bx * ay - by * ax) as f32;
-        }
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            let (u64, v64, w64) = (cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax);
+            if (u64 < 0.0 || v64 < 0.0 || w64 < 0.0) && (u64 > 0.0 || v64 > 0.0 || w64 > 0.0) {
+                return None;
+            }
+            (u, v, w) = (u64 as f32, v64 as f32, w64 as f32);
+        } else if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
             return None;
         }
         let det = u + v + w;

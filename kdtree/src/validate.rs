@@ -14,20 +14,28 @@ fn child_boxes(b: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
     (l, r)
 }
 
-/// True if the clipped polygon `p` (inside the closed box `b`) meets the relative interior of
-/// `b`. A convex set inside a box that misses its interior lies in one face plane, so it is
-/// enough to test the vertex centroid (a relative-interior point of the polygon) strictly on
-/// every axis of non-zero extent; a flat axis is a closed equality.
+/// True if the clipped polygon `p` (inside the closed box `b`) certainly meets the relative
+/// interior of `b`. A convex set inside a box that misses its interior lies in one face plane,
+/// so it is enough to test the vertex centroid (a relative-interior point of the polygon)
+/// strictly on every axis of non-zero extent; a flat axis is a closed equality (a flat box
+/// comes from a flat root box, whose triangles all have that coordinate exactly).
+///
+/// The computed polygon lies within its error bound ([`Polygon::err`]) of the exact one, and
+/// the centroid adds one rounding step ([`Polygon::rho`]), so the centroid is required to be
+/// inside by more than both: then a point of the exact triangle is inside the box. A polygon
+/// that enters by less is not judged (the builder may or may not have referenced it).
 fn enters_interior(p: &Polygon, b: &Aabb) -> bool {
     let verts = p.verts();
     let inv = 1.0 / verts.len() as f64;
+    let err = p.err();
     (0..3).all(|k| {
         let (lo, hi) = (f64::from(b.min[k]), f64::from(b.max[k]));
         if lo == hi {
             return true;
         }
         let c = verts.iter().map(|v| v[k]).sum::<f64>() * inv;
-        lo < c && c < hi
+        let margin = err[k] + p.rho();
+        lo + margin < c && c < hi - margin
     })
 }
 
@@ -48,7 +56,9 @@ impl KdTree {
     /// - every split plane finite and inside its node's box (`min <= split <= max`);
     /// - completeness: every non-degenerate triangle that enters the interior of a leaf's box
     ///   (relative interior on a flat axis) is referenced by that leaf. Triangles lying in a
-    ///   split plane or only touching a face need not be.
+    ///   split plane or only touching a face need not be. The check is exact up to the
+    ///   clip's error bound: a triangle entering by less than about `1e-14` of its largest
+    ///   coordinate magnitude is not judged (see `enters_interior`).
     ///
     /// Completeness descends once per triangle from the root, into the children whose box the
     /// clipped triangle enters, and looks the triangle up in the leaf's sorted references, so

@@ -20,10 +20,9 @@ fn scene_rays(scene: &Scene, tree: &KdTree, grid: u32) -> Vec<Ray> {
                 let ray = Ray::new(o, d, 0.0, f32::INFINITY);
                 rays.push(ray);
                 if let Some(hit) = tree.intersect(&ray) {
-                    let p = ray.at(hit.t);
-                    let n = scene.mesh.geometric_normal(hit.prim as usize);
-                    let to_light = scene.point_light.position - p;
-                    let origin = offset_origin(p, n, to_light);
+                    let tri = scene.mesh.triangle(hit.prim as usize);
+                    let to_light = scene.point_light.position - ray.at(hit.t);
+                    let origin = offset_origin(&tri, &hit, to_light);
                     rays.push(Ray::new(origin, scene.point_light.position - origin, 0.0, 1.0));
                 }
             }

@@ -73,6 +73,11 @@ impl Lists {
         Lists { buf: v, len }
     }
 
+    /// Bytes of the three buffers (their capacity), for the memory meter.
+    pub fn heap_bytes(&self) -> u64 {
+        self.buf.iter().map(|b| 8 * b.capacity() as u64).sum()
+    }
+
     /// The events of axis `a`.
     #[inline]
     pub fn axis(&self, a: usize) -> &[u64] {

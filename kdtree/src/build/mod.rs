@@ -17,6 +17,11 @@
 //!   buffers below. Which nodes run in parallel depends only on their triangle counts, and
 //!   the subtrees are assembled in a fixed depth-first order, so the tree is bit-identical
 //!   whatever the number of threads.
+//! - Memory ([`BuildConfig::memory_budget`]): a [`Meter`] counts the bytes of the build's
+//!   large buffers (the triangles, event lists and their sort, per-thread scratch, subtree
+//!   arrays, the final arrays and the intersection records) and stops the build with
+//!   [`BuildError::OverBudget`] before a buffer would take it over the budget. The first
+//!   phase's needs are computed before anything is allocated ([`first_phase_bytes`]).
 
 mod clip;
 mod events;
@@ -25,6 +30,7 @@ mod small;
 mod split;
 
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 
@@ -51,11 +57,24 @@ pub struct BuildConfig {
     pub max_depth: Option<u32>,
     /// The ray-triangle test the tree's traversal uses.
     pub intersector: Intersector,
+    /// The most bytes the build may hold in its large buffers, tree included (`None`: no
+    /// limit). Checked before the build ([`first_phase_bytes`]) and during it (see the module
+    /// docs); passing it stops the build with [`BuildError::OverBudget`]. The scene's own
+    /// mesh is not counted, nor small buffers (a sequential subtree's reused event lists, a
+    /// few MiB per thread).
+    pub memory_budget: Option<u64>,
 }
 
 impl Default for BuildConfig {
     fn default() -> Self {
-        BuildConfig { c_trav: 1.0, c_isect: 5.0, empty_bonus: 0.0, max_depth: None, intersector: Intersector::Wald }
+        BuildConfig {
+            c_trav: 1.0,
+            c_isect: 5.0,
+            empty_bonus: 0.0,
+            max_depth: None,
+            intersector: Intersector::Wald,
+            memory_budget: None,
+        }
     }
 }
 
@@ -102,6 +121,104 @@ pub enum BuildError {
     /// A configuration value is out of range.
     #[error("bad build configuration: {0}")]
     BadConfig(String),
+    /// The build would pass [`BuildConfig::memory_budget`]: refused before it started (the
+    /// estimate of its first phase is over the budget) or stopped during it.
+    #[error("the build would need {} ({stage}), over the memory budget of {}", human_bytes(*estimate), human_bytes(*budget))]
+    OverBudget {
+        /// Bytes the build would hold: the estimate, or what it holds plus the next buffer.
+        estimate: u64,
+        /// The budget.
+        budget: u64,
+        /// Where: the estimate before the build, or the buffer that would pass the budget.
+        stage: String,
+    },
+}
+
+/// `bytes` with a binary unit and the exact count: `1.5 GiB (1610612736 bytes)`.
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = "bytes";
+    for u in UNITS {
+        if value < 1024.0 {
+            break;
+        }
+        value /= 1024.0;
+        unit = u;
+    }
+    if unit == "bytes" { format!("{bytes} bytes") } else { format!("{value:.1} {unit} ({bytes} bytes)") }
+}
+
+/// The bytes the build of triangles `triangles` (indices into `positions`) holds in its first
+/// phase, before any node is split: the triangles' vertices (36 bytes each, kept by the
+/// tree), the list of non-degenerate triangles (4 each), the root's event lists (48 per
+/// non-degenerate triangle: two events of 8 bytes per axis reserved) and the radix sort's
+/// second buffer (8 per event: a triangle flat on an axis has one event there, else two).
+///
+/// This is exactly what the build's meter holds when the root's events are sorted, and a
+/// lower bound of the build's peak: on the built-in scenes the peak (`build_peak_bytes` of
+/// `rttest build`) is 1.3 to 2 times this. A build whose first phase is over
+/// [`BuildConfig::memory_budget`] is refused with this figure before anything is allocated.
+/// One pass over the triangles, no allocation; `u64` arithmetic, so no count overflows (an
+/// index out of range is skipped here and reported by the build).
+pub fn first_phase_bytes(positions: &[Vec3], triangles: &[[u32; 3]]) -> u64 {
+    let (mut in_tree, mut events) = (0u64, 0u64);
+    for tri in triangles {
+        let [Some(a), Some(b), Some(c)] = tri.map(|i| positions.get(i as usize).copied()) else { continue };
+        let v = [a, b, c];
+        if crate::tree::is_degenerate(&v) {
+            continue;
+        }
+        in_tree += 1;
+        let (lo, hi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+        events += (0..3).map(|k| if lo[k] == hi[k] { 1 } else { 2 }).sum::<u64>();
+    }
+    36 * triangles.len() as u64 + (4 + 48) * in_tree + 8 * events
+}
+
+/// Counts the bytes of the build's large buffers against the budget (see the module docs).
+/// Shared by the build's threads; the counts are `u64` with saturating arithmetic.
+#[derive(Debug)]
+pub(crate) struct Meter {
+    budget: Option<u64>,
+    used: AtomicU64,
+    peak: AtomicU64,
+}
+
+impl Meter {
+    /// A meter with nothing taken.
+    pub fn new(budget: Option<u64>) -> Meter {
+        Meter { budget, used: AtomicU64::new(0), peak: AtomicU64::new(0) }
+    }
+
+    /// Takes `bytes` for the buffer `what`, before it is allocated; an error (and nothing
+    /// taken) when that would pass the budget.
+    pub fn take(&self, bytes: u64, what: &str) -> Result<(), BuildError> {
+        let before = self.used.fetch_add(bytes, Ordering::Relaxed);
+        let now = before.saturating_add(bytes);
+        if let Some(budget) = self.budget
+            && now > budget
+        {
+            self.used.fetch_sub(bytes, Ordering::Relaxed);
+            return Err(BuildError::OverBudget {
+                estimate: now,
+                budget,
+                stage: format!("{} in use, then {} for {what}", human_bytes(before), human_bytes(bytes)),
+            });
+        }
+        self.peak.fetch_max(now, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Gives back `bytes` taken earlier (a buffer freed).
+    pub fn give(&self, bytes: u64) {
+        self.used.fetch_sub(bytes, Ordering::Relaxed);
+    }
+
+    /// The most bytes taken at once.
+    pub fn peak(&self) -> u64 {
+        self.peak.load(Ordering::Relaxed)
+    }
 }
 
 /// What the builder hands to [`crate::KdTree`]: the node array (root at 0) and the
@@ -167,17 +284,19 @@ struct Ctx<'a> {
     costs: Costs,
     depth_limit: u32,
     pool: Mutex<Vec<Scratch>>,
+    meter: &'a Meter,
 }
 
 impl Ctx<'_> {
-    /// A scratch from the pool, or a new one.
-    fn take(&self) -> Scratch {
+    /// A scratch from the pool, or a new one (its per-triangle arrays metered).
+    fn take(&self) -> Result<Scratch, BuildError> {
         let mut s = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop().unwrap_or_default();
         if s.class.len() < self.tris.len() {
+            self.meter.take(5 * self.tris.len() as u64, "a thread's per-triangle scratch")?;
             s.class = vec![0; self.tris.len()];
             s.slot = vec![0; self.tris.len()];
         }
-        s
+        Ok(s)
     }
 
     /// Returns a scratch to the pool.
@@ -245,7 +364,8 @@ impl Seq<'_, '_> {
         }
         let (cur, next) = levels.split_at_mut(d + 1);
         let [l, r] = &mut next[0];
-        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false);
+        // Sequential nodes reuse their scratch's buffers: small, not metered.
+        let (nl, nr) = split_lists(self.ctx.tris, &cur[d][side], &b, &s, class, split, l, r, false, &mut |_| Ok(()))?;
         let c = self.nodes.len();
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
@@ -291,40 +411,103 @@ impl Seq<'_, '_> {
     }
 }
 
-/// Builds the subtree of a node with `n` triangles whose sorted events are `lists`.
+/// Builds the subtree of a node with `n` triangles whose sorted events are `lists` (their
+/// bytes taken from the meter, and given back here when they are freed).
 fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<Sub, BuildError> {
+    let list_bytes = lists.heap_bytes();
     if n < PAR_MIN_TRIS {
-        let mut scratch = ctx.take();
+        let mut scratch = match ctx.take() {
+            Ok(s) => s,
+            Err(e) => {
+                ctx.meter.give(list_bytes);
+                return Err(e);
+            }
+        };
         if scratch.levels.is_empty() {
             scratch.levels.push(Default::default());
         }
         scratch.levels[0][0] = lists;
         let mut seq = Seq { ctx, scratch, nodes: vec![KdNode::leaf(0, 0)], refs: Vec::new() };
         let done = seq.node(0, 0, n, b, depth, 0);
+        // The lists are freed now rather than kept in the pooled scratch.
+        seq.scratch.levels[0][0] = Lists::default();
+        ctx.meter.give(list_bytes);
         ctx.give(seq.scratch);
         done?;
-        return Ok(Sub::Chunk(Chunk { nodes: seq.nodes, refs: seq.refs }));
+        let chunk = Chunk { nodes: seq.nodes, refs: seq.refs };
+        ctx.meter.take(chunk.heap_bytes(), "a subtree's nodes and references")?;
+        return Ok(Sub::Chunk(chunk));
     }
     let Some(s) = ctx.decide(&lists, n, &b, depth, true) else {
         let mut refs = Vec::with_capacity(n);
         let leaf = make_leaf(&lists, &mut refs)?;
-        return Ok(Sub::Chunk(Chunk { nodes: vec![leaf], refs }));
+        drop(lists);
+        ctx.meter.give(list_bytes);
+        let chunk = Chunk { nodes: vec![leaf], refs };
+        ctx.meter.take(chunk.heap_bytes(), "a leaf's references")?;
+        return Ok(Sub::Chunk(chunk));
     };
+    // The children's lists are taken from the meter by `split_lists` before they grow (the
+    // parent's events plus the straddlers' new ones), and settled to their capacity after.
     let (mut left, mut right) = (Lists::default(), Lists::default());
-    let (nl, nr) = {
-        let mut scratch = ctx.take();
-        let r =
-            split_lists(ctx.tris, &lists, &b, &s, &mut scratch.class, &mut scratch.split, &mut left, &mut right, true);
-        ctx.give(scratch);
-        r
+    let mut reserved = 0u64;
+    let split = match ctx.take() {
+        Ok(mut scratch) => {
+            let mut reserve = |bytes: u64| {
+                ctx.meter.take(bytes, "a node's children's event lists")?;
+                reserved = bytes;
+                Ok(())
+            };
+            let r = split_lists(
+                ctx.tris,
+                &lists,
+                &b,
+                &s,
+                &mut scratch.class,
+                &mut scratch.split,
+                &mut left,
+                &mut right,
+                true,
+                &mut reserve,
+            );
+            ctx.give(scratch);
+            r
+        }
+        Err(e) => Err(e),
     };
     drop(lists);
+    ctx.meter.give(list_bytes);
+    let (nl, nr) = match split {
+        Ok(counts) => counts,
+        Err(e) => {
+            ctx.meter.give(reserved);
+            return Err(e);
+        }
+    };
+    let children = left.heap_bytes() + right.heap_bytes();
+    ctx.meter.give(reserved);
+    ctx.meter.take(children, "a node's children's event lists")?;
     let (bl, br) = child_boxes(&b, &s);
     let (l, r) = rayon::join(|| build_par(ctx, left, nl, bl, depth + 1), || build_par(ctx, right, nr, br, depth + 1));
     Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
 }
 
+impl Chunk {
+    /// Bytes of its arrays (their capacity), for the meter.
+    fn heap_bytes(&self) -> u64 {
+        8 * self.nodes.capacity() as u64 + 4 * self.refs.capacity() as u64
+    }
+}
+
 impl Sub {
+    /// Bytes of the chunks of the subtree, as taken from the meter.
+    fn heap_bytes(&self) -> u64 {
+        match self {
+            Sub::Chunk(c) => c.heap_bytes(),
+            Sub::Inner { kids, .. } => kids.0.heap_bytes() + kids.1.heap_bytes(),
+        }
+    }
+
     /// Node and reference counts of the subtree.
     fn size(&self) -> (usize, usize) {
         match self {
@@ -386,12 +569,29 @@ fn flatten(
 }
 
 /// Builds the node and reference arrays for the triangles `prims` (indices into `tris`;
-/// degenerate triangles already removed) inside `bounds`.
+/// degenerate triangles already removed) inside `bounds`, taking its buffers from `meter`.
 pub(crate) fn build_nodes(
     tris: &[[Vec3; 3]],
     prims: &[u32],
     bounds: Aabb,
     config: &BuildConfig,
+    meter: &Meter,
+) -> Result<BuiltNodes, BuildError> {
+    build_nodes_from(tris, prims, bounds, config, meter, (1, 0))
+}
+
+/// [`build_nodes`] with the node and reference counters of the final arrays starting at
+/// `start = (node, reference)` instead of `(1, 0)`, as if the tree were appended to arrays that
+/// already held that many: a synthetic counter, so that tests can run the index checks near
+/// their limits (2^30 nodes, 2^32 references) without allocating billions of entries. Only
+/// the tests use another start; the arrays returned hold this tree alone.
+fn build_nodes_from(
+    tris: &[[Vec3; 3]],
+    prims: &[u32],
+    bounds: Aabb,
+    config: &BuildConfig,
+    meter: &Meter,
+    start: (usize, usize),
 ) -> Result<BuiltNodes, BuildError> {
     if tris.len() > PRIM_MASK as usize + 1 {
         return Err(BuildError::TooLarge(format!("{} triangles exceed the builder's 2^30", tris.len())));
@@ -409,10 +609,13 @@ pub(crate) fn build_nodes(
         },
         depth_limit: config.depth_limit(n),
         pool: Mutex::new(Vec::new()),
+        meter,
     };
+    let root_bytes = 3 * 2 * 8 * n as u64;
+    meter.take(root_bytes, "the root's event lists")?;
     let mut lists: [Vec<u64>; 3] = Default::default();
     for l in &mut lists {
-        l.reserve(2 * n);
+        l.reserve_exact(2 * n);
     }
     for &p in prims {
         let [a, b, c] = tris[p as usize];
@@ -421,8 +624,14 @@ pub(crate) fn build_nodes(
     }
     // Sorted once (Wald & Havran 2006, section 4.2), the three axes in parallel. The events
     // are pushed in ascending triangle order, which the radix sort needs.
+    let sorted = prims.is_sorted();
+    let sort_bytes = if sorted { lists.iter().map(|l| 8 * l.len() as u64).sum() } else { 0 };
+    if let Err(e) = meter.take(sort_bytes, "the root sort's second buffer") {
+        meter.give(root_bytes);
+        return Err(e);
+    }
     let sort = |l: &mut Vec<u64>| {
-        if prims.is_sorted() {
+        if sorted {
             radix_sort_events(l, &mut Vec::new());
         } else {
             l.sort_unstable();
@@ -430,19 +639,85 @@ pub(crate) fn build_nodes(
     };
     let [l0, l1, l2] = &mut lists;
     rayon::join(|| sort(l0), || rayon::join(|| sort(l1), || sort(l2)));
+    meter.give(sort_bytes);
+    // The radix sort swaps buffers: the lists' capacities are now the second buffers'.
     let lists = Lists::from_vecs(lists);
-    let sub = build_par(&ctx, lists, n, bounds, 0)?;
+    meter.give(root_bytes);
+    meter.take(lists.heap_bytes(), "the root's event lists")?;
+    let sub = build_par(&ctx, lists, n, bounds, 0);
+    let scratch_bytes: u64 =
+        ctx.pool.lock().unwrap_or_else(|e| e.into_inner()).drain(..).map(|s| 5 * s.class.len() as u64).sum();
+    meter.give(scratch_bytes);
+    let sub = sub?;
     let (n_nodes, n_refs) = sub.size();
+    let chunk_bytes = sub.heap_bytes();
+    let final_bytes = (n_nodes as u64).saturating_mul(8).saturating_add((n_refs as u64).saturating_mul(4));
+    meter.take(final_bytes, "the tree's node and reference arrays")?;
     let mut nodes = vec![KdNode::leaf(0, 0); n_nodes];
     let mut prim_refs = vec![0; n_refs];
     let (root, rest) = nodes.split_at_mut(1);
-    flatten(sub, &mut root[0], rest, 1, &mut prim_refs, 0)?;
+    let done = flatten(sub, &mut root[0], rest, start.0, &mut prim_refs, start.1);
+    meter.give(chunk_bytes);
+    done?;
     Ok(BuiltNodes { nodes, prim_refs })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The soup of `tris` as the build sees it: non-degenerate triangles and their bounds.
+    fn prims_and_bounds(tris: &[[Vec3; 3]]) -> (Vec<u32>, Aabb) {
+        let prims: Vec<u32> = (0..tris.len() as u32).collect();
+        let bounds = tris.iter().flatten().fold(Aabb::EMPTY, |b, &p| b.grow(p));
+        (prims, bounds)
+    }
+
+    /// A synthetic counter: the tree is laid out as if appended to arrays that already hold
+    /// nearly 2^30 nodes or 2^32 references, so the index checks run at their limits without
+    /// allocating billions of entries. Just below the limit the build succeeds, past it the
+    /// build reports `TooLarge` instead of wrapping.
+    #[test]
+    fn index_checks_fire_at_the_limits_with_a_synthetic_counter() {
+        let mut tris = Vec::new();
+        for i in 0..40 {
+            let o = Vec3::new(i as f32 * 1.5, (i % 7) as f32, (i % 3) as f32);
+            tris.push([o, o + Vec3::X, o + Vec3::Y + 0.5 * Vec3::Z]);
+        }
+        let (prims, bounds) = prims_and_bounds(&tris);
+        let config = BuildConfig::default();
+        let meter = Meter::new(None);
+        let plain = build_nodes(&tris, &prims, bounds, &config, &meter).unwrap();
+        let (nodes, refs) = (plain.nodes.len(), plain.prim_refs.len());
+        assert!(nodes > 10 && refs >= 40, "a tree with some depth: {nodes} nodes, {refs} refs");
+        let build = |start| build_nodes_from(&tris, &prims, bounds, &config, &meter, start);
+        // Node indices: a stored child index (the last pair's left child, node `nodes - 2`
+        // counted from the start at `start - 1`) must stay below 2^30 - 1.
+        let max_node = MAX_NODE_FIELD as usize;
+        assert!(build((max_node - nodes + 2, 0)).is_ok());
+        assert!(matches!(build((max_node - nodes + 3, 0)), Err(BuildError::TooLarge(_))));
+        // References: the last leaf must end within u32.
+        let max_ref = u32::MAX as usize;
+        assert!(build((1, max_ref - refs)).is_ok());
+        assert!(matches!(build((1, max_ref - refs + 1)), Err(BuildError::TooLarge(_))));
+        assert!(matches!(build((1, usize::MAX - 10)), Err(BuildError::TooLarge(_))));
+    }
+
+    #[test]
+    fn the_meter_refuses_what_would_pass_the_budget() {
+        let meter = Meter::new(Some(1000));
+        meter.take(600, "a").unwrap();
+        let e = meter.take(401, "b").unwrap_err();
+        assert!(matches!(e, BuildError::OverBudget { estimate: 1001, budget: 1000, .. }), "{e:?}");
+        assert!(e.to_string().contains("1000 bytes") && e.to_string().contains("b"), "{e}");
+        meter.take(400, "c").unwrap();
+        meter.give(1000);
+        meter.take(1000, "d").unwrap();
+        assert_eq!(meter.peak(), 1000);
+        assert_eq!(human_bytes(1536), "1.5 KiB (1536 bytes)");
+        assert_eq!(human_bytes(3 << 30), "3.0 GiB (3221225472 bytes)");
+        assert_eq!(human_bytes(12), "12 bytes");
+    }
 
     #[test]
     fn index_checks_report_too_large() {

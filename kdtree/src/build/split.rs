@@ -5,6 +5,7 @@
 
 use glam::Vec3;
 
+use super::BuildError;
 use super::clip::{Polygon, clipped_split_bounds};
 use super::events::{END, Lists, START, ev_key, ev_prim, ev_type, pos_key, push_box_events};
 use super::sah::Split;
@@ -45,6 +46,10 @@ pub(crate) fn child_boxes(b: &Aabb, s: &Split) -> (Aabb, Aabb) {
 /// first), returning the triangle counts of the children. `class` is indexed by triangle and
 /// only the entries of this node's triangles are written and read. With `par` the axes are
 /// copied in parallel (for big nodes); the result is the same.
+///
+/// `reserve` is told, before the children's buffers grow, how many bytes they need at most
+/// (the parent's events plus the straddlers' new ones, per child and axis): the memory meter
+/// of a big node (see [`super::Meter`]); an error from it stops the split.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn split_lists(
     tris: &[[Vec3; 3]],
@@ -56,7 +61,8 @@ pub(crate) fn split_lists(
     left: &mut Lists,
     right: &mut Lists,
     par: bool,
-) -> (usize, usize) {
+    reserve: &mut dyn FnMut(u64) -> Result<(), BuildError>,
+) -> Result<(usize, usize), BuildError> {
     let k = s.axis;
     let pkey = pos_key(s.pos);
     let planar_side = if s.planar_left { LEFT } else { RIGHT };
@@ -124,6 +130,9 @@ pub(crate) fn split_lists(
             }
         }
     }
+    // The children's buffers grow to at most the parent's events plus the new ones.
+    let need: usize = (0..3).map(|a| 2 * lists.axis(a).len() + new_l[a].len() + new_r[a].len()).sum();
+    reserve(8 * need as u64)?;
     // Copy the one-sided triangles' events (the three axes in parallel for big nodes).
     let class = &*class;
     let [lb, rb] = [left.bufs_mut(), right.bufs_mut()];
@@ -141,7 +150,7 @@ pub(crate) fn split_lists(
         left.set_len(a, il);
         right.set_len(a, ir);
     }
-    (nl, nr)
+    Ok((nl, nr))
 }
 
 /// Copies the events `src` of one axis of a node to its children's buffers `l` and `r` (grown

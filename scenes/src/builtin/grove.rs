@@ -61,6 +61,63 @@ pub fn grove() -> Scene {
     }
 }
 
+/// The most copies [`grove_grid`] makes: 64 groves, 11.3 million triangles.
+pub const MAX_GROVES: u32 = 64;
+
+/// `grove-xN`: `n` copies of the [`grove`] side by side in a grid (`ceil(sqrt(n))` columns,
+/// 44 m apart), flattened into one mesh of `n` x 176,320 triangles: a large scene for build
+/// time and memory (issue 7: several million to ten million triangles). Copies share
+/// nothing; triangle `i` of copy `c` is triangle `c * 176320 + i`. Views `default` (across
+/// the grid from a corner), `close` (the grove's close view, in the first copy) and `top`.
+/// `None` unless `1 <= n <= MAX_GROVES`.
+pub fn grove_grid(n: u32) -> Option<Scene> {
+    if !(1..=MAX_GROVES).contains(&n) {
+        return None;
+    }
+    let one = grove();
+    let cols = (n as f32).sqrt().ceil() as u32;
+    let rows = n.div_ceil(cols);
+    let spacing = 2.0 * HALF + 4.0;
+    let m = &one.mesh;
+    let (nv, nt) = (m.positions.len(), m.triangles.len());
+    let mut mesh = crate::Mesh {
+        positions: Vec::with_capacity(nv * n as usize),
+        triangles: Vec::with_capacity(nt * n as usize),
+        normals: None,
+        material_ids: Vec::with_capacity(nt * n as usize),
+        materials: m.materials.clone(),
+        prim_ids: Vec::new(),
+    };
+    for c in 0..n {
+        let offset = Vec3::new(spacing * (c % cols) as f32, 0.0, spacing * (c / cols) as f32);
+        // At most 64 copies of ~100k vertices: far below 2^32, checked anyway.
+        let base = u32::try_from(mesh.positions.len()).ok()?;
+        mesh.positions.extend(m.positions.iter().map(|&p| p + offset));
+        for t in &m.triangles {
+            mesh.triangles.push([t[0].checked_add(base)?, t[1].checked_add(base)?, t[2].checked_add(base)?]);
+        }
+        mesh.material_ids.extend_from_slice(&m.material_ids);
+    }
+    mesh.prim_ids = (0..u32::try_from(mesh.triangles.len()).ok()?).collect();
+    let far = Vec3::new(spacing * (cols as f32 - 0.5), 0.0, spacing * (rows as f32 - 0.5));
+    let centre = 0.5 * far - Vec3::new(0.25 * spacing, 0.0, 0.25 * spacing);
+    let size = far.length().max(spacing);
+    let (point_light, area_light) =
+        lights_above(centre + Vec3::new(4.0, 0.3 * size + 12.0, -3.0), 4.0, 200.0 * n as f32);
+    let close = one.views.iter().find(|v| v.name == "close").cloned()?;
+    Some(Scene {
+        name: format!("grove-x{n}"),
+        mesh,
+        views: vec![
+            view("default", Vec3::new(-0.5 * HALF, 0.08 * size + 2.0, -0.5 * HALF), centre, 60.0),
+            close,
+            view("top", centre + Vec3::new(5.0, 0.9 * size + 30.0, 12.0), centre, 60.0),
+        ],
+        point_light,
+        area_light,
+    })
+}
+
 /// The rolling ground's height at `(x, z)`.
 fn height(x: f32, z: f32) -> f32 {
     0.4 * (0.3 * x).sin() * (0.25 * z).cos() + 0.2 * (0.7 * x + 0.4 * z).sin()

@@ -18,10 +18,12 @@ pub mod shapes;
 mod small;
 
 pub use atrium::{atrium, atrium_at_detail, atrium_rotated};
+pub use grove::{MAX_GROVES, grove_grid};
 
 /// Names of the built-in scenes, the default first.
 ///
-/// [`by_name`] also accepts `atrium-xN` for N = 2, 4, 8, ... (see [`atrium_at_detail`]).
+/// [`by_name`] also accepts `atrium-xN` for N = 2, 4, 8, ... (see [`atrium_at_detail`]) and
+/// `grove-xN` for N = 1 to 64 (see [`grove_grid`]).
 pub const NAMES: &[&str] = &[
     "atrium",
     "arena",
@@ -34,8 +36,9 @@ pub const NAMES: &[&str] = &[
     "axis-plane-triangle",
 ];
 
-/// The built-in scene called `name` (one of [`NAMES`], or `atrium-xN` with N a power of two
-/// up to 64: the atrium with each triangle split into N), or `None`.
+/// The built-in scene called `name` (one of [`NAMES`], `atrium-xN` with N a power of two up to
+/// 64: the atrium with each triangle split into N, or `grove-xN` with N from 1 to 64: N
+/// groves side by side), or `None`.
 pub fn by_name(name: &str) -> Option<Scene> {
     match name {
         "atrium" => Some(atrium()),
@@ -48,6 +51,13 @@ pub fn by_name(name: &str) -> Option<Scene> {
         "touching-boxes" => Some(small::touching_boxes()),
         "axis-plane-triangle" => Some(small::axis_plane_triangle()),
         _ => {
+            if let Some(count) = name.strip_prefix("grove-x") {
+                // Digits only: "+3" or " 3" would parse but are not names.
+                if count.is_empty() || !count.bytes().all(|b| b.is_ascii_digit()) {
+                    return None;
+                }
+                return grove_grid(count.parse().ok()?);
+            }
             let factor: u32 = name.strip_prefix("atrium-x")?.parse().ok()?;
             (factor.is_power_of_two() && factor <= 64).then(|| atrium_at_detail(factor.trailing_zeros()))
         }
@@ -102,6 +112,34 @@ mod tests {
         assert!(by_name("no-such-scene").is_none());
         assert!(by_name("atrium-x3").is_none());
         assert!(by_name("atrium-x").is_none());
+        for bad in ["grove-x0", "grove-x65", "grove-x", "grove-x+2", "grove-x 2", "grove-x99999999999"] {
+            assert!(by_name(bad).is_none(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn grove_grid_copies_the_grove_side_by_side() {
+        let one = by_name("grove").unwrap().mesh;
+        let scene = by_name("grove-x3").unwrap();
+        assert_eq!(scene.name, "grove-x3");
+        let mesh = &scene.mesh;
+        mesh.check().unwrap();
+        let (nv, nt) = (one.positions.len(), one.triangle_count());
+        assert_eq!(mesh.triangle_count(), 3 * nt);
+        assert_eq!(mesh.prim_ids, (0..3 * nt as u32).collect::<Vec<_>>());
+        // Copy 2 (second row, first column): the same triangles, moved.
+        for t in [0, nt / 2, nt - 1] {
+            let (a, b) = (one.triangle(t), mesh.triangle(2 * nt + t));
+            for k in 0..3 {
+                assert!((b[k] - a[k] - Vec3::new(0.0, 0.0, 44.0)).abs().max_element() < 1e-4, "{:?}", b[k] - a[k]);
+            }
+            assert_eq!(mesh.triangles[2 * nt + t].map(|i| i - 2 * nv as u32), one.triangles[t]);
+        }
+        assert_eq!(open_edge(&mesh.triangles), None, "closed like the grove");
+        for v in &scene.views {
+            assert!(v.camera(64, 48).is_some(), "view {}", v.name);
+        }
+        assert_eq!(by_name("grove-x1").unwrap().mesh.triangles, one.triangles);
     }
 
     #[test]

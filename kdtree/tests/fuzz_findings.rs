@@ -1,0 +1,88 @@
+//! Regression tests for the inputs the cargo-fuzz targets found (`fuzz/`): each is the
+//! finding's input, decoded with `cargo fuzz fmt`, and the property the target checks.
+
+use glam::Vec3;
+use kdtree::triangle::{TriangleTest, WatertightTriangle};
+use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
+
+fn tri(a: [f32; 9]) -> [Vec3; 3] {
+    [Vec3::new(a[0], a[1], a[2]), Vec3::new(a[3], a[4], a[5]), Vec3::new(a[6], a[7], a[8])]
+}
+
+/// `build_soup`: a soup mixing 1e29 and denormal coordinates. The clip of the 1e29 triangle
+/// to a 1e9 node lost most of its part in the node (see `build/clip.rs`), so the tree left
+/// it out of a leaf it enters, and rays into that leaf missed it.
+#[test]
+fn huge_triangle_reaches_every_leaf_it_enters() {
+    let soup = [
+        tri([
+            865320900.0,
+            2012718800.0,
+            865309600.0,
+            2.809e-41,
+            865304600.0,
+            865309600.0,
+            865309600.0,
+            -1.4812316e29,
+            -6.404351e28,
+        ]),
+        tri([-1.4787274e-30, -1.4812468e29, 1.174918e-38, 4.5894e-41, 0.0, 0.0, 0.0, 0.0, 0.0]),
+    ];
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&soup, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        tree.validate().unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+        // Rays straight down (-z) onto the part of triangle 0 at y > 0, 0 < z < 3.1e8, which
+        // lies near its vertex a: points a + s (c - a) + r (b - a), computed from `a`.
+        let oracle = BruteForce::for_tree(&tree);
+        let [a, b, c] = soup[0].map(|p| p.as_dvec3());
+        let mut hits = 0;
+        for i in 1..68 {
+            for j in 1..20 {
+                let p = a + (f64::from(i) * 2e-22) * (c - a) + (f64::from(j) / 20.0) * (b - a);
+                if !(p.y > 0.0 && p.z > 0.0 && p.z < 3.1e8) {
+                    continue;
+                }
+                let ray = Ray::new(Vec3::new(p.x as f32, p.y as f32, 1e9), -Vec3::Z, 0.0, f32::INFINITY);
+                let got = tree.intersect(&ray);
+                hits += usize::from(got.is_some());
+                oracle.check(&ray, got, tree.occluded(&ray)).unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+            }
+        }
+        // The watertight test's f32 edge functions overflow here (1e29 x 1e9 products), so it
+        // reports no hit, in the tree and the oracle alike; Wald's test finds them.
+        if intersector == Intersector::Wald {
+            assert!(hits > 50, "the rays reach the triangle ({hits} hits)");
+        }
+    }
+}
+
+/// `traversal`: an axis-parallel ray passing 1e-40 beside a triangle's edge, outside its
+/// box. The watertight test converted its double-precision edge functions to f32 before
+/// taking their signs, flushing 1.5e-61 to zero and reporting a hit; Wald's test reports one
+/// too (its rounding). The tree culls the triangle exactly and reports none. The watertight
+/// test now takes exact signs; the oracle comparison accepts either answer for a triangle the
+/// ray cannot reach in exact arithmetic (`BruteForce::unreachable`).
+#[test]
+fn ray_beside_a_triangle_outside_its_box() {
+    let t =
+        tri([-2.0222272e-33, 8.6016465e-19, 0.0, 1.469368e-39, 0.0, 0.0, -1.703123e38, 1.8189896e-12, -3.2653887e33]);
+    let ray = Ray::try_new(
+        Vec3::new(-1.2197928e-12, 9.15e-41, 1.8e-43),
+        Vec3::new(5.6842245e32, 6e-45, 0.0),
+        -1.4872218e-14,
+        6.1923395e16,
+    )
+    .unwrap();
+    assert_eq!(ray.dir.y, 0.0, "the denormal component is flushed");
+    let record = WatertightTriangle::new(&t);
+    assert_eq!(record.intersect(&ray, &WatertightTriangle::prepare(&ray), ray.t_max), None);
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&[t], &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        assert!(oracle.unreachable(&ray, 0), "z = 1.8e-43 is above the triangle's z range [-3e33, 0]");
+        assert_eq!(tree.intersect(&ray), None);
+        oracle
+            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
+            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+    }
+}
