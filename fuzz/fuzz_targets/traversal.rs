@@ -1,18 +1,23 @@
-//! Arbitrary rays (zero, NaN and infinite directions included) -> traversal of a tree over an
-//! arbitrary finite soup: never panics; rays accepted by `Ray::try_new` agree with the
-//! brute-force oracle (`BruteForce::check`); rejected rays still traverse without a panic.
+//! Arbitrary rays (zero, NaN and infinite directions included) -> every traversal method over
+//! a tree of an arbitrary finite soup: never panics; rays accepted by `Ray::try_new` agree
+//! with the brute-force oracle (`BruteForce::check`) as single rays, and the packet methods
+//! (omni-directional, same-sign, frustum and MFT, closest and any hit) give exactly the
+//! single-ray hits; rejected rays still traverse without a panic.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use glam::Vec3;
-use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
+use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use libfuzzer_sys::fuzz_target;
+use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
 
 #[derive(Arbitrary, Debug)]
 struct Input {
     watertight: bool,
     soup: Vec<[[f32; 3]; 3]>,
     rays: Vec<[f32; 8]>,
+    /// Which accepted ray's origin the shared-origin packets use.
+    eye: u8,
 }
 
 fuzz_target!(|input: Input| {
@@ -26,13 +31,57 @@ fuzz_target!(|input: Input| {
     let intersector = if input.watertight { Intersector::Watertight } else { Intersector::Wald };
     let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..BuildConfig::default() }).expect("finite soup");
     let oracle = BruteForce::for_tree(&tree);
+    let mut accepted = Vec::new();
     for r in input.rays.iter().take(64) {
         let (o, d) = (Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
         match Ray::try_new(o, d, r[6], r[7]) {
-            Ok(ray) => oracle.check(&ray, tree.intersect(&ray), tree.occluded(&ray)).expect("agrees with the oracle"),
+            Ok(ray) => {
+                oracle.check(&ray, tree.intersect(&ray), tree.occluded(&ray)).expect("agrees with the oracle");
+                accepted.push(ray);
+            }
             Err(_) => {
                 let ray = Ray::new(o, d, r[6], r[7]);
                 let _ = (tree.intersect(&ray), tree.occluded(&ray));
+            }
+        }
+    }
+    if accepted.is_empty() {
+        return;
+    }
+    let single: Vec<Option<Hit>> = accepted.iter().map(|r| tree.intersect(r)).collect();
+
+    // Same-sign packets take any rays.
+    for (rays, want) in accepted.chunks(4).zip(single.chunks(4)) {
+        let hits = samesign::intersect(&tree, &RayPacket::new(rays), &mut NoCounters);
+        for (lane, want) in want.iter().enumerate() {
+            assert_eq!(hits.get(lane), *want, "same-sign lane {lane} differs from its single ray");
+        }
+    }
+
+    // The shared-origin methods: every accepted ray's direction from one accepted origin.
+    let eye = accepted[input.eye as usize % accepted.len()];
+    let shared: Vec<Ray> = accepted
+        .iter()
+        .filter_map(|r| Ray::try_new(eye.origin, r.dir, r.t_min.max(0.0), r.t_max).ok())
+        .collect();
+    let want: Vec<Option<Hit>> = shared.iter().map(|r| tree.intersect(r)).collect();
+    let packets: Vec<OmniPacket> =
+        shared.chunks(4).map(|rays| OmniPacket::new(RayPacket::new(rays)).expect("one origin, t_min >= 0")).collect();
+    for ((packet, rays), want) in packets.iter().zip(shared.chunks(4)).zip(want.chunks(4)) {
+        let hits = omni::intersect(&tree, packet, &mut NoCounters);
+        let any = omni::occluded(&tree, packet, &mut NoCounters);
+        for (lane, want) in want.iter().enumerate() {
+            assert_eq!(hits.get(lane), *want, "omni lane {lane} differs from its single ray");
+            assert_eq!(any.found.bitmask() >> lane & 1 != 0, tree.occluded(&rays[lane]), "omni any-hit lane {lane}");
+        }
+    }
+    let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
+    tracer.load_packets(&packets).expect("one origin");
+    for method in [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft] {
+        tracer.trace(&tree, method, &mut NoCounters);
+        for (hits, want) in tracer.packet_hits().iter().zip(want.chunks(4)) {
+            for (lane, want) in want.iter().enumerate() {
+                assert_eq!(hits.get(lane), *want, "{method:?} lane {lane} differs from its single ray");
             }
         }
     }

@@ -16,7 +16,7 @@
 //! virtual eyes go in different packets ([`reflections`] groups them).
 
 use glam::{DVec3, Vec3};
-use kdtree::ray::offset_origin;
+use kdtree::ray::{offset_origin, surface_point};
 use kdtree::{Hit, KdTree, Ray};
 
 use crate::packet::{OmniPacket, RayPacket};
@@ -50,14 +50,14 @@ impl Mirror {
         (d - 2.0 * d.dot(self.normal) * self.normal).as_vec3()
     }
 
-    /// The reflected ray of a primary ray `dir` from `eye` that hit the mirror at `t_hit`:
-    /// from the virtual eye, starting where [`offset_origin`] would put a ray leaving the
-    /// mirror point.
-    pub fn reflected_ray(&self, eye: Vec3, dir: Vec3, t_hit: f32) -> Ray {
+    /// The reflected ray of a primary ray `dir` from `eye` that hit the mirror triangle `tri`
+    /// at `hit`: from the virtual eye, starting past the mirror by the distance
+    /// [`offset_origin`] would move a ray leaving the mirror point.
+    pub fn reflected_ray(&self, eye: Vec3, dir: Vec3, tri: &[Vec3; 3], hit: &Hit) -> Ray {
         let reflected = self.reflect(dir);
-        let p = eye + t_hit * dir;
-        let offset = (offset_origin(p, self.normal.as_vec3(), reflected) - p).length() / reflected.length();
-        Ray::new(self.virtual_eye(eye), reflected, t_hit + offset, f32::INFINITY)
+        let p = surface_point(tri, hit);
+        let offset = (offset_origin(tri, hit, reflected) - p).length() / reflected.length();
+        Ray::new(self.virtual_eye(eye), reflected, hit.t + offset, f32::INFINITY)
     }
 }
 
@@ -74,8 +74,9 @@ pub fn reflections(
 ) -> Vec<OmniPacket> {
     let rays: [Option<Ray>; 4] = std::array::from_fn(|lane| {
         let hit = hits[lane].filter(|h| is_mirror(h.prim))?;
-        let mirror = Mirror::of_triangle(&tree.triangle(hit.prim))?;
-        Some(mirror.reflected_ray(eye, dirs[lane], hit.t))
+        let tri = tree.triangle(hit.prim);
+        let mirror = Mirror::of_triangle(&tri)?;
+        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit))
     });
     let mut out = Vec::new();
     let mut taken = [false; 4];
@@ -103,14 +104,17 @@ mod tests {
 
     #[test]
     fn the_virtual_eye_sees_the_mirror_point_at_the_hit_distance() {
-        let m = Mirror::of_triangle(&[Vec3::ZERO, Vec3::Z, Vec3::X]).unwrap();
+        let tri = [Vec3::ZERO, Vec3::Z, Vec3::X];
+        let m = Mirror::of_triangle(&tri).unwrap();
         assert_eq!(m.normal, DVec3::Y);
         let eye = Vec3::new(0.3, 2.0, -1.0);
         assert_eq!(m.virtual_eye(eye), Vec3::new(0.3, -2.0, -1.0));
         let dir = Vec3::new(0.2, -1.0, 0.4).normalize();
         let t = 2.0 / -dir.y;
-        let ray = m.reflected_ray(eye, dir, t);
         let p = eye + t * dir;
+        // The barycentrics of `p` on `tri`: `p = u Z + v X`.
+        let hit = Hit { t, u: p.z, v: p.x, prim: 0 };
+        let ray = m.reflected_ray(eye, dir, &tri, &hit);
         assert!((ray.origin + t * ray.dir - p).length() < 1e-5);
         assert!(ray.dir.y > 0.0 && ray.t_min > t);
     }
