@@ -432,7 +432,7 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
     let stats = timing.best;
     let traversal = args.counters.then(|| {
         let (_, primary, shadow) = renderer.trace_counted(&mut buffers);
-        let packets = args.method.tile_method().map(|_| renderer.packet_count());
+        let packets = args.method.tile_kernel().map(|_| renderer.packet_count());
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
     let (shade_secs, write_secs) = write_image(&renderer, &buffers, args.aov, &out)?;

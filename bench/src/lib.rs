@@ -52,7 +52,8 @@
 //! - [`raycast`]: ray files in, one result per ray out (`rttest raycast`);
 //! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
 //!   per-pixel buffers, shading and image output come after and are timed apart;
-//! - [`tables`]: the thesis's Tables 4.1-4.4 (`rttest tables`);
+//! - [`tables`]: the thesis's Tables 4.1-4.6 (`rttest tables`);
+//! - [`soft`]: 16-sample soft shadows to a spherical light, cone vs pyramid vs single rays;
 //! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
 //! - [`report`]: tree statistics and the text / JSON reports;
 //! - [`progress`]: progress bars that only appear for work taking more than a second;
@@ -69,6 +70,7 @@ pub mod raycast;
 pub mod render;
 pub mod report;
 pub mod shade;
+pub mod soft;
 pub mod tables;
 
 pub use error::Error;

@@ -3,7 +3,7 @@
 //! ```text
 //! rttest raycast --scene NAME|FILE.obj[.gz] --rays FILE|- [--format text|binary]
 //!                [--out FILE|-] [--out-format text|binary]
-//!                [--method mono|packet|samesign|frustum|mft] [--any-hit]
+//!                [--method mono|packet|samesign|frustum|mft|cone|mft-cone] [--any-hit]
 //!                [--intersector wald|watertight]          (global: --threads N, --json)
 //! ```
 //!
@@ -70,7 +70,7 @@ use serde::Serialize;
 
 use crate::Error;
 use crate::cli::SceneArgs;
-use crate::render::Method;
+use crate::render::{Method, TileKernel};
 
 /// Rays per parallel task when tracing (and per formatting task when writing).
 pub const CHUNK: usize = 4096;
@@ -116,7 +116,7 @@ pub struct RaycastArgs {
     #[arg(long, value_enum, value_name = "FORMAT")]
     pub out_format: Option<Format>,
     /// How rays traverse the tree: one by one, or grouped (4 consecutive rays to a packet;
-    /// runs of up to 64 rays sharing an origin to a frustum).
+    /// runs of up to 64 rays sharing an origin to a frustum or cone).
     #[arg(long, value_enum, default_value_t = Method::Mono)]
     pub method: Method,
     /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
@@ -361,14 +361,14 @@ impl Results {
 pub fn trace(tree: &KdTree, rays: &[Ray], method: Method, any_hit: bool) -> Results {
     if any_hit {
         let mut out = vec![false; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_method() {
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_kernel() {
             None => mono_any_chunk(tree, rays, out),
             Some(m) => packet_any_chunk(tree, rays, m, out),
         });
         Results::AnyHit(out)
     } else {
         let mut out = vec![None; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_method() {
+        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_kernel() {
             None => mono_closest_chunk(tree, rays, out),
             Some(m) => packet_closest_chunk(tree, rays, m, out),
         });
@@ -376,16 +376,17 @@ pub fn trace(tree: &KdTree, rays: &[Ray], method: Method, any_hit: bool) -> Resu
     }
 }
 
-/// Rays per frustum of `--method frustum|mft` on a ray file: up to 16 packets.
+/// Rays per frustum of `--method frustum|mft|cone|mft-cone` on a ray file: up to 16 packets.
 const FRUSTUM_RAYS: usize = 64;
 
 /// Packet closest-hit kernel of one chunk of arbitrary rays, in file order:
 /// - `packet`: each 4 consecutive rays as an omni-directional packet when they share an
 ///   origin (and start at it), else as a same-sign packet split by direction signs;
 /// - `samesign`: each 4 consecutive rays as a same-sign packet;
-/// - `frustum`, `mft`: each run of up to 64 consecutive rays sharing an origin (and starting
-///   at it) as one frustum, or four quarter-runs as MFT frusta; other rays as `packet`.
-fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &mut [Option<Hit>]) {
+/// - `frustum`, `mft`, `cone`, `mft-cone`: each run of up to 64 consecutive rays sharing an
+///   origin (and starting at it) as one frustum (or cone), or four quarter-runs as MFT
+///   frusta (or cones); other rays as `packet`.
+fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileKernel, out: &mut [Option<Hit>]) {
     let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
     let mut group: Vec<OmniPacket> = Vec::with_capacity(FRUSTUM_RAYS / 4);
     let mut start = 0;
@@ -393,7 +394,7 @@ fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &m
         let origin = rays[start].origin;
         let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
         let run = rays[start..].iter().take(FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
-        let frustum = matches!(method, TileMethod::Frustum | TileMethod::Mft) && run > 4;
+        let frustum = method.bounds_runs() && run > 4;
         if frustum {
             group.clear();
             for four in rays[start..start + run].chunks(4) {
@@ -402,7 +403,7 @@ fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &m
                 group.push(OmniPacket::new(packet).expect("run shares its origin"));
             }
             tracer.load_packets(&group).expect("run shares its origin");
-            tracer.trace(tree, method, &mut NoCounters);
+            method.trace(tree, &mut tracer, &mut NoCounters);
             for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
                 for (lane, slot) in slots.iter_mut().enumerate() {
                     *slot = hits.get(lane);
@@ -414,7 +415,9 @@ fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &m
         let end = (start + 4).min(rays.len());
         let packet = RayPacket::new(&rays[start..end]);
         let hits = match (method, OmniPacket::new(packet)) {
-            (TileMethod::SameSign, _) | (_, None) => samesign::intersect(tree, &packet, &mut NoCounters),
+            (TileKernel::Packets(TileMethod::SameSign), _) | (_, None) => {
+                samesign::intersect(tree, &packet, &mut NoCounters)
+            }
             (_, Some(omni_packet)) => omni::intersect(tree, &omni_packet, &mut NoCounters),
         };
         for (lane, slot) in out[start..end].iter_mut().enumerate() {
@@ -426,8 +429,8 @@ fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &m
 
 /// Packet any-hit kernel of one chunk: omni-directional any-hit packets where 4 consecutive
 /// rays share an origin (with `packet`), else the closest-hit kernel's answer.
-fn packet_any_chunk(tree: &KdTree, rays: &[Ray], method: TileMethod, out: &mut [bool]) {
-    if method == TileMethod::Packet {
+fn packet_any_chunk(tree: &KdTree, rays: &[Ray], method: TileKernel, out: &mut [bool]) {
+    if method == TileKernel::Packets(TileMethod::Packet) {
         for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
             let packet = RayPacket::new(rays);
             let found = match OmniPacket::new(packet) {
@@ -717,7 +720,7 @@ mod tests {
         }
         let mono = trace(&tree, &rays, Method::Mono, false);
         let mono_any = trace(&tree, &rays, Method::Mono, true);
-        for method in [Method::Packet, Method::Samesign, Method::Frustum, Method::Mft] {
+        for method in [Method::Packet, Method::Samesign, Method::Frustum, Method::Mft, Method::Cone, Method::MftCone] {
             let (Results::Closest(got), Results::Closest(want)) = (trace(&tree, &rays, method, false), &mono) else {
                 unreachable!()
             };

@@ -22,6 +22,7 @@
 
 use std::time::Instant;
 
+use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
 use packets::{PacketCounters, PacketCounts, TileMethod, TileTracer};
@@ -48,6 +49,11 @@ pub enum Method {
     Frustum,
     /// Four quadrant frusta per tile in SSE lanes (thesis 4.1.5).
     Mft,
+    /// One cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8).
+    Cone,
+    /// Four quadrant cones per tile in SSE lanes (thesis 4.1.9).
+    #[serde(rename = "mft-cone")]
+    MftCone,
 }
 
 impl Method {
@@ -59,18 +65,49 @@ impl Method {
             Method::Samesign => "samesign",
             Method::Frustum => "frustum",
             Method::Mft => "mft",
+            Method::Cone => "cone",
+            Method::MftCone => "mft-cone",
         }
     }
 
-    /// The packet method behind this one (`None` for single rays).
-    pub fn tile_method(self) -> Option<TileMethod> {
+    /// The tile kernel behind this method (`None` for single rays).
+    pub fn tile_kernel(self) -> Option<TileKernel> {
         match self {
             Method::Mono => None,
-            Method::Packet => Some(TileMethod::Packet),
-            Method::Samesign => Some(TileMethod::SameSign),
-            Method::Frustum => Some(TileMethod::Frustum),
-            Method::Mft => Some(TileMethod::Mft),
+            Method::Packet => Some(TileKernel::Packets(TileMethod::Packet)),
+            Method::Samesign => Some(TileKernel::Packets(TileMethod::SameSign)),
+            Method::Frustum => Some(TileKernel::Packets(TileMethod::Frustum)),
+            Method::Mft => Some(TileKernel::Packets(TileMethod::Mft)),
+            Method::Cone => Some(TileKernel::Cones(ConeMethod::Cone)),
+            Method::MftCone => Some(TileKernel::Cones(ConeMethod::MftCone)),
         }
+    }
+}
+
+/// How a method traces a tile loaded in a [`TileTracer`]: a `packets` method or a `cones`
+/// one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileKernel {
+    /// Packets, one frustum or MFT (`packets`).
+    Packets(TileMethod),
+    /// One cone or MFT cones (`cones`).
+    Cones(ConeMethod),
+}
+
+impl TileKernel {
+    /// Traces the tile loaded in `tracer`.
+    #[inline]
+    pub fn trace<C: PacketCounters>(self, tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+        match self {
+            TileKernel::Packets(m) => tracer.trace(tree, m, counters),
+            TileKernel::Cones(m) => cones::traverse::trace(tree, tracer, m, counters),
+        }
+    }
+
+    /// Whether it bounds a whole run of rays sharing an origin (frusta and cones) rather than
+    /// going packet by packet.
+    pub fn bounds_runs(self) -> bool {
+        !matches!(self, TileKernel::Packets(TileMethod::Packet | TileMethod::SameSign))
     }
 }
 
@@ -220,7 +257,7 @@ impl<'a> Renderer<'a> {
     /// The same renderer with `size x size` tiles: the unit of work per thread, and the
     /// frustum of the frustum methods. Packet methods need a multiple of 4 in `4..=64`.
     pub fn with_tile(mut self, size: u32) -> Result<Self, packets::tile::TileError> {
-        if self.method.tile_method().is_some() {
+        if self.method.tile_kernel().is_some() {
             TileTracer::new(size)?;
         }
         self.layout = TileLayout::new(self.camera.width, self.camera.height, size.max(1));
@@ -293,7 +330,7 @@ impl<'a> Renderer<'a> {
     fn primary_pass<C: TileCounters>(&self, hits: &mut [Option<Hit>]) -> (u64, C) {
         let chunks = self.layout.chunks_mut(hits);
         let tiles = self.layout.tiles().par_iter().zip(chunks);
-        match self.method.tile_method() {
+        match self.method.tile_kernel() {
             None => tiles
                 .map(|(tile, out)| {
                     let mut counts = C::default();
@@ -426,14 +463,14 @@ fn packet_primary_tile<C: TileCounters>(
     tree: &KdTree,
     camera: &Camera,
     tracer: &mut TileTracer,
-    method: TileMethod,
+    method: TileKernel,
     tile: &Tile,
     out: &mut [Option<Hit>],
     counts: &mut C,
 ) -> u64 {
     // The layout's tiles fit the tracer (same size, inside the image).
     tracer.load_primary(camera, tile).expect("tile fits the tracer");
-    tracer.trace(tree, method, counts);
+    method.trace(tree, tracer, counts);
     tracer.write_hits(out);
     out.iter().filter(|h| h.is_some()).count() as u64
 }

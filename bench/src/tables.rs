@@ -1,26 +1,34 @@
-//! `rttest tables`: the thesis's Tables 4.1-4.4 (Tsakok 2008, 4.1.3-4.1.5) on our scenes.
+//! `rttest tables`: the thesis's Tables 4.1-4.6 (Tsakok 2008, 4.1.3-4.1.9) on our scenes.
 //!
 //! For each scene: primary rays of the default view at 512x512 (by default) with the thesis's
 //! simple shading (one point light with attenuation, no shadow rays), traced with single
 //! rays, omni-directional 2x2 packets, the single frustum at tiles 4 to 32 (and 8x8 without
-//! packet/leaf culling), and MFT at tiles 4 to 32. Each row has the best frame time of
+//! packet/leaf culling), MFT, one cone and MFT cones at tiles 4 to 32. Each row has the best
+//! frame time of
 //! `--frames` frames (trace, and trace + shading as the frame rate), Mrays/s, N (traversal
 //! steps per 2x2 packet), I (packet-triangle tests per 2x2 packet) and the share of packets
 //! culled at leaves, from one extra counted frame. Markdown to stdout, or CSV with `--csv`.
 //! Where the scene is Sponza the thesis's own Sponza rows are printed beside ours.
+//!
+//! Table 4.6 (unless `--no-soft-shadows`): 16 shadow rays per primary hit to a spherical light
+//! at the scene's point light, radius 1 and 2 in Sponza units scaled to the scene, traced
+//! under one cone, under one pyramid and one by one ([`crate::soft`]).
 
 use std::fmt::Write as _;
 use std::time::Instant;
 
 use clap::Args;
-use kdtree::{BuildConfig, KdTree};
-use scenes::Scene;
+use cones::ShadowMethod;
+use kdtree::{BuildConfig, KdTree, NoCounters};
+use packets::PacketCounts;
+use scenes::{Scene, SphereLight};
 
 use crate::Error;
 use crate::cli::{GlobalArgs, IntersectorArg, parse_size};
 use crate::progress::{self, Progress};
 use crate::render::{Method, Renderer, Shadows};
 use crate::report::mrays_per_s;
+use crate::soft;
 
 /// `rttest tables` options.
 #[derive(Debug, Clone, Args)]
@@ -38,9 +46,32 @@ pub struct TablesArgs {
     /// The ray-triangle test.
     #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
     pub intersector: IntersectorArg,
-    /// Print one CSV table of every row instead of the markdown tables.
+    /// Print the rows as CSV instead of the markdown tables: one table of the primary-ray
+    /// rows, then (after a blank line) one of the soft-shadow rows of Table 4.6.
     #[arg(long)]
     pub csv: bool,
+    /// Leave out Table 4.6 (16-sample soft shadows, the slowest part).
+    #[arg(long)]
+    pub no_soft_shadows: bool,
+}
+
+/// One measured soft-shadow configuration of one scene (Table 4.6).
+#[derive(Clone, Debug)]
+struct SoftRow {
+    scene: String,
+    /// Light radius in Sponza units (scaled to the scene).
+    radius: f32,
+    method: ShadowMethod,
+    /// Best shadow-pass time.
+    ms: f64,
+    mrays: f64,
+    /// Traversal steps per shaded point (16 rays).
+    n: f64,
+    /// Ray-triangle tests per shaded point, counted per 2x2 packet test for the frusta and
+    /// per ray / 4 for single rays (the unit of I in Tables 4.1-4.5).
+    i: f64,
+    /// Mean visible fraction of the light over the shaded points (the same for every method).
+    visible: f64,
 }
 
 /// One measured configuration of one scene.
@@ -58,7 +89,7 @@ struct Row {
     culled: f64,
 }
 
-/// The thesis's Sponza figures: (method, tile, fps, N, I) from Tables 4.1 and 4.3.
+/// The thesis's Sponza figures: (method, tile, fps, N, I) from Tables 4.1, 4.3 and 4.5.
 const THESIS_SPONZA: &[(Method, u32, f64, f64, f64)] = &[
     (Method::Packet, 2, 13.60, 33.81, 3.83),
     (Method::Frustum, 4, 17.50, 11.05, 9.86),
@@ -69,6 +100,22 @@ const THESIS_SPONZA: &[(Method, u32, f64, f64, f64)] = &[
     (Method::Mft, 8, 26.00, 3.92, 9.96),
     (Method::Mft, 16, 27.50, 1.93, 22.86),
     (Method::Mft, 32, 19.50, 1.31, 68.98),
+    (Method::Cone, 4, 20.00, 12.10, 13.32),
+    (Method::Cone, 8, 22.20, 5.03, 33.40),
+    (Method::Cone, 16, 15.50, 2.95, 106.08),
+    (Method::Cone, 32, 6.40, 2.30, 382.47),
+    (Method::MftCone, 4, 18.80, 11.23, 6.93),
+    (Method::MftCone, 8, 25.00, 4.28, 13.32),
+    (Method::MftCone, 16, 25.10, 2.27, 33.40),
+    (Method::MftCone, 32, 15.50, 1.62, 106.08),
+];
+
+/// The thesis's Table 4.6 (Sponza, 16-sample soft shadows): (radius, method, fps, N, I).
+const THESIS_SOFT: &[(f32, ShadowMethod, f64, f64, f64)] = &[
+    (1.0, ShadowMethod::Cone, 2.72, 118.28, 116.10),
+    (1.0, ShadowMethod::Pyramid, 2.00, 120.72, 129.31),
+    (2.0, ShadowMethod::Cone, 1.97, 164.30, 378.91),
+    (2.0, ShadowMethod::Pyramid, 1.36, 174.23, 449.69),
 ];
 
 /// The configurations of every scene: (method, tile, culling).
@@ -84,6 +131,14 @@ const CONFIGS: &[(Method, u32, bool)] = &[
     (Method::Mft, 8, true),
     (Method::Mft, 16, true),
     (Method::Mft, 32, true),
+    (Method::Cone, 4, true),
+    (Method::Cone, 8, true),
+    (Method::Cone, 16, true),
+    (Method::Cone, 32, true),
+    (Method::MftCone, 4, true),
+    (Method::MftCone, 8, true),
+    (Method::MftCone, 16, true),
+    (Method::MftCone, 32, true),
 ];
 
 /// The scenes to run: the arguments, or the four built-in stand-ins and the shared OBJs.
@@ -162,17 +217,100 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
     Ok(rows)
 }
 
+/// Times the 16-sample soft shadows of every hit of the default view to a spherical light at
+/// the scene's point light, radius 1 and 2 in Sponza units scaled to the scene, for each
+/// [`ShadowMethod`], and checks that they agree.
+fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<SoftRow>, Error> {
+    let (w, h) = args.size;
+    let camera = scene
+        .default_view()
+        .camera(w, h)
+        .ok_or_else(|| Error::Usage(format!("the default view of '{}' is degenerate", scene.name)))?;
+    let hits = soft::primary_hits(tree, &camera);
+    let diag = (tree.bounds().max - tree.bounds().min).length();
+    let frames = args.frames.min(3);
+    let bar = Progress::bar(2 * ShadowMethod::ALL.len() as u64, &format!("table 4.6: {}", scene.name), show);
+    let mut rows = Vec::new();
+    for radius in [1.0f32, 2.0] {
+        let light = SphereLight {
+            center: scene.point_light.position,
+            radius: soft::scaled_radius(radius, diag),
+            intensity: scene.point_light.intensity,
+        };
+        let mut reference: Option<Vec<f32>> = None;
+        for method in ShadowMethod::ALL {
+            let mut best = f64::INFINITY;
+            let mut pass = None;
+            for _ in 0..frames {
+                let start = Instant::now();
+                let p = soft::soft_shadow_pass::<NoCounters>(scene, tree, &camera, &hits, &light, method);
+                best = best.min(start.elapsed().as_secs_f64());
+                pass = Some(p);
+            }
+            let pass = pass.expect("at least one frame");
+            match &reference {
+                None => reference = Some(pass.visible.clone()),
+                Some(r) if *r != pass.visible => {
+                    return Err(Error::Usage(format!(
+                        "{}: {} soft shadows differ from single rays (a bug: please report it)",
+                        scene.name,
+                        method.name()
+                    )));
+                }
+                Some(_) => {}
+            }
+            let counted = soft::soft_shadow_pass::<PacketCounts>(scene, tree, &camera, &hits, &light, method);
+            let points = counted.points.max(1) as f64;
+            let tests = if method == ShadowMethod::Single {
+                counted.counts.tests as f64 / 4.0
+            } else {
+                counted.counts.tests as f64
+            };
+            rows.push(SoftRow {
+                scene: scene.name.clone(),
+                radius,
+                method,
+                ms: best * 1e3,
+                mrays: mrays_per_s(pass.rays, best),
+                n: counted.counts.nodes as f64 / points,
+                i: tests / points,
+                visible: pass.visible.iter().map(|&v| f64::from(v)).sum::<f64>() / points,
+            });
+            bar.inc();
+        }
+    }
+    bar.finish();
+    Ok(rows)
+}
+
 /// `rttest tables`.
 pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Error> {
     let show = progress::enabled(global.json);
     let mut all = Vec::new();
+    let mut soft_rows = Vec::new();
     for spec in scene_list(args) {
         let scene = scenes::load_scene(&spec)?;
         let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
         all.extend(measure(&scene, &tree, args, show)?);
+        if !args.no_soft_shadows {
+            soft_rows.extend(measure_soft(&scene, &tree, args, show)?);
+        }
     }
-    let text = if args.csv { csv(&all) } else { markdown(&all, args) };
+    let text = if args.csv {
+        let mut text = csv(&all);
+        if !soft_rows.is_empty() {
+            text.push('\n');
+            text.push_str(&soft_csv(&soft_rows));
+        }
+        text
+    } else {
+        let mut text = markdown(&all, args);
+        if !soft_rows.is_empty() {
+            text.push_str(&soft_markdown(&soft_rows, args));
+        }
+        text
+    };
     print!("{text}");
     Ok(())
 }
@@ -219,6 +357,11 @@ fn thesis(scene: &str, method: Method, tile: u32) -> Option<(f64, f64, f64)> {
     THESIS_SPONZA.iter().find(|t| t.0 == method && (t.1 == tile || method == Method::Packet)).map(|t| (t.2, t.3, t.4))
 }
 
+/// The fastest row of `method` on `scene` (culling on).
+fn best_of<'a>(rows: &'a [Row], scene: &str, method: Method) -> Option<&'a Row> {
+    rows.iter().filter(|r| r.scene == scene && r.method == method && r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
+}
+
 fn pct(new: f64, old: f64) -> f64 {
     100.0 * (new - old) / old
 }
@@ -242,7 +385,7 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
     let _ = writeln!(out, "### Table 4.1: packets and frusta\n");
     let _ = writeln!(out, "| scene | method | trace ms | fps | Mrays/s | N | I | thesis fps | thesis N | thesis I |");
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for r in rows.iter().filter(|r| r.method != Method::Mft && r.culling) {
+    for r in rows.iter().filter(|r| matches!(r.method, Method::Mono | Method::Packet | Method::Frustum) && r.culling) {
         let t = thesis(&r.scene, r.method, r.tile);
         let th = |f: fn((f64, f64, f64)) -> f64| t.map_or("".into(), |t| format!("{:.2}", f(t)));
         let _ = writeln!(
@@ -316,9 +459,7 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
     let _ = writeln!(out, "| scene | MFT fps | MFT tile | frustum fps | frustum tile | MFT gain | thesis gain |");
     let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
     for s in &scenes {
-        let best = |m: Method| {
-            rows.iter().filter(|r| r.scene == *s && r.method == m && r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
-        };
+        let best = |m: Method| best_of(rows, s, m);
         if let (Some(m), Some(f)) = (best(Method::Mft), best(Method::Frustum)) {
             let th = if s.to_lowercase().starts_with("sponza") {
                 format!("{:+.1}%", pct(27.5, 24.0))
@@ -337,6 +478,102 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
                 pct(m.fps, f.fps)
             );
         }
+    }
+
+    let _ = writeln!(
+        out,
+        "\n### Table 4.5: single cone and MFT cones against the single pyramid frustum of the same tile\n"
+    );
+    let _ = writeln!(
+        out,
+        "| scene | method | tile | fps | Mrays/s | N | I | % fps | % N | % I | thesis % fps | thesis % N | thesis % I |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in rows.iter().filter(|r| matches!(r.method, Method::Cone | Method::MftCone)) {
+        let Some(f) = find(rows, &r.scene, Method::Frustum, r.tile, true) else { continue };
+        let th = match (thesis(&r.scene, r.method, r.tile), thesis(&r.scene, Method::Frustum, r.tile)) {
+            (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
+            _ => " | | ".into(),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
+            r.scene,
+            r.method.name(),
+            r.tile,
+            r.tile,
+            r.fps,
+            r.mrays,
+            r.n,
+            r.i,
+            pct(r.fps, f.fps),
+            pct(r.n, f.n),
+            pct(r.i, f.i)
+        );
+    }
+    out
+}
+
+fn soft_csv(rows: &[SoftRow]) -> String {
+    let mut out = String::from("scene,radius,method,shadow_ms,fps,mrays_per_s,n,i,visible\n");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4}",
+            r.scene,
+            r.radius,
+            r.method.name(),
+            r.ms,
+            1e3 / r.ms,
+            r.mrays,
+            r.n,
+            r.i,
+            r.visible
+        );
+    }
+    out
+}
+
+fn soft_markdown(rows: &[SoftRow], args: &TablesArgs) -> String {
+    let mut out = String::new();
+    let (w, h) = args.size;
+    let _ = writeln!(out, "\n### Table 4.6: 16-sample soft shadows to a spherical light, cone against pyramid\n");
+    let _ = writeln!(
+        out,
+        "Default views, {w}x{h}, {} threads, best of {} frames of the shadow pass alone (primary hits made once by single rays). Light at the scene's point light, radius 1 and 2 in Sponza units scaled by the scene's diagonal / {:.2}. fps = 1 / shadow pass; N = traversal steps and I = packet-triangle tests (single rays: tests / 4) per shaded point of 16 rays; the three methods agree ray by ray (checked).\n",
+        rayon::current_num_threads(),
+        args.frames.min(3),
+        soft::SPONZA_DIAGONAL
+    );
+    let _ = writeln!(
+        out,
+        "| scene | radius | method | shadow ms | fps | Mrays/s | N | I | visible | cone / pyramid time | thesis fps | thesis N | thesis I |"
+    );
+    let _ = writeln!(out, "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in rows {
+        let pyramid =
+            rows.iter().find(|p| p.scene == r.scene && p.radius == r.radius && p.method == ShadowMethod::Pyramid);
+        let ratio = match (r.method, pyramid) {
+            (ShadowMethod::Cone, Some(p)) => format!("{:.2}", r.ms / p.ms),
+            _ => String::new(),
+        };
+        let th = THESIS_SOFT
+            .iter()
+            .find(|t| r.scene.to_lowercase().starts_with("sponza") && t.0 == r.radius && t.1 == r.method)
+            .map_or(" | | ".to_string(), |t| format!("{:.2} | {:.2} | {:.2}", t.2, t.3, t.4));
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {:.3} | {ratio} | {th} |",
+            r.scene,
+            r.radius,
+            r.method.name(),
+            r.ms,
+            1e3 / r.ms,
+            r.mrays,
+            r.n,
+            r.i,
+            r.visible
+        );
     }
     out
 }

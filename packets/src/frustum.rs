@@ -40,24 +40,37 @@ use crate::stats::PacketCounters;
 use crate::tile::{TileTracer, mask_of, max_where};
 use crate::triangle4::PacketTest;
 
-/// The extremal-ray bound of a set of packets: per axis the reciprocals of the smallest and
-/// largest direction component (`inv_lo[k] = 1 / lo[k]`), and the interval that holds every
-/// unfinished ray's clip to the root box.
+/// The bound a frustum of rays sharing one origin goes down the tree with: at a split plane
+/// `dist = split - o[axis]` away from the origin, every ray of the frustum that crosses the
+/// plane does so between `min(dist * k0[axis], dist * k1[axis])` and the `max` of the two,
+/// negative values taken as `+inf` ([`plane_interval`]), and inside `[near, far]`.
+///
+/// Two shapes fill it in: the **pyramid** of the extremal rays ([`bound`]: `k0 = 1 / lo`,
+/// `k1 = 1 / hi`, the per-axis direction extremes, distances in ray parameter `t`) and the
+/// **cone** of the `cones` crate (thesis 4.1.7, "cone frustums": Listing 4.4's precomputed
+/// values, distances measured along the cone's axis). `hit_scale` converts a ray's hit
+/// parameter into the bound's distance: a hit at `t` lies no further than `t * hit_scale`
+/// along the bound's measure (1 for the pyramid; for a cone the longest direction among its
+/// rays, since a point at parameter `t` of ray `d` is `t |d| cos(angle)` along the axis).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrustumBound {
-    /// `1 / lo[k]` per axis (`[x, y, z, 0]`).
-    pub inv_lo: [f32; 4],
-    /// `1 / hi[k]` per axis.
-    pub inv_hi: [f32; 4],
+    /// First factor per axis (`[x, y, z, 0]`): `1 / lo[k]` for a pyramid.
+    pub k0: [f32; 4],
+    /// Second factor per axis: `1 / hi[k]` for a pyramid.
+    pub k1: [f32; 4],
     /// Start of the interval (`+inf` when no ray is left).
     pub near: f32,
     /// End of the interval (`-inf` when no ray is left).
     pub far: f32,
+    /// A bound on `distance / t` for a hit at ray parameter `t` (1 for a pyramid).
+    pub hit_scale: f32,
 }
 
 /// Marks the lanes of `tracer`'s packets in `range` that miss the tree's root box as finished
-/// (no hit), and returns the bound of the others.
-pub(crate) fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
+/// (no hit), and returns the pyramid bound of the others: per axis the reciprocals of the
+/// smallest and largest direction component, and the interval that holds every unfinished
+/// ray's clip to the root box.
+pub fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
     let b = tree.bounds();
     let (lo_box, hi_box) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
     let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
@@ -81,20 +94,21 @@ pub(crate) fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Ran
     let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
     let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
     FrustumBound {
-        inv_lo: lo.recip().to_array(),
-        inv_hi: hi.recip().to_array(),
+        k0: lo.recip().to_array(),
+        k1: hi.recip().to_array(),
         near: near4.min_element(),
         far: far4.max_element(),
+        hit_scale: 1.0,
     }
 }
 
 /// The plane distances bounding a frustum at a split plane `dist` away from the origin along
-/// an axis with direction reciprocals `inv_lo`, `inv_hi`: `(dmin, dmax)`, negative distances
+/// an axis with factors `k0`, `k1` (see [`FrustumBound`]): `(dmin, dmax)`, negative distances
 /// taken as `+inf` (modification 1), widened by a few ulps. `dist` must not be 0.
 #[inline(always)]
-pub fn plane_interval(dist: f32, inv_lo: f32, inv_hi: f32) -> (f32, f32) {
+pub fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
     let fix = |d: f32| if d < 0.0 { f32::INFINITY } else { d };
-    let (a, b) = (fix(dist * inv_lo), fix(dist * inv_hi));
+    let (a, b) = (fix(dist * k0), fix(dist * k1));
     (widen_down1(a.min(b)), widen_up1(a.max(b)))
 }
 
@@ -158,7 +172,12 @@ pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
                 for &prim in prims {
                     records[prim as usize].intersect4(rays, &data, lanes, hit, prim);
                 }
-                if !unordered {
+                if tracer.any_hit {
+                    // Any hit finishes a lane, wherever it lies.
+                    let now = done | (through & hit.found).bitmask() as u8;
+                    tracer.done[i] = now;
+                    closed += u64::from(now == 0xF);
+                } else if !unordered {
                     // Against the exit moved *inwards* (about 16 ulps below its exact value,
                     // past the rounding of the clip and of the triangle test's t): a hit at
                     // the voxel's far boundary may have a rival a few ulps closer in the next
@@ -229,11 +248,11 @@ struct Entry {
     hi: [f32; 4],
 }
 
-/// Traces the loaded tile as one frustum.
-pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+/// Traces the loaded (and reset) tile as one frustum with bound `f`.
+pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, f: &FrustumBound, counters: &mut C) {
     match tree.intersector() {
-        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, counters),
-        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, counters),
+        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, f, counters),
+        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, f, counters),
     }
 }
 
@@ -242,9 +261,9 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
     tree: &KdTree,
     records: &[T],
     tracer: &mut TileTracer,
+    f: &FrustumBound,
     counters: &mut C,
 ) {
-    let f = bound(tree, tracer, 0..tracer.packets.len());
     let (mut near, mut far) = (f.near, f.far);
     if near.is_nan() || far.is_nan() || near > far {
         return;
@@ -277,7 +296,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
                 (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
-            let (dmin, dmax) = plane_interval(dist, f.inv_lo[axis], f.inv_hi[axis]);
+            let (dmin, dmax) = plane_interval(dist, f.k0[axis], f.k1[axis]);
             let front_far = far.min(dmax);
             let back_near = near.max(dmin);
             if back_near > far {
@@ -310,7 +329,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             sp -= 1;
             let e = stack[sp % STACK_SIZE];
             near = e.near;
-            far = e.far.min(limit);
+            far = e.far.min(widen_up1(limit * f.hit_scale));
             if near <= far {
                 (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
                 break;

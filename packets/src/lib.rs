@@ -35,6 +35,7 @@ pub mod stats;
 pub mod tile;
 pub mod triangle4;
 
+pub use frustum::FrustumBound;
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use stats::{PacketCounters, PacketCounts};
-pub use tile::{TileMethod, TileTracer};
+pub use tile::{Frusta, TileMethod, TileTracer};

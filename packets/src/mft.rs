@@ -22,7 +22,7 @@ use glam::Vec4;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
-use crate::frustum::{FrustumBound, bound, children, leaf};
+use crate::frustum::{FrustumBound, children, leaf};
 use crate::packet::{widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::tile::TileTracer;
@@ -45,30 +45,38 @@ impl Default for Entry {
     }
 }
 
-/// Traces the loaded tile as four quadrant frusta.
-pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+/// Traces the loaded (and reset) tile as four quadrant frusta with bounds `bounds` (quadrant
+/// `q` in lane `q`).
+pub(crate) fn intersect<C: PacketCounters>(
+    tree: &KdTree,
+    tracer: &mut TileTracer,
+    bounds: &[FrustumBound; 4],
+    counters: &mut C,
+) {
     match tree.intersector() {
-        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, counters),
-        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, counters),
+        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, bounds, counters),
+        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, bounds, counters),
     }
 }
 
-/// The four quadrants' bounds as lanes: per axis a `Vec4` of `1 / lo` and of `1 / hi`, and
-/// the initial intervals.
+/// The four quadrants' bounds as lanes: per axis a `Vec4` of each factor (`k0`, `k1` of
+/// [`FrustumBound`]), the initial intervals and the hit scales.
 struct Lanes {
-    inv_lo: [Vec4; 4],
-    inv_hi: [Vec4; 4],
+    k0: [Vec4; 4],
+    k1: [Vec4; 4],
     near: Vec4,
     far: Vec4,
+    hit_scale: Vec4,
 }
 
 fn lanes(bounds: &[FrustumBound; 4]) -> Lanes {
-    let axis = |a: usize, hi: bool| Vec4::from_array(bounds.map(|b| if hi { b.inv_hi[a] } else { b.inv_lo[a] }));
+    let axis = |a: usize, second: bool| Vec4::from_array(bounds.map(|b| if second { b.k1[a] } else { b.k0[a] }));
     Lanes {
-        inv_lo: [axis(0, false), axis(1, false), axis(2, false), Vec4::ZERO],
-        inv_hi: [axis(0, true), axis(1, true), axis(2, true), Vec4::ZERO],
+        k0: [axis(0, false), axis(1, false), axis(2, false), Vec4::ZERO],
+        k1: [axis(0, true), axis(1, true), axis(2, true), Vec4::ZERO],
         near: Vec4::from_array(bounds.map(|b| b.near)),
         far: Vec4::from_array(bounds.map(|b| b.far)),
+        hit_scale: Vec4::from_array(bounds.map(|b| b.hit_scale)),
     }
 }
 
@@ -77,11 +85,10 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
     tree: &KdTree,
     records: &[T],
     tracer: &mut TileTracer,
+    bounds: &[FrustumBound; 4],
     counters: &mut C,
 ) {
-    let quadrants = tracer.quadrants.clone();
-    let bounds = quadrants.map(|range| bound(tree, tracer, range));
-    let f = lanes(&bounds);
+    let f = lanes(bounds);
     let (mut near, mut far) = (f.near, f.far);
     if !near.cmple(far).any() {
         return;
@@ -117,7 +124,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             // Modification 1 per frustum: negative distances become +inf.
             let fix = |d: Vec4| Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
             let dist4 = Vec4::splat(dist);
-            let (a, b) = (fix(dist4 * f.inv_lo[axis]), fix(dist4 * f.inv_hi[axis]));
+            let (a, b) = (fix(dist4 * f.k0[axis]), fix(dist4 * f.k1[axis]));
             let (dmin, dmax) = (widen_down(a.min(b)), widen_up(a.max(b)));
             let front_far = far.min(dmax);
             let back_near = near.max(dmin);
@@ -158,7 +165,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             sp -= 1;
             let e = stack[sp % STACK_SIZE];
             near = e.near;
-            far = e.far.min(limit);
+            far = e.far.min(widen_up(limit * f.hit_scale));
             if near.cmple(far).any() {
                 (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
                 break;

@@ -18,10 +18,11 @@ use kdtree::triangle::{Intersector, WatertightTriangle};
 use kdtree::{Hit, KdTree};
 use scenes::{Camera, Tile};
 
+use crate::frustum::{self, FrustumBound};
 use crate::packet::{OmniPacket, PacketHit, RayPacket};
 use crate::stats::PacketCounters;
 use crate::triangle4::{PacketTest, ShearedPacket};
-use crate::{frustum, mft, omni, samesign};
+use crate::{mft, omni, samesign};
 
 /// How a tile's rays are traced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -89,6 +90,18 @@ pub struct TileTracer {
     pub(crate) sheared: Vec<ShearedPacket>,
     /// Packet/leaf culling on (the default) or off (Table 4.2).
     pub(crate) culling: bool,
+    /// Any-hit mode (shadow rays): the frustum methods finish a lane at its first hit.
+    pub(crate) any_hit: bool,
+}
+
+/// The frusta a loaded tile is traced with by [`TileTracer::trace_frusta`]: one for the
+/// whole tile, or one per quadrant traced together in the lanes of a `Vec4` (MFT, 4.1.5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Frusta {
+    /// One frustum over every packet (interval traversal, 2.3.2).
+    One(FrustumBound),
+    /// Quadrant `q`'s packets bounded by frustum `q` (Multiple Frustum Traversal).
+    Four([FrustumBound; 4]),
 }
 
 impl TileTracer {
@@ -111,6 +124,7 @@ impl TileTracer {
             sheared: Vec::with_capacity(packets),
             origin: [0.0; 4],
             culling: true,
+            any_hit: false,
         })
     }
 
@@ -122,6 +136,13 @@ impl TileTracer {
     /// Turns packet/leaf culling (4.1.4) on or off for the frustum methods.
     pub fn set_culling(&mut self, on: bool) {
         self.culling = on;
+    }
+
+    /// Any-hit mode on or off for the frustum methods (off by default): with it on, a lane is
+    /// finished at its first hit, so the hits are *some* hit in the ray's interval, the
+    /// answer shadow rays need, not the closest.
+    pub fn set_any_hit(&mut self, on: bool) {
+        self.any_hit = on;
     }
 
     /// Number of 2x2 packets in the loaded tile (the denominator of N and I).
@@ -222,35 +243,91 @@ impl TileTracer {
         Some(())
     }
 
-    /// Resets the hits and finished lanes before a trace.
-    fn reset(&mut self) {
+    /// Resets the hits and finished lanes before a trace, and makes the watertight shear
+    /// table when a frustum method traces a watertight tree.
+    fn reset(&mut self, tree: &KdTree, frustum: bool) {
+        self.sheared.clear();
+        if frustum && tree.intersector() == Intersector::Watertight {
+            self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
+        }
         self.hits.clear();
         self.hits.extend(self.packets.iter().map(|p| PacketHit::new(&p.rays)));
         self.done.clear();
         self.done.extend(self.packets.iter().map(|p| (!p.rays.valid.bitmask() & 0xF) as u8));
     }
 
-    /// Traces the loaded tile's closest hits with `method`.
+    /// Traces the loaded tile's closest hits with `method` (any hits for the frustum methods
+    /// in any-hit mode).
     pub fn trace<C: PacketCounters>(&mut self, tree: &KdTree, method: TileMethod, counters: &mut C) {
-        self.reset();
-        self.sheared.clear();
-        if tree.intersector() == Intersector::Watertight && matches!(method, TileMethod::Frustum | TileMethod::Mft) {
-            self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
-        }
         match method {
             TileMethod::Packet => {
+                self.reset(tree, false);
                 for (packet, hit) in self.packets.iter().zip(&mut self.hits) {
                     *hit = omni::intersect(tree, packet, counters);
                 }
             }
             TileMethod::SameSign => {
+                self.reset(tree, false);
                 for (packet, hit) in self.packets.iter().zip(&mut self.hits) {
                     *hit = samesign::intersect(tree, &packet.rays, counters);
                 }
             }
-            TileMethod::Frustum => frustum::intersect(tree, self, counters),
-            TileMethod::Mft => mft::intersect(tree, self, counters),
+            TileMethod::Frustum => {
+                self.reset(tree, true);
+                let f = frustum::bound(tree, self, 0..self.packets.len());
+                frustum::intersect(tree, self, &f, counters);
+            }
+            TileMethod::Mft => {
+                let bounds = self.prepare(tree);
+                mft::intersect(tree, self, &bounds, counters);
+            }
         }
+    }
+
+    /// Starts a frustum trace of the loaded tile with frusta made elsewhere (the cones of
+    /// the `cones` crate): resets the hits, finishes the lanes that miss the tree's root box
+    /// and returns each quadrant's pyramid bound ([`frustum::bound`]), whose `near` and `far`
+    /// bound the ray parameters of its rays inside the root box. Follow it with
+    /// [`TileTracer::trace_frusta`].
+    pub fn prepare(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
+        self.reset(tree, true);
+        let quadrants = self.quadrants.clone();
+        quadrants.map(|range| frustum::bound(tree, self, range))
+    }
+
+    /// Traces the tile [`TileTracer::prepare`]d with `frusta`, which must bound its rays
+    /// (every ray of the frustum, or of quadrant `q` for frustum `q`, inside the frustum).
+    pub fn trace_frusta<C: PacketCounters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
+        match frusta {
+            Frusta::One(f) => frustum::intersect(tree, self, f, counters),
+            Frusta::Four(bounds) => mft::intersect(tree, self, bounds, counters),
+        }
+    }
+
+    /// The camera and tile of a primary tile ([`TileTracer::load_primary`]); `None` for
+    /// packets loaded with [`TileTracer::load_packets`].
+    pub fn primary(&self) -> Option<(&Camera, Tile)> {
+        self.camera.as_ref().map(|c| (c, self.tile))
+    }
+
+    /// The packets of quadrant `q` (0 to 3: top-left, top-right, bottom-left, bottom-right
+    /// for a primary tile, quarters by packet order otherwise).
+    pub fn quadrant(&self, q: usize) -> &[OmniPacket] {
+        &self.packets[self.quadrants[q & 3].clone()]
+    }
+
+    /// The pixels of quadrant `q` of a primary tile (`None` when the quadrant is empty, at
+    /// the image's right or bottom edge, or for loaded packets).
+    pub fn quadrant_tile(&self, q: usize) -> Option<Tile> {
+        self.camera?;
+        let g = self.grids[q & 3];
+        let (x1, y1) = ((g.x0 + 2 * g.cols).min(self.tile.x1), (g.y0 + 2 * g.rows).min(self.tile.y1));
+        (g.cols > 0 && g.rows > 0).then_some(Tile { x0: g.x0, y0: g.y0, x1, y1 })
+    }
+
+    /// The common origin of the loaded rays.
+    pub fn origin(&self) -> glam::Vec3 {
+        glam::Vec3::from_slice(&self.origin[..3])
     }
 
     /// The hits of the packets, in packet order (after [`TileTracer::trace`]).

@@ -1,0 +1,201 @@
+//! Cone soft shadows (thesis 4.1.9, Figure 4.5, Table 4.6): the 16 shadow rays from a
+//! surface point to a spherical light, traced as one group bounded by the cone from the
+//! point tangent to the light, by the pyramid of the same 16 rays, or one by one.
+//!
+//! The rays go from the point (moved off its surface by `kdtree::ray::offset_origin`) to
+//! 16 stratified points of the light's disk as seen from the point (centre `c`, radius `r`,
+//! facing the point), over `t` in `[0, 1]`. Every such ray lies inside the tangent cone
+//! (`sin α = r / |c - p|`), so the cone needs nothing from the rays but their lengths: its
+//! cost does not grow with the number of samples, while the pyramid takes the per-axis
+//! extremes of all 16 directions. All three give the same occlusion per ray: the cone and
+//! the pyramid go through `packets`' frustum traversal in any-hit mode, whose leaves test
+//! the rays exactly.
+
+use glam::{DVec3, Vec3};
+use kdtree::{Counters, KdTree, Ray};
+use packets::{Frusta, OmniPacket, PacketCounters, RayPacket, TileMethod, TileTracer};
+use scenes::SphereLight;
+
+use crate::cone::Cone;
+use crate::traverse::cone_bound;
+
+/// Shadow rays per shaded point.
+pub const SAMPLES: usize = 16;
+
+/// How the 16 shadow rays of a point are traced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ShadowMethod {
+    /// Each ray on its own (`KdTree::occluded`).
+    Single,
+    /// The 16 rays as four 2x2 packets under one pyramid frustum (their per-axis direction
+    /// extremes, `packets::frustum`).
+    Pyramid,
+    /// The 16 rays as four 2x2 packets under the cone tangent to the light.
+    Cone,
+}
+
+impl ShadowMethod {
+    /// Every method, in table order.
+    pub const ALL: [ShadowMethod; 3] = [ShadowMethod::Single, ShadowMethod::Pyramid, ShadowMethod::Cone];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowMethod::Single => "single",
+            ShadowMethod::Pyramid => "pyramid",
+            ShadowMethod::Cone => "cone",
+        }
+    }
+}
+
+/// The 16 sample points of `light` seen from `p`: the centres of a 4x4 grid of strata of the
+/// unit square, mapped to the light's disk facing `p` (Shirley's concentric map keeps the
+/// strata of equal area). `None` when `p` is inside the light or the input is not finite.
+pub fn light_samples(p: Vec3, light: &SphereLight) -> Option<[Vec3; SAMPLES]> {
+    let axis = (light.center - p).as_dvec3();
+    let dist = axis.length();
+    if !dist.is_finite() || light.radius.is_nan() || light.radius < 0.0 || dist <= f64::from(light.radius) {
+        return None;
+    }
+    let w = axis / dist;
+    let helper = if w.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let u = w.cross(helper).normalize();
+    let v = w.cross(u);
+    let r = f64::from(light.radius);
+    let c = light.center.as_dvec3();
+    Some(std::array::from_fn(|i| {
+        let (a, b) = (((i % 4) as f64 + 0.5) / 2.0 - 1.0, ((i / 4) as f64 + 0.5) / 2.0 - 1.0);
+        // Concentric map of [-1, 1]^2 to the unit disk.
+        let (rho, phi) = if a.abs() > b.abs() {
+            (a, std::f64::consts::FRAC_PI_4 * (b / a))
+        } else {
+            (b, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b))
+        };
+        (c + r * rho * (phi.cos() * u + phi.sin() * v)).as_vec3()
+    }))
+}
+
+/// The 16 shadow rays from `origin` (already off the surface) to `samples`, over `[0, 1]`.
+pub fn shadow_rays(origin: Vec3, samples: &[Vec3; SAMPLES]) -> [Ray; SAMPLES] {
+    samples.map(|s| Ray::new(origin, s - origin, 0.0, 1.0))
+}
+
+/// Scratch space for tracing groups of 16 shadow rays from one point, one per thread.
+#[derive(Clone, Debug)]
+pub struct SoftShadowTracer {
+    tracer: TileTracer,
+    packets: Vec<OmniPacket>,
+}
+
+impl Default for SoftShadowTracer {
+    fn default() -> Self {
+        SoftShadowTracer::new()
+    }
+}
+
+impl SoftShadowTracer {
+    /// A tracer in any-hit mode for four packets.
+    pub fn new() -> SoftShadowTracer {
+        let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
+        tracer.set_any_hit(true);
+        SoftShadowTracer { tracer, packets: Vec::with_capacity(4) }
+    }
+
+    /// Which of the 16 `rays` (sharing one origin, `t_min >= 0`; see [`shadow_rays`]) are
+    /// occluded, as bit `i` for ray `i`, traced with `method`. `cone` must hold every ray's
+    /// direction (the [`Cone::tangent_to_sphere`] of the light from the rays' origin does);
+    /// it is used by [`ShadowMethod::Cone`] only.
+    pub fn occluded<C: PacketCounters + Counters>(
+        &mut self,
+        tree: &KdTree,
+        rays: &[Ray; SAMPLES],
+        cone: &Cone,
+        method: ShadowMethod,
+        counters: &mut C,
+    ) -> u16 {
+        if method == ShadowMethod::Single {
+            let mut mask = 0u16;
+            for (i, ray) in rays.iter().enumerate() {
+                mask |= u16::from(tree.occluded_counted(ray, counters)) << i;
+            }
+            return mask;
+        }
+        self.packets.clear();
+        for four in rays.chunks(4) {
+            match OmniPacket::new(RayPacket::new(four)) {
+                Some(p) => self.packets.push(p),
+                // Rays that do not share an origin: one by one.
+                None => return self.occluded(tree, rays, cone, ShadowMethod::Single, counters),
+            }
+        }
+        self.tracer.load_packets(&self.packets).expect("one origin");
+        match method {
+            ShadowMethod::Pyramid => self.tracer.trace(tree, TileMethod::Frustum, counters),
+            _ => {
+                let pyramids = self.tracer.prepare(tree);
+                let near = pyramids.iter().map(|b| b.near).fold(f32::INFINITY, f32::min);
+                let far = pyramids.iter().map(|b| b.far).fold(f32::NEG_INFINITY, f32::max);
+                let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+                for r in rays {
+                    let l = r.dir.as_dvec3().length();
+                    (lo, hi) = (lo.min(l), hi.max(l));
+                }
+                let pyramid = packets::FrustumBound { near, far, ..pyramids[0] };
+                let bound = cone_bound(cone, &pyramid, (lo * (1.0 - 1e-12), hi * (1.0 + 1e-12)));
+                self.tracer.trace_frusta(tree, &Frusta::One(bound), counters);
+            }
+        }
+        let mut mask = 0u16;
+        for (i, hit) in self.tracer.packet_hits().iter().enumerate() {
+            mask |= (hit.found.bitmask() as u16 & 0xF) << (4 * i);
+        }
+        mask
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kdtree::{BuildConfig, NoCounters};
+
+    #[test]
+    fn samples_lie_on_the_light_inside_the_tangent_cone() {
+        let light = SphereLight { center: Vec3::new(1.0, 5.0, -2.0), radius: 0.75, intensity: Vec3::ONE };
+        let p = Vec3::new(0.2, 0.1, 0.3);
+        let s = light_samples(p, &light).unwrap();
+        let cone = Cone::tangent_to_sphere(p, light.center, light.radius).unwrap();
+        for q in s {
+            assert!((q - light.center).length() <= light.radius * 1.0001);
+            assert!(cone.contains(q - p));
+        }
+        // Distinct strata.
+        for i in 0..SAMPLES {
+            for j in 0..i {
+                assert!((s[i] - s[j]).length() > 0.05);
+            }
+        }
+        assert!(light_samples(light.center, &light).is_none());
+    }
+
+    /// A wall half across the light: the three methods agree ray by ray, and some rays are
+    /// blocked and some not.
+    #[test]
+    fn methods_agree_on_a_half_blocked_light() {
+        // A quad at y = 2 covering x < 1.0 between the floor point and the light.
+        let tris = [
+            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0)],
+            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0), Vec3::new(-5.0, 2.0, 5.0)],
+        ];
+        let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
+        let light = SphereLight { center: Vec3::new(1.0, 4.0, 0.0), radius: 0.8, intensity: Vec3::ONE };
+        let p = Vec3::new(1.0, 0.0, 0.0);
+        let rays = shadow_rays(p, &light_samples(p, &light).unwrap());
+        let cone = Cone::tangent_to_sphere(p, light.center, light.radius).unwrap();
+        let mut t = SoftShadowTracer::new();
+        let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
+        assert!(single != 0 && single != 0xFFFF, "{single:016b}");
+        for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
+            assert_eq!(t.occluded(&tree, &rays, &cone, m, &mut NoCounters), single, "{m:?}");
+        }
+    }
+}

@@ -1,0 +1,226 @@
+//! Cone proxy traversal of a tile (thesis 4.1.6-4.1.8, Listing 4.5 corrected) and MFT cones
+//! (4.1.9).
+//!
+//! A cone bounds the tile's rays and goes down the kd-tree in their place, as the pyramid
+//! frustum does in `packets::frustum`; at the leaves the tile's 2x2 packets are culled
+//! against the leaf's box and intersected exactly as there, so the hits are the single rays'
+//! hits. The traversal step is Listing 4.5 with its error fixed: front and back voxels are
+//! chosen from `split_minus_o` (the listing reads an undefined `dist`), i.e. from the side of
+//! the plane the apex lies on, and an apex *on* the plane visits both children over the whole
+//! interval (the listing would compute `0 * k` and see the single point `t = 0`). Listing
+//! 4.3's step, `dist * k0`, `dist * k1`, negative values to `+inf`, then min and max, has the
+//! very form of the pyramid's step with `1 / lo`, `1 / hi`, so the cone is handed to the same
+//! traversal as a [`FrustumBound`] whose factors are Listing 4.4's ([`Cone::factors`]).
+//!
+//! Distances along a cone are measured along its axis, a ray's hits by its parameter `t`:
+//! a point at parameter `t` of a ray `d` inside the cone lies `t |d| cos θ <= t |d|` along the
+//! axis, so the bound converts hits with `hit_scale = max |d|` and the root box interval of
+//! the rays (from their pyramid) with `min |d| cos α` and `max |d|`.
+//!
+//! **Which cone.** For a primary tile, the narrowest cone holding the four corner rays of
+//! the tile (or of the quadrant, for MFT cones): the rays through a rectangle of the image
+//! plane are inside every convex cone holding its corners. It is opened by
+//! [`CORNER_MARGIN`] radians for the rounding of the inner rays, which are bounded without
+//! being looked at (the per-tile cost of the cone is independent of the tile's size, the
+//! thesis's argument for cones). For packets loaded from elsewhere the axis is the rays'
+//! mean direction and the angle the widest ray's. A set of directions no cone narrower than
+//! [`crate::cone::MAX_HALF_ANGLE`] holds falls back to the pyramid.
+
+use glam::{DVec3, Vec3};
+use kdtree::KdTree;
+use packets::{Frusta, FrustumBound, OmniPacket, PacketCounters, TileTracer};
+use scenes::{Camera, Tile};
+
+use crate::cone::{Cone, ConeError, angle_between};
+
+/// The angle in radians a primary tile's cone is opened by beyond its corner rays: well
+/// above the rounding of a normalised camera ray's direction (a few `1e-7`), well below a
+/// pixel's angle at any usable resolution.
+pub const CORNER_MARGIN: f64 = 2e-6;
+
+/// How far from 1 a normalised camera ray's length may be, for the distance conversions.
+const UNIT_SLACK: f64 = 1e-5;
+
+/// The cone methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ConeMethod {
+    /// One cone for the whole tile (4.1.8).
+    Cone,
+    /// The tile's four quadrants, one cone each, in the four lanes of a `Vec4` (4.1.9).
+    MftCone,
+}
+
+impl ConeMethod {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ConeMethod::Cone => "cone",
+            ConeMethod::MftCone => "mft-cone",
+        }
+    }
+}
+
+/// The cone of a primary tile: the narrowest cone from the camera's eye holding the rays of
+/// the tile's four corner pixels, opened by [`CORNER_MARGIN`].
+pub fn primary_cone(camera: &Camera, tile: &Tile) -> Result<Cone, ConeError> {
+    let (x1, y1) = (tile.x1.saturating_sub(1).max(tile.x0), tile.y1.saturating_sub(1).max(tile.y0));
+    let corners = [(tile.x0, tile.y0), (x1, tile.y0), (tile.x0, y1), (x1, y1)].map(|(x, y)| camera.pixel_ray(x, y).1);
+    Cone::smallest_enclosing(camera.eye, &corners, CORNER_MARGIN)
+}
+
+/// The frustum bound of `cone` (apex at the rays' origin) for rays whose pyramid is
+/// `pyramid` and whose direction lengths lie in `len = (min, max)`: Listing 4.4's factors and
+/// the pyramid's root box interval converted to distances along the axis.
+pub fn cone_bound(cone: &Cone, pyramid: &FrustumBound, len: (f64, f64)) -> FrustumBound {
+    let f = cone.factors();
+    if is_empty(pyramid) {
+        return FrustumBound { k0: f.k0, k1: f.k1, ..*pyramid };
+    }
+    let cos = 1.0 / (1.0 + cone.tan_alpha * cone.tan_alpha).sqrt();
+    let near = f64::from(pyramid.near);
+    let near = if near > 0.0 { (near * len.0 * cos * (1.0 - 1e-6)) as f32 } else { pyramid.near };
+    let up = |t: f64| if t.is_finite() { (t * (1.0 + 1e-6)) as f32 } else { t as f32 };
+    FrustumBound { k0: f.k0, k1: f.k1, near, far: up(f64::from(pyramid.far) * len.1), hit_scale: up(len.1) }
+}
+
+/// Whether no ray is left in the bound (an empty or NaN interval).
+fn is_empty(b: &FrustumBound) -> bool {
+    b.near.is_nan() || b.far.is_nan() || b.near > b.far
+}
+
+/// The smallest pyramid bound holding the four quadrants' (for the interval only).
+fn merged(p: &[FrustumBound; 4]) -> FrustumBound {
+    let near = p.iter().map(|b| b.near).fold(f32::INFINITY, f32::min);
+    let far = p.iter().map(|b| b.far).fold(f32::NEG_INFINITY, f32::max);
+    FrustumBound { near, far, ..p[0] }
+}
+
+/// The valid lanes' directions of `packets`.
+fn directions(packets: &[OmniPacket]) -> impl Iterator<Item = Vec3> + '_ {
+    packets.iter().flat_map(|p| {
+        let mask = p.rays.valid.bitmask();
+        (0..4)
+            .filter(move |l| mask >> l & 1 != 0)
+            .map(move |l| Vec3::new(p.rays.d[0][l], p.rays.d[1][l], p.rays.d[2][l]))
+    })
+}
+
+/// The cone of loaded packets (mean axis, widest ray) and their direction lengths.
+fn loaded_cone(origin: Vec3, packets: &[OmniPacket]) -> Result<(Cone, (f64, f64)), ConeError> {
+    let mut sum = DVec3::ZERO;
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for d in directions(packets) {
+        let d = d.as_dvec3();
+        let l = d.length();
+        lo = lo.min(l);
+        hi = hi.max(l);
+        sum += d / l;
+    }
+    if lo.is_nan() || lo <= 0.0 || !sum.is_finite() || sum.length() == 0.0 {
+        return Err(ConeError::ZeroAxis);
+    }
+    let axis = sum.normalize();
+    let alpha = directions(packets).map(|d| angle_between(axis, d.as_dvec3())).fold(0.0, f64::max);
+    // The angle is computed in f64 from the rays' own directions; the margin covers its
+    // rounding.
+    let alpha = alpha * (1.0 + 1e-12) + 1e-12;
+    if alpha.is_nan() || alpha > crate::cone::MAX_HALF_ANGLE {
+        return Err(ConeError::BadAngle(alpha));
+    }
+    Ok((Cone::from_tan(origin.as_dvec3(), axis, alpha.tan())?, (lo * (1.0 - 1e-12), hi * (1.0 + 1e-12))))
+}
+
+/// The cone of the loaded tile (`q = None`) or of its quadrant `q`, with the rays' direction
+/// lengths.
+fn tile_cone(tracer: &TileTracer, q: Option<usize>) -> Result<(Cone, (f64, f64)), ConeError> {
+    if let Some((camera, tile)) = tracer.primary() {
+        let tile = match q {
+            None => tile,
+            Some(q) => tracer.quadrant_tile(q).ok_or(ConeError::ZeroAxis)?,
+        };
+        return Ok((primary_cone(camera, &tile)?, (1.0 - UNIT_SLACK, 1.0 + UNIT_SLACK)));
+    }
+    let packets = match q {
+        None => tracer.packets(),
+        Some(q) => tracer.quadrant(q),
+    };
+    loaded_cone(tracer.origin(), packets)
+}
+
+/// The frusta of `method` for the loaded tile, given its quadrants' pyramids (from
+/// [`TileTracer::prepare`]): a cone, or four, each falling back to the pyramid where no
+/// cone holds the rays.
+pub fn cone_frusta(tracer: &TileTracer, method: ConeMethod, pyramids: &[FrustumBound; 4]) -> Frusta {
+    match method {
+        ConeMethod::Cone => match tile_cone(tracer, None) {
+            Ok((cone, len)) => Frusta::One(cone_bound(&cone, &merged(pyramids), len)),
+            Err(_) => Frusta::Four(*pyramids),
+        },
+        ConeMethod::MftCone => Frusta::Four(std::array::from_fn(|q| {
+            if is_empty(&pyramids[q]) {
+                return pyramids[q];
+            }
+            match tile_cone(tracer, Some(q)) {
+                Ok((cone, len)) => cone_bound(&cone, &pyramids[q], len),
+                Err(_) => pyramids[q],
+            }
+        })),
+    }
+}
+
+/// Traces the tile loaded in `tracer` (a primary tile or packets sharing one origin) with
+/// a cone or MFT cones: the closest hits (any hits in the tracer's any-hit mode), exactly
+/// those of single rays.
+pub fn trace<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
+    let pyramids = tracer.prepare(tree);
+    let frusta = cone_frusta(tracer, method, &pyramids);
+    tracer.trace_frusta(tree, &frusta, counters);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every pixel ray of every tile lies inside the cone of its corner rays *before* the
+    /// margin is added, up to far less than the margin: the margin covers the rounding of the
+    /// rays the primary cone does not look at.
+    #[test]
+    fn corner_cones_hold_every_ray_of_their_tile() {
+        let mut worst: f64 = 0.0;
+        for (w, h, fov, target) in [
+            (64, 64, 60.0, Vec3::new(0.3, -0.2, -1.0)),
+            (96, 40, 120.0, Vec3::new(1.0, 0.5, 0.0)),
+            (33, 71, 10.0, Vec3::new(0.0, 0.0, 1.0)),
+            (50, 50, 170.0, Vec3::new(0.0, -1.0, 0.01)),
+        ] {
+            let camera =
+                Camera::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 2.0, 3.0) + target, fov, w, h).unwrap();
+            for size in [4, 8, 16, 32] {
+                for tile in scenes::tile::tiles(w, h, size) {
+                    let (x1, y1) = (tile.x1 - 1, tile.y1 - 1);
+                    let corners = [(tile.x0, tile.y0), (x1, tile.y0), (tile.x0, y1), (x1, y1)]
+                        .map(|(x, y)| camera.pixel_ray(x, y).1);
+                    let bare = Cone::smallest_enclosing(camera.eye, &corners, 0.0).unwrap();
+                    for (x, y) in tile.pixels() {
+                        let d = camera.pixel_ray(x, y).1.as_dvec3();
+                        worst = worst.max(angle_between(bare.axis, d) - bare.half_angle());
+                    }
+                    let cone = primary_cone(&camera, &tile).unwrap();
+                    assert!(tile.pixels().all(|(x, y)| cone.contains(camera.pixel_ray(x, y).1)));
+                }
+            }
+        }
+        assert!(worst < CORNER_MARGIN / 4.0, "a ray lies {worst} rad outside its tile's corner cone");
+    }
+
+    #[test]
+    fn camera_rays_have_unit_length() {
+        let camera = Camera::look_at(Vec3::ZERO, Vec3::new(0.2, 0.1, -1.0), 100.0, 97, 53).unwrap();
+        for y in 0..53 {
+            for x in 0..97 {
+                let l = camera.pixel_ray(x, y).1.as_dvec3().length();
+                assert!((l - 1.0).abs() < UNIT_SLACK / 10.0, "{l}");
+            }
+        }
+    }
+}

@@ -1,0 +1,267 @@
+//! Cone and MFT-cone traversal against single rays on the built-in scenes, Sponza when
+//! present, the hard cases (eye on split planes, scaled and translated scenes, random
+//! soups), packets loaded from elsewhere, and cone soft shadows against the pyramid and
+//! single rays: the same closest hit per pixel, the same occlusion per shadow ray.
+
+use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use cones::{Cone, ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
+use glam::Vec3;
+use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use packets::{OmniPacket, RayPacket, TileTracer};
+use proptest::prelude::*;
+use scenes::{Camera, SphereLight, tiles};
+
+const METHODS: [ConeMethod; 2] = [ConeMethod::Cone, ConeMethod::MftCone];
+
+/// `got` is the single ray's hit, or a tie: another triangle the ray hits at the same `t`.
+fn same_hit(tree: &KdTree, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
+    match (got, want) {
+        (Some(g), Some(w)) if g.prim != w.prim => {
+            g.t == w.t && BruteForce::for_tree(tree).all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t)
+        }
+        (g, w) => g == w,
+    }
+}
+
+/// Pixels of `camera`'s image where `method` at `tile_size` differs from single rays, with
+/// the first one described.
+fn compare(tree: &KdTree, camera: &Camera, method: ConeMethod, tile_size: u32) -> (usize, Option<String>) {
+    let mut tracer = TileTracer::new(tile_size).unwrap();
+    let (mut bad, mut first) = (0, None);
+    for tile in tiles(camera.width, camera.height, tile_size) {
+        tracer.load_primary(camera, &tile).unwrap();
+        traverse::trace(tree, &mut tracer, method, &mut NoCounters);
+        let mut out = vec![None; tile.pixel_count()];
+        tracer.write_hits(&mut out);
+        for ((x, y), got) in tile.pixels().zip(out) {
+            let (origin, dir) = camera.pixel_ray(x, y);
+            let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
+            let want = tree.intersect(&ray);
+            if !same_hit(tree, &ray, got, want) {
+                bad += 1;
+                first.get_or_insert_with(|| format!("pixel ({x}, {y}): {method:?} {got:?}, single ray {want:?}"));
+            }
+        }
+    }
+    (bad, first)
+}
+
+fn build(scene: &scenes::Scene, intersector: Intersector) -> KdTree {
+    let config = BuildConfig { intersector, ..Default::default() };
+    KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap()
+}
+
+fn check_all(tree: &KdTree, camera: &Camera, what: &str) {
+    for method in METHODS {
+        for size in [4, 8, 16, 32] {
+            let (bad, first) = compare(tree, camera, method, size);
+            assert_eq!(bad, 0, "{what}, {method:?} tile {size}: {bad} pixels differ; first {first:?}");
+        }
+    }
+}
+
+/// Soft shadows of the primary hits of `camera` to a spherical light at `centre`: the cone,
+/// the pyramid and single rays agree on every shadow ray. Returns how many points were
+/// partly shadowed (so that a test can insist on penumbrae).
+fn check_soft_shadows(scene: &scenes::Scene, tree: &KdTree, camera: &Camera, light: &SphereLight) -> usize {
+    let mut t = SoftShadowTracer::new();
+    let mut penumbra = 0;
+    for y in 0..camera.height {
+        for x in 0..camera.width {
+            let (o, d) = camera.pixel_ray(x, y);
+            let Some(hit) = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY)) else { continue };
+            let tri = scene.mesh.triangle(hit.prim as usize);
+            let p = kdtree::ray::offset_origin(&tri, &hit, light.center - kdtree::ray::surface_point(&tri, &hit));
+            let (Some(samples), Some(cone)) =
+                (light_samples(p, light), Cone::tangent_to_sphere(p, light.center, light.radius))
+            else {
+                continue;
+            };
+            let rays = shadow_rays(p, &samples);
+            let single = t.occluded(tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
+            for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
+                let got = t.occluded(tree, &rays, &cone, m, &mut NoCounters);
+                assert_eq!(got, single, "pixel ({x}, {y}) {m:?}: {got:016b} vs single {single:016b}");
+            }
+            penumbra += usize::from(single != 0 && u32::from(single) != (1u32 << SAMPLES) - 1);
+        }
+    }
+    penumbra
+}
+
+#[test]
+fn cones_match_single_rays_on_every_builtin_scene_and_view() {
+    for &name in scenes::builtin::NAMES {
+        let scene = scenes::load_scene(name).unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let tree = build(&scene, intersector);
+            for view in &scene.views {
+                let camera = view.camera(75, 45).unwrap();
+                check_all(&tree, &camera, &format!("{name} view {} {intersector:?}", view.name));
+            }
+        }
+    }
+}
+
+#[test]
+fn cone_soft_shadows_match_single_rays_on_the_builtin_scenes() {
+    let mut penumbra = 0;
+    for &name in scenes::builtin::NAMES {
+        let scene = scenes::load_scene(name).unwrap();
+        let tree = build(&scene, Intersector::Wald);
+        let diag = (tree.bounds().max - tree.bounds().min).length();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        for radius in [0.02 * diag, 0.08 * diag] {
+            let light = SphereLight { center: scene.point_light.position, radius, intensity: Vec3::ONE };
+            penumbra += check_soft_shadows(&scene, &tree, &camera, &light);
+        }
+    }
+    assert!(penumbra > 50, "only {penumbra} partly shadowed points: the test would not see a difference");
+}
+
+#[test]
+fn cones_match_single_rays_on_sponza() {
+    let found = scenes::shared_scenes_dir().and_then(|dir| {
+        let entries = std::fs::read_dir(dir).ok()?;
+        entries
+            .flatten()
+            .map(|e| e.path())
+            .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("sponza")))
+    });
+    let Some(path) = found else {
+        eprintln!("skipped: no sponza* file in the shared scenes");
+        return;
+    };
+    let scene = scenes::load_scene(path.to_str().unwrap()).unwrap();
+    let tree = build(&scene, Intersector::Wald);
+    let camera = scene.default_view().camera(160, 120).unwrap();
+    check_all(&tree, &camera, "sponza");
+    let diag = (tree.bounds().max - tree.bounds().min).length();
+    let light = SphereLight { center: scene.point_light.position, radius: 0.03 * diag, intensity: Vec3::ONE };
+    check_soft_shadows(&scene, &tree, &scene.default_view().camera(48, 36).unwrap(), &light);
+}
+
+/// The eye exactly on split planes (the apex-on-the-plane case), looking along an axis with
+/// an odd image width so that the centre column's rays lie in the plane.
+#[test]
+fn apex_on_split_planes_and_rays_in_them() {
+    let scene = scenes::load_scene("atrium").unwrap();
+    let tree = build(&scene, Intersector::Wald);
+    let view = scene.default_view();
+    let mut tried = 0;
+    for node in tree.nodes().iter().filter(|n| !n.is_leaf()).take(40) {
+        let axis = node.axis();
+        if axis == 1 {
+            continue;
+        }
+        let mut eye = view.eye;
+        eye[axis] = node.split();
+        let mut target = eye;
+        target[2 - axis] += 10.0;
+        let camera = Camera::look_at(eye, target, 70.0, 33, 21).unwrap();
+        assert_eq!(camera.pixel_ray(16, 10).1[axis], 0.0);
+        check_all(&tree, &camera, &format!("eye on split {axis} = {}", node.split()));
+        tried += 1;
+    }
+    assert!(tried >= 10);
+}
+
+#[test]
+fn scaled_and_translated_scenes() {
+    let scene = scenes::load_scene("arena").unwrap();
+    for (scale, shift) in [(1e-3f32, Vec3::ZERO), (1e3, Vec3::ZERO), (1.0, Vec3::splat(1e4))] {
+        let positions: Vec<Vec3> = scene.mesh.positions.iter().map(|&p| p * scale + shift).collect();
+        let tree = KdTree::build(&positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
+        let v = scene.default_view();
+        let camera = Camera::look_at(v.eye * scale + shift, v.target * scale + shift, v.fovy_deg, 48, 40).unwrap();
+        check_all(&tree, &camera, &format!("arena x{scale} + {shift}"));
+    }
+}
+
+/// Packets loaded from elsewhere (rays from one origin in a narrow bundle, unnormalised, and
+/// in every direction, where no cone holds them and the pyramid takes over): the cone
+/// methods give the single rays' hits.
+#[test]
+fn loaded_packets_in_narrow_and_wide_bundles() {
+    let scene = scenes::load_scene("arena").unwrap();
+    let tree = build(&scene, Intersector::Watertight);
+    let origin = scene.default_view().eye;
+    let mut state = 987654321u32;
+    let mut rnd = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        (state as f32 / u32::MAX as f32) * 2.0 - 1.0
+    };
+    let mut tracer = TileTracer::new(8).unwrap();
+    for spread in [0.01f32, 0.3, 3.0] {
+        for round in 0..20 {
+            let axis = Vec3::new(rnd(), rnd(), rnd());
+            let rays: Vec<Ray> = (0..64)
+                .map(|_| {
+                    let d = (axis + spread * Vec3::new(rnd(), rnd(), rnd())) * (1.0 + 4.0 * rnd().abs());
+                    Ray::new(origin, d, 0.0, f32::INFINITY)
+                })
+                .collect();
+            let packets: Vec<OmniPacket> =
+                rays.chunks(4).map(|r| OmniPacket::new(RayPacket::new(r)).unwrap()).collect();
+            for method in METHODS {
+                tracer.load_packets(&packets).unwrap();
+                traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
+                for (i, ray) in rays.iter().enumerate() {
+                    let got = tracer.packet_hits()[i / 4].get(i % 4);
+                    let want = tree.intersect(ray);
+                    assert!(
+                        same_hit(&tree, ray, got, want),
+                        "spread {spread} round {round} ray {i} {method:?}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+fn vertex() -> impl Strategy<Value = Vec3> {
+    let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
+    (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    /// Random soups (sharing vertices and axis planes), random cameras: both cone methods at
+    /// every tile size give the single ray's hit; soft shadows from a random light agree.
+    #[test]
+    fn random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
+                                eye in vertex(), target in vertex(), wide in any::<bool>(),
+                                watertight in any::<bool>(), light in vertex(), radius in 0.01f32..0.5) {
+        let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
+        let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
+        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
+        let eye = eye * 1.5;
+        prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
+        let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 24, 20).unwrap();
+        for method in METHODS {
+            for size in [4, 8, 16] {
+                let (bad, first) = compare(&tree, &camera, method, size);
+                prop_assert_eq!(bad, 0, "{:?} tile {}: {:?}", method, size, first);
+            }
+        }
+        let light = SphereLight { center: light * 1.2, radius, intensity: Vec3::ONE };
+        let mut t = SoftShadowTracer::new();
+        for y in (0..20).step_by(2) {
+            for x in (0..24).step_by(2) {
+                let (o, d) = camera.pixel_ray(x, y);
+                let Some(hit) = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY)) else { continue };
+                let tri = tree.triangle(hit.prim);
+                let p = kdtree::ray::offset_origin(&tri, &hit, light.center - kdtree::ray::surface_point(&tri, &hit));
+                let (Some(s), Some(cone)) = (light_samples(p, &light), Cone::tangent_to_sphere(p, light.center, light.radius)) else { continue };
+                let rays = shadow_rays(p, &s);
+                let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
+                for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
+                    prop_assert_eq!(t.occluded(&tree, &rays, &cone, m, &mut NoCounters), single, "{:?}", m);
+                }
+            }
+        }
+    }
+}
