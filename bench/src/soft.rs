@@ -7,7 +7,7 @@ use kdtree::{Hit, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight};
 
-use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
 use cones::{Cone, ShadowMethod, SoftShadowTracer};
 
 use crate::render::TileCounters;
@@ -47,7 +47,7 @@ fn shadow_start(scene: &Scene, light: &SphereLight, hit: &Hit, dir: Vec3) -> Opt
         return None;
     }
     let start = kdtree::ray::offset_origin(&tri, hit, to_light);
-    Some((start, Cone::tangent_to_sphere(start, light.center, light.radius)?))
+    Some((start, sample_cone(start, light)?))
 }
 
 /// The result of one soft-shadow pass.

@@ -83,6 +83,13 @@ pub fn angle_between(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
 
+/// `tan(alpha)` rounded up by a few ulps, so that `atan` of it is not below `alpha` and the
+/// directions a cone was made to hold test as inside it.
+#[inline]
+fn tan_up(alpha: f64) -> f64 {
+    alpha.tan() * (1.0 + 8.0 * f64::EPSILON)
+}
+
 impl Cone {
     /// A cone of apex `apex`, axis `axis` (any non-zero length) and half-angle `half_angle`
     /// radians, `0 <= half_angle <= MAX_HALF_ANGLE`. Non-finite input is an error naming it.
@@ -134,51 +141,68 @@ impl Cone {
         if alpha.is_nan() || alpha > MAX_HALF_ANGLE {
             return Err(ConeError::BadAngle(alpha));
         }
-        Cone::from_tan(apex.as_dvec3(), axis, alpha.tan())
+        Cone::from_tan(apex.as_dvec3(), axis, tan_up(alpha))
     }
 
     /// The narrowest cone of apex `apex` holding the directions `dirs` (up to 8, e.g. the
     /// corner rays of a tile), opened by `margin` radians. The smallest enclosing cone of
     /// unit vectors is the smallest spherical cap around them, which is fixed by two of
     /// them (a diameter) or three (a circumcircle): every pair and triple is tried, and the
-    /// narrowest candidate that holds all of them is kept. For more than 8 directions the
-    /// axis is their mean ([`Cone::around`]).
+    /// candidate axis whose farthest direction is nearest (largest smallest cosine) is kept.
+    /// For more than 8 directions the axis is their mean ([`Cone::around`]). Allocates
+    /// nothing: it runs once per tile.
     pub fn smallest_enclosing(apex: Vec3, dirs: &[Vec3], margin: f64) -> Result<Cone, ConeError> {
-        let units: Vec<DVec3> = dirs.iter().map(|d| d.as_dvec3().normalize_or_zero()).collect();
-        if units.iter().any(|u| !u.is_finite()) {
-            return Err(ConeError::NotFinite("direction"));
+        if dirs.len() > 8 {
+            let mean: DVec3 = dirs.iter().map(|d| d.as_dvec3().normalize_or_zero()).sum();
+            if !mean.is_finite() {
+                return Err(ConeError::NotFinite("direction"));
+            }
+            return Cone::around(apex, mean.normalize_or_zero(), dirs, margin);
         }
-        let units: Vec<DVec3> = units.into_iter().filter(|u| *u != DVec3::ZERO).collect();
-        let mean = units.iter().sum::<DVec3>();
-        if units.is_empty() || mean.length() == 0.0 {
-            return Err(ConeError::ZeroAxis);
+        let mut units = [DVec3::ZERO; 8];
+        let mut n = 0;
+        for d in dirs {
+            if !d.is_finite() {
+                return Err(ConeError::NotFinite("direction"));
+            }
+            let u = d.as_dvec3().normalize_or_zero();
+            if u != DVec3::ZERO {
+                units[n] = u;
+                n += 1;
+            }
         }
-        if units.len() > 8 {
-            return Cone::around(apex, mean.normalize(), dirs, margin);
-        }
-        let spread = |axis: DVec3| units.iter().map(|u| angle_between(axis, *u)).fold(0.0, f64::max);
-        let mut best = (spread(mean.normalize()), mean.normalize());
+        let units = &units[..n];
+        // The cosine of the widest angle from `axis` to a direction.
+        let min_cos = |axis: DVec3| units.iter().map(|u| axis.dot(*u)).fold(f64::INFINITY, f64::min);
+        let mut best = (f64::NEG_INFINITY, DVec3::ZERO);
         let mut consider = |axis: DVec3| {
-            if axis.is_finite() && axis != DVec3::ZERO {
-                let angle = spread(axis);
-                if angle < best.0 {
-                    best = (angle, axis);
+            if axis != DVec3::ZERO && axis.is_finite() {
+                let c = min_cos(axis);
+                if c > best.0 {
+                    best = (c, axis);
                 }
             }
         };
-        let n = units.len();
+        consider(units.iter().sum::<DVec3>().normalize_or_zero());
         for i in 0..n {
-            consider(units[i]);
             for j in i + 1..n {
                 consider((units[i] + units[j]).normalize_or_zero());
                 for k in j + 1..n {
                     let normal = (units[j] - units[i]).cross(units[k] - units[i]).normalize_or_zero();
-                    let normal = if normal.dot(units[i]) < 0.0 { -normal } else { normal };
-                    consider(normal);
+                    consider(if normal.dot(units[i]) < 0.0 { -normal } else { normal });
                 }
             }
         }
-        Cone::around(apex, best.1, dirs, margin)
+        if best.1 == DVec3::ZERO {
+            return Err(ConeError::ZeroAxis);
+        }
+        // The half-angle from the nearest cosine, exactly as `contains` measures it: the
+        // largest `atan2` angle over the directions (four of them for a tile).
+        let alpha = units.iter().map(|u| angle_between(best.1, *u)).fold(0.0, f64::max) + margin;
+        if alpha.is_nan() || alpha > MAX_HALF_ANGLE {
+            return Err(ConeError::BadAngle(alpha));
+        }
+        Cone::from_tan(apex.as_dvec3(), best.1, tan_up(alpha))
     }
 
     /// The cone from `apex` tangent to the sphere of centre `center` and radius `radius`

@@ -5,9 +5,10 @@
 //! The rays go from the point (moved off its surface by `kdtree::ray::offset_origin`) to
 //! 16 stratified points of the light's disk as seen from the point (centre `c`, radius `r`,
 //! facing the point), over `t` in `[0, 1]`. Every such ray lies inside the tangent cone
-//! (`sin α = r / |c - p|`), so the cone needs nothing from the rays but their lengths: its
-//! cost does not grow with the number of samples, while the pyramid takes the per-axis
-//! extremes of all 16 directions. All three give the same occlusion per ray: the cone and
+//! (`sin α = r / |c - p|`), and inside the narrower cone of the sample disk
+//! ([`sample_cone`], `tan α = 0.75 r / |c - p|`), which is the one traced: the cone needs
+//! nothing from the rays but their lengths, so its cost does not grow with the number of
+//! samples, while the pyramid takes the per-axis extremes of all 16 directions. All three give the same occlusion per ray: the cone and
 //! the pyramid go through `packets`' frustum traversal in any-hit mode, whose leaves test
 //! the rays exactly.
 
@@ -75,6 +76,30 @@ pub fn light_samples(p: Vec3, light: &SphereLight) -> Option<[Vec3; SAMPLES]> {
     }))
 }
 
+/// How far from the light's centre the samples of [`light_samples`] lie, as a fraction of the
+/// radius: the stratum centres `±0.25`, `±0.75` map to rings of radius 0.25 and 0.75.
+pub const SAMPLE_RING: f64 = 0.75;
+
+/// The cone from `p` holding the 16 rays from `p` to [`light_samples`]`(p, light)`: axis
+/// towards the light's centre, `tan α = 0.75 r / |c - p|` (the samples lie on the disk facing
+/// `p` through the centre, at most `0.75 r` from it), opened for the rounding of the `f32`
+/// sample points and ray directions (a few ulps of the coordinates, seen from `|c - p|`
+/// away). It needs nothing from the rays, and is narrower than the cone tangent to the
+/// light ([`Cone::tangent_to_sphere`], `sin α = r / |c - p|`), which also holds them. `None`
+/// where [`light_samples`] is.
+pub fn sample_cone(p: Vec3, light: &SphereLight) -> Option<Cone> {
+    let to = (light.center - p).as_dvec3();
+    let dist = to.length();
+    let r = f64::from(light.radius);
+    if !dist.is_finite() || r.is_nan() || r < 0.0 || dist <= r {
+        return None;
+    }
+    let scale = light.center.as_dvec3().length() + p.as_dvec3().length() + r + dist;
+    let margin = 8.0 * f64::from(f32::EPSILON) * scale / dist;
+    let alpha = (SAMPLE_RING * r / dist).atan() + margin;
+    Cone::from_tan(p.as_dvec3(), to, alpha.tan()).ok()
+}
+
 /// The 16 shadow rays from `origin` (already off the surface) to `samples`, over `[0, 1]`.
 pub fn shadow_rays(origin: Vec3, samples: &[Vec3; SAMPLES]) -> [Ray; SAMPLES] {
     samples.map(|s| Ray::new(origin, s - origin, 0.0, 1.0))
@@ -103,7 +128,7 @@ impl SoftShadowTracer {
 
     /// Which of the 16 `rays` (sharing one origin, `t_min >= 0`; see [`shadow_rays`]) are
     /// occluded, as bit `i` for ray `i`, traced with `method`. `cone` must hold every ray's
-    /// direction (the [`Cone::tangent_to_sphere`] of the light from the rays' origin does);
+    /// direction ([`sample_cone`] does, and the [`Cone::tangent_to_sphere`] of the light);
     /// it is used by [`ShadowMethod::Cone`] only.
     pub fn occluded<C: PacketCounters + Counters>(
         &mut self,
@@ -164,10 +189,16 @@ mod tests {
         let p = Vec3::new(0.2, 0.1, 0.3);
         let s = light_samples(p, &light).unwrap();
         let cone = Cone::tangent_to_sphere(p, light.center, light.radius).unwrap();
+        let narrow = sample_cone(p, &light).unwrap();
+        assert!(narrow.tan_alpha < cone.tan_alpha);
         for q in s {
             assert!((q - light.center).length() <= light.radius * 1.0001);
-            assert!(cone.contains(q - p));
+            assert!(cone.contains(q - p) && narrow.contains(q - p));
         }
+        // The outermost samples lie on the cone's edge, up to the rounding margin (about 2e-6
+        // rad here): it is no wider than it must be.
+        let widest = s.iter().map(|&q| crate::cone::angle_between(narrow.axis, (q - p).as_dvec3())).fold(0.0, f64::max);
+        assert!(narrow.half_angle() - widest < 1e-5, "{} vs {widest}", narrow.half_angle());
         // Distinct strata.
         for i in 0..SAMPLES {
             for j in 0..i {
@@ -190,7 +221,7 @@ mod tests {
         let light = SphereLight { center: Vec3::new(1.0, 4.0, 0.0), radius: 0.8, intensity: Vec3::ONE };
         let p = Vec3::new(1.0, 0.0, 0.0);
         let rays = shadow_rays(p, &light_samples(p, &light).unwrap());
-        let cone = Cone::tangent_to_sphere(p, light.center, light.radius).unwrap();
+        let cone = sample_cone(p, &light).unwrap();
         let mut t = SoftShadowTracer::new();
         let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
         assert!(single != 0 && single != 0xFFFF, "{single:016b}");

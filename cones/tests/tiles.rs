@@ -3,8 +3,8 @@
 //! soups), packets loaded from elsewhere, and cone soft shadows against the pyramid and
 //! single rays: the same closest hit per pixel, the same occlusion per shadow ray.
 
-use cones::shadows::{SAMPLES, light_samples, shadow_rays};
-use cones::{Cone, ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
+use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
+use cones::{ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{OmniPacket, RayPacket, TileTracer};
@@ -72,9 +72,7 @@ fn check_soft_shadows(scene: &scenes::Scene, tree: &KdTree, camera: &Camera, lig
             let Some(hit) = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY)) else { continue };
             let tri = scene.mesh.triangle(hit.prim as usize);
             let p = kdtree::ray::offset_origin(&tri, &hit, light.center - kdtree::ray::surface_point(&tri, &hit));
-            let (Some(samples), Some(cone)) =
-                (light_samples(p, light), Cone::tangent_to_sphere(p, light.center, light.radius))
-            else {
+            let (Some(samples), Some(cone)) = (light_samples(p, light), sample_cone(p, light)) else {
                 continue;
             };
             let rays = shadow_rays(p, &samples);
@@ -255,7 +253,7 @@ proptest! {
                 let Some(hit) = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY)) else { continue };
                 let tri = tree.triangle(hit.prim);
                 let p = kdtree::ray::offset_origin(&tri, &hit, light.center - kdtree::ray::surface_point(&tri, &hit));
-                let (Some(s), Some(cone)) = (light_samples(p, &light), Cone::tangent_to_sphere(p, light.center, light.radius)) else { continue };
+                let (Some(s), Some(cone)) = (light_samples(p, &light), sample_cone(p, &light)) else { continue };
                 let rays = shadow_rays(p, &s);
                 let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
                 for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
