@@ -157,15 +157,15 @@ impl SoftShadowTracer {
         match method {
             ShadowMethod::Pyramid => self.tracer.trace(tree, TileMethod::Frustum, counters),
             _ => {
-                let pyramids = self.tracer.prepare(tree);
-                let near = pyramids.iter().map(|b| b.near).fold(f32::INFINITY, f32::min);
-                let far = pyramids.iter().map(|b| b.far).fold(f32::NEG_INFINITY, f32::max);
+                let intervals = self.tracer.prepare_intervals(tree);
+                let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
+                let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
                 let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
                 for r in rays {
                     let l = r.dir.as_dvec3().length();
                     (lo, hi) = (lo.min(l), hi.max(l));
                 }
-                let pyramid = packets::FrustumBound { near, far, ..pyramids[0] };
+                let pyramid = packets::FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near, far, hit_scale: 1.0 };
                 let bound = cone_bound(cone, &pyramid, (lo * (1.0 - 1e-12), hi * (1.0 + 1e-12)));
                 self.tracer.trace_frusta(tree, &Frusta::One(bound), counters);
             }

@@ -68,9 +68,10 @@ pub fn primary_cone(camera: &Camera, tile: &Tile) -> Result<Cone, ConeError> {
     Cone::smallest_enclosing(camera.eye, &corners, CORNER_MARGIN)
 }
 
-/// The frustum bound of `cone` (apex at the rays' origin) for rays whose pyramid is
-/// `pyramid` and whose direction lengths lie in `len = (min, max)`: Listing 4.4's factors and
-/// the pyramid's root box interval converted to distances along the axis.
+/// The frustum bound of `cone` (apex at the rays' origin) for rays whose root box interval of
+/// ray parameters is `pyramid.near..pyramid.far` and whose direction lengths lie in
+/// `len = (min, max)`: Listing 4.4's factors and that interval converted to distances along
+/// the axis.
 pub fn cone_bound(cone: &Cone, pyramid: &FrustumBound, len: (f64, f64)) -> FrustumBound {
     let f = cone.factors();
     if is_empty(pyramid) {
@@ -86,13 +87,6 @@ pub fn cone_bound(cone: &Cone, pyramid: &FrustumBound, len: (f64, f64)) -> Frust
 /// Whether no ray is left in the bound (an empty or NaN interval).
 fn is_empty(b: &FrustumBound) -> bool {
     b.near.is_nan() || b.far.is_nan() || b.near > b.far
-}
-
-/// The smallest pyramid bound holding the four quadrants' (for the interval only).
-fn merged(p: &[FrustumBound; 4]) -> FrustumBound {
-    let near = p.iter().map(|b| b.near).fold(f32::INFINITY, f32::min);
-    let far = p.iter().map(|b| b.far).fold(f32::NEG_INFINITY, f32::max);
-    FrustumBound { near, far, ..p[0] }
 }
 
 /// The valid lanes' directions of `packets`.
@@ -147,22 +141,28 @@ fn tile_cone(tracer: &TileTracer, q: Option<usize>) -> Result<(Cone, (f64, f64))
     loaded_cone(tracer.origin(), packets)
 }
 
-/// The frusta of `method` for the loaded tile, given its quadrants' pyramids (from
-/// [`TileTracer::prepare`]): a cone, or four, each falling back to the pyramid where no
-/// cone holds the rays.
-pub fn cone_frusta(tracer: &TileTracer, method: ConeMethod, pyramids: &[FrustumBound; 4]) -> Frusta {
+/// The frusta of `method` for the loaded tile, given its quadrants' root box intervals (from
+/// [`TileTracer::prepare_intervals`]): a cone, or four, each falling back to the quadrant's
+/// pyramid where no cone holds its rays.
+pub fn cone_frusta(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, intervals: &[(f32, f32); 4]) -> Frusta {
+    let bound_of = |(near, far): (f32, f32)| FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near, far, hit_scale: 1.0 };
     match method {
-        ConeMethod::Cone => match tile_cone(tracer, None) {
-            Ok((cone, len)) => Frusta::One(cone_bound(&cone, &merged(pyramids), len)),
-            Err(_) => Frusta::Four(*pyramids),
-        },
+        ConeMethod::Cone => {
+            let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
+            let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
+            match tile_cone(tracer, None) {
+                Ok((cone, len)) => Frusta::One(cone_bound(&cone, &bound_of((near, far)), len)),
+                Err(_) => Frusta::Four(std::array::from_fn(|q| tracer.pyramid(tree, q))),
+            }
+        }
         ConeMethod::MftCone => Frusta::Four(std::array::from_fn(|q| {
-            if is_empty(&pyramids[q]) {
-                return pyramids[q];
+            let interval = bound_of(intervals[q]);
+            if is_empty(&interval) {
+                return interval;
             }
             match tile_cone(tracer, Some(q)) {
-                Ok((cone, len)) => cone_bound(&cone, &pyramids[q], len),
-                Err(_) => pyramids[q],
+                Ok((cone, len)) => cone_bound(&cone, &interval, len),
+                Err(_) => tracer.pyramid(tree, q),
             }
         })),
     }
@@ -172,8 +172,8 @@ pub fn cone_frusta(tracer: &TileTracer, method: ConeMethod, pyramids: &[FrustumB
 /// a cone or MFT cones: the closest hits (any hits in the tracer's any-hit mode), exactly
 /// those of single rays.
 pub fn trace<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
-    let pyramids = tracer.prepare(tree);
-    let frusta = cone_frusta(tracer, method, &pyramids);
+    let intervals = tracer.prepare_intervals(tree);
+    let frusta = cone_frusta(tree, tracer, method, &intervals);
     tracer.trace_frusta(tree, &frusta, counters);
 }
 

@@ -71,6 +71,20 @@ pub struct FrustumBound {
 /// smallest and largest direction component, and the interval that holds every unfinished
 /// ray's clip to the root box.
 pub fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
+    bound_of::<true>(tree, tracer, range)
+}
+
+/// [`bound`] without the direction extremes: finishes the lanes of the packets in `range`
+/// that miss the root box and returns the interval `(near, far)` of the others' clips to
+/// it. What a bound made elsewhere (a cone) needs from the rays.
+pub fn root_interval(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> (f32, f32) {
+    let b = bound_of::<false>(tree, tracer, range);
+    (b.near, b.far)
+}
+
+/// [`bound`], with the direction extremes only when `DIRS` (else the factors are left 0).
+#[inline(always)]
+fn bound_of<const DIRS: bool>(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
     let b = tree.bounds();
     let (lo_box, hi_box) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
     let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
@@ -86,20 +100,22 @@ pub fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usiz
         // Lane-wise accumulation; the horizontal reductions come once at the end.
         near4 = near4.min(Vec4::select(inside, enter, Vec4::INFINITY));
         far4 = far4.max(Vec4::select(inside, exit, Vec4::NEG_INFINITY));
+        if !DIRS {
+            continue;
+        }
         for a in 0..3 {
             lo[a] = lo[a].min(Vec4::select(inside, rays.d[a], Vec4::INFINITY));
             hi[a] = hi[a].max(Vec4::select(inside, rays.d[a], Vec4::NEG_INFINITY));
         }
     }
-    let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
-    let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
-    FrustumBound {
-        k0: lo.recip().to_array(),
-        k1: hi.recip().to_array(),
-        near: near4.min_element(),
-        far: far4.max_element(),
-        hit_scale: 1.0,
-    }
+    let (k0, k1) = if DIRS {
+        let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
+        let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
+        (lo.recip().to_array(), hi.recip().to_array())
+    } else {
+        ([0.0; 4], [0.0; 4])
+    };
+    FrustumBound { k0, k1, near: near4.min_element(), far: far4.max_element(), hit_scale: 1.0 }
 }
 
 /// The plane distances bounding a frustum at a split plane `dist` away from the origin along

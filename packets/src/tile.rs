@@ -295,6 +295,22 @@ impl TileTracer {
         quadrants.map(|range| frustum::bound(tree, self, range))
     }
 
+    /// [`TileTracer::prepare`] without the pyramids: resets the hits, finishes the lanes
+    /// that miss the root box and returns each quadrant's interval `(near, far)` of ray
+    /// parameters inside it (what a cone needs; its per-ray cost is the box clip alone).
+    pub fn prepare_intervals(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
+        self.reset(tree, true);
+        let quadrants = self.quadrants.clone();
+        quadrants.map(|range| frustum::root_interval(tree, self, range))
+    }
+
+    /// The pyramid bound of quadrant `q` of a prepared tile ([`frustum::bound`]), for a cone
+    /// that cannot be made.
+    pub fn pyramid(&mut self, tree: &KdTree, q: usize) -> FrustumBound {
+        let range = self.quadrants[q & 3].clone();
+        frustum::bound(tree, self, range)
+    }
+
     /// Traces the tile [`TileTracer::prepare`]d with `frusta`, which must bound its rays
     /// (every ray of the frustum, or of quadrant `q` for frustum `q`, inside the frustum).
     pub fn trace_frusta<C: PacketCounters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
