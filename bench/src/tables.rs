@@ -174,6 +174,8 @@ pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Erro
     }
     let text = if args.csv { csv(&all) } else { markdown(&all, args) };
     print!("{text}");
+    let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
+    print!("{}", crate::table51::table51(args.size, args.frames, &config, args.csv)?);
     Ok(())
 }
 
