@@ -8,18 +8,19 @@
 //! whose lanes differ is traced lane by lane with [`crate::edge_width`]. Leaves test each
 //! triangle against the four rays with the 4-wide tests of `packets::triangle4`, which
 //! compute bit for bit what the single-ray tests compute; each lane keeps its own pending
-//! list and pairing, with the single-ray rules (see [`crate::traverse`]). The answer of a
-//! lane depends only on the set of hits along its segment, which both traversals find whole,
-//! so it equals the single-ray answer (tested).
+//! list and pairing, with the single-ray rules (see [`crate::traverse`]): every hit a leaf
+//! reports joins the lane's list, and hits are paired up to the smallest start on the stack
+//! less the slack. The answer of a lane depends only on the set of hits along its segment,
+//! which both traversals find whole, so it equals the single-ray answer (tested).
 
 use glam::{BVec4A, Vec3, Vec4};
 use kdtree::{Intersector, KdTree, STACK_SIZE};
-use packets::packet::{widen_down, widen_down1, widen_up};
+use packets::packet::{widen_down, widen_up};
 use packets::triangle4::PacketTest;
 use packets::{PacketHit, RayPacket};
 
 use crate::pairing::{LeakRemedies, Pairing};
-use crate::traverse::{EdgeScratch, edge_width};
+use crate::traverse::{EdgeScratch, edge_width, slack};
 
 /// Per-thread scratch of [`edge_width4`]: one pending list per lane.
 #[derive(Clone, Debug, Default)]
@@ -94,6 +95,7 @@ fn kernel4<T: PacketTest>(
         upper_first |= usize::from(neg != 0) << axis;
     }
     let dirs: [Vec3; 4] = [0, 1, 2, 3].map(|lane| rays.ray(lane).dir);
+    let slacks: [f32; 4] = [0, 1, 2, 3].map(|lane| slack(&rays.ray(lane), &bounds));
     let mut pairing = [Pairing::new(); 4];
     for s in &mut scratch.lanes {
         s.pending.clear();
@@ -140,27 +142,28 @@ fn kernel4<T: PacketTest>(
             continue;
         }
 
-        // Leaf: each lane keeps the hits from its start on, once.
+        // Leaf: each lane's pending list takes every hit, and counts each triangle once.
         let leaf_lanes = active & live;
         if leaf_lanes.any() {
-            let starts = widen_down(t0);
             for &prim in tree.leaf_prims(node) {
                 let mut hit = PacketHit::new(rays);
                 let found = records[prim as usize].intersect4(rays, &prepared, leaf_lanes, &mut hit, prim);
-                for lane in lanes(found & hit.t.cmpge(starts)) {
+                for lane in lanes(found) {
                     scratch.lanes[lane].pending.insert(hit.t[lane], prim, tree, dirs[lane]);
                 }
             }
         }
 
-        // Pair what no later leaf can precede, lane by lane.
+        // Pair what no later leaf can precede, lane by lane (as the single-ray kernel: the
+        // smallest start on the stack, less the slack).
         let mut next_start = Vec4::INFINITY;
         for e in &stack[..sp.min(STACK_SIZE)] {
             next_start = next_start.min(e.t0);
         }
         for lane in lanes(live) {
             let s = &mut scratch.lanes[lane];
-            if s.pending.flush_below(widen_down1(next_start[lane]), r[lane], &mut pairing[lane], tree, remedies) {
+            let bound = next_start[lane] - slacks[lane];
+            if s.pending.flush_below(bound, r[lane], &mut pairing[lane], tree, remedies) {
                 out[lane] = f32::INFINITY;
                 live &= !BVec4A::from_array(std::array::from_fn(|i| i == lane));
             }

@@ -14,6 +14,23 @@
 //! The hits of one surface crossing are counted once (see [`HitList::insert`]): a triangle
 //! referenced by several leaves, and a ray through the edge or vertex shared by triangles of
 //! one surface (the triangle tests may report both triangles at the same distance).
+//!
+//! ## Which hits count
+//! A ray's edge width is a function of the hits the tree's triangle test reports on its
+//! segment, one per triangle, and nothing else: [`crate::brute`] tests every triangle,
+//! [`crate::traverse`] and [`crate::packet`] the triangles of the leaves they visit, and all
+//! three sort the hits by `(t, triangle)` into a [`HitList`] and pair them with [`Pairing`].
+//! The test is deterministic, so a triangle reports the same `t` to every leaf that holds it,
+//! and the kernels agree with the brute force as long as they find the same triangles and
+//! pair them in the same order (see [`HitList::insert`] for how the list guarantees both).
+//!
+//! Degenerate rays are not special-cased. A ray lying in the plane of a face (a shadow ray
+//! along a floor, or between two boxes that touch face to face) gets no hit from that face
+//! (both tests reject a ray in a triangle's plane), and whatever the test reports on the edges
+//! of the faces around it: a graze can read as an entry never closed (a hard shadow) or as a
+//! thin width where a ray a hair to either side would cross nothing. Such rays are a set of
+//! measure zero; the kernels and the brute force give them the same answer, which is all the
+//! crate promises for them.
 
 use glam::Vec3;
 use kdtree::KdTree;
@@ -112,11 +129,25 @@ pub struct PendingHit {
 }
 
 /// The hits found but not yet paired, sorted by `(t, prim)`, each surface crossing once.
-#[derive(Clone, Debug, Default)]
+///
+/// Hits are paired in bulk by [`HitList::flush_below`] up to a threshold that the caller
+/// guarantees no later hit will precede; the list then refuses every hit before the largest
+/// threshold flushed so far (its *floor*). A triangle's hit is therefore counted once however
+/// many leaves report it: a report at or above the floor finds the earlier report still
+/// pending (same triangle), one below it was paired already.
+#[derive(Clone, Debug)]
 pub struct HitList {
     hits: Vec<PendingHit>,
-    /// The last hit handed to the pairing (for crossings split across a leaf boundary).
+    /// The last hit handed to the pairing (for crossings split across a flush).
     last: Option<PendingHit>,
+    /// Every hit before this has been paired: later reports of them are repeats.
+    floor: f32,
+}
+
+impl Default for HitList {
+    fn default() -> Self {
+        HitList { hits: Vec::new(), last: None, floor: f32::NEG_INFINITY }
+    }
 }
 
 /// True when the triangles of hits `a` and `b` share a vertex and face the ray `dir` the
@@ -139,6 +170,7 @@ impl HitList {
     pub fn clear(&mut self) {
         self.hits.clear();
         self.last = None;
+        self.floor = f32::NEG_INFINITY;
     }
 
     /// The pending hits, sorted.
@@ -147,13 +179,14 @@ impl HitList {
     }
 
     /// Adds the hit of `prim` at `t` on the ray with direction `dir`, unless it is already
-    /// counted: the same triangle (found again in another leaf), or a tie (see [`TIE`]) with
-    /// a pending or the last paired hit on a triangle sharing a vertex and facing the same
-    /// way. Of tied triangles the smaller id stays, so the result does not depend on the
-    /// order in which leaves report them.
+    /// counted: below the floor (paired already, see [`HitList`]), the same triangle still
+    /// pending (found again in another leaf), or a tie (see [`TIE`]) with a pending or the
+    /// last paired hit on a triangle sharing a vertex and facing the same way. Of tied
+    /// triangles the smaller id stays, so the result does not depend on the order in which
+    /// leaves report them.
     #[inline]
     pub fn insert(&mut self, t: f32, prim: u32, tree: &KdTree, dir: Vec3) {
-        if self.hits.iter().any(|h| h.prim == prim) {
+        if t < self.floor || self.hits.iter().any(|h| h.prim == prim) {
             return;
         }
         if let Some(last) = self.last
@@ -172,9 +205,10 @@ impl HitList {
         self.hits.insert(at, PendingHit { t, prim });
     }
 
-    /// Pairs, in order, every pending hit with `t < bound` (no later leaf can report a hit
-    /// before `bound`) and removes them. Returns `true` as soon as the width passes `r`
-    /// (the early exit of Listing 5.1).
+    /// Pairs, in order, every pending hit with `t < bound` (the caller guarantees that no
+    /// hit not yet reported lies before `bound`), removes them and raises the floor to
+    /// `bound`. Returns `true` as soon as the width passes `r` (the early exit of
+    /// Listing 5.1).
     #[inline]
     pub fn flush_below(
         &mut self,
@@ -193,6 +227,7 @@ impl HitList {
             }
         }
         self.hits.drain(..k);
+        self.floor = self.floor.max(bound);
         false
     }
 }
@@ -257,5 +292,33 @@ mod tests {
         // Triangle 2 shares no vertex: a separate crossing even at the same distance.
         list.insert(0.5, 2, &tree, dir);
         assert_eq!(list.hits().len(), 2);
+    }
+
+    #[test]
+    fn hits_below_the_paired_floor_are_repeats_and_above_it_count() {
+        let tree = two_quads();
+        let (dir, off) = (Vec3::Z, LeakRemedies::default());
+        let mut list = HitList::default();
+        let mut p = Pairing::new();
+        list.insert(0.2, 2, &tree, dir);
+        list.insert(0.4, 0, &tree, dir);
+        assert!(!list.flush_below(0.3, f32::INFINITY, &mut p, &tree, &off));
+        assert!(p.is_inside());
+        // Triangle 2 reported again by a later leaf: below the floor, already paired.
+        list.insert(0.2, 2, &tree, dir);
+        // A hit between the floor and the pending one, found late: it counts, in order.
+        list.insert(0.3, 1, &tree, dir);
+        assert_eq!(list.hits(), &[PendingHit { t: 0.3, prim: 1 }, PendingHit { t: 0.4, prim: 0 }]);
+        // A lower flush threshold does not lower the floor.
+        assert!(!list.flush_below(0.1, f32::INFINITY, &mut p, &tree, &off));
+        list.insert(0.25, 2, &tree, dir);
+        assert_eq!(list.hits().len(), 2);
+        assert!(!list.flush_below(f32::INFINITY, f32::INFINITY, &mut p, &tree, &off));
+        // In at 0.2, out at 0.3, in again at 0.4: triangle 2 counted once.
+        assert!((p.max_width() - 0.1).abs() < 1e-6);
+        assert!(p.is_inside());
+        list.clear();
+        list.insert(0.2, 2, &tree, dir);
+        assert_eq!(list.hits().len(), 1, "clear resets the floor");
     }
 }

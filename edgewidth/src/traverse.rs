@@ -5,27 +5,31 @@
 //! the one of `kdtree::traverse` (front voxel, back voxel or both, the same hard cases); only
 //! leaves differ.
 //!
-//! ## Leaves, and why each hit is counted once
-//! A leaf's interval is `[t0, t1]`. Its triangles are tested with no culling, over the whole
-//! segment, and a hit at `t >= t0` (widened down by a few ulps) joins the pending list
-//! ([`HitList`]), sorted, unless its triangle is already there. Hits before `t0` belong to
-//! earlier leaves, which found them already: the interval is half-open at its start, and a
-//! triangle referenced by several leaves (straddling a split plane) is kept once. The widened
-//! start and the duplicate check together make a hit on a split plane (a triangle lying in the
-//! plane, or touching it) count exactly once whichever side's leaf holds it and whichever way
-//! its `t` rounds.
+//! ## Leaves, and why each hit is counted once, in order
+//! A leaf's triangles are tested with no culling, over the whole segment, and every hit joins
+//! the pending list ([`HitList`]), sorted. The list counts each triangle once: the test is
+//! deterministic, so a triangle held by several leaves (straddling a split plane, or lying in
+//! one) reports the same `t` to each, and a repeat is either still pending or below the
+//! list's floor, the threshold up to which hits have been paired. Whether a hit counts does
+//! not depend on the interval of the leaf that reports it, so a hit that the triangle test
+//! computes a few ulps before the start of the only leaf holding its triangle (a face lying
+//! in the split plane, seen at an angle) is still counted, as the brute force counts it.
 //!
-//! After a leaf, the pending hits before the start of the next voxel on the stack are
-//! final: no later leaf can report a hit before the smallest start on the stack, which is the
-//! top entry's (each entry pushed lies inside the interval that the entries below it were
-//! split from). They are paired in order (the thesis's carry of the open entry across leaves,
-//! Figure 5.7) and traversal stops once the width passes `R`. For a ray lying in a split plane
-//! both children cover the same interval; the bound keeps the first child's hits pending until
-//! the second child has added its own, so the order stays right.
+//! After a leaf, the pending hits before `min t0 - slack` are final and paired in order (the
+//! thesis's carry of the open entry across leaves, Figure 5.7), `min t0` being the smallest
+//! start of the voxels still on the stack: each stack entry keeps the minimum of its own
+//! start and the starts below it. The top entry alone is not enough: a ray lying in a split
+//! plane visits both children over the whole interval, so the second child is pushed with the
+//! interval's start, and the entries pushed above it while the first child's subtree is
+//! traversed all start later; pairing up to the top entry's start would pair the first
+//! subtree's hits before the second child's earlier ones (a failure of the brute-force
+//! comparison, `in_plane_ray_*` in `tests/traversal.rs`). The `slack` (see [`SLACK`]) absorbs
+//! the rounding of plane distances and of the triangle test's `t`, so that no hit found later
+//! lies before the hits already paired. Traversal stops once the width passes `R`.
 
 use kdtree::traverse::{WIDEN, clip_to_box};
 use kdtree::triangle::TriangleTest;
-use kdtree::{Intersector, KdTree, Ray, STACK_SIZE};
+use kdtree::{Aabb, Intersector, KdTree, Ray, STACK_SIZE};
 
 use crate::pairing::{HitList, LeakRemedies, Pairing};
 
@@ -36,9 +40,25 @@ pub struct EdgeScratch {
     pub(crate) pending: HitList,
 }
 
-/// `t` moved towards `-inf` by [`WIDEN`] (as the kd-tree traversal widens).
+/// The flush margin, relative to the span of ray parameter that crosses the scene: hits are
+/// paired once they lie this far before every voxel still to visit. It covers the widened
+/// plane distances of a descent of [`STACK_SIZE`] levels (`64 * 8` ulps) and a triangle test's
+/// error in `t` of up to about 2000 ulps of the scene's size (the error grows as the ray
+/// grazes the triangle), and costs only that hits stay pending a little longer.
+pub const SLACK: f32 = 1.0 / 4096.0;
+
+/// [`SLACK`] in units of `ray`'s parameter for a scene within `bounds`: `SLACK` times the
+/// parameter that spans the origin's and the scene's largest coordinates (a bound on the `t`
+/// of any hit). `0` for a degenerate ray.
+#[inline]
+pub(crate) fn slack(ray: &Ray, bounds: &Aabb) -> f32 {
+    let extent = bounds.min.abs().max(bounds.max.abs()).max_element();
+    let s = SLACK * (ray.origin.abs().max_element() + extent) / ray.dir.abs().max_element();
+    if s.is_finite() { s } else { 0.0 }
+}
+
 #[inline(always)]
-pub(crate) fn widen_down(t: f32) -> f32 {
+fn widen_down(t: f32) -> f32 {
     t - t.abs() * WIDEN
 }
 
@@ -60,12 +80,15 @@ pub fn edge_width(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies, scr
     }
 }
 
-/// One deferred back voxel.
+/// One deferred back voxel: its node and interval, and `min_t0`, the smallest start of this
+/// entry and every entry below it (what bounds the hits still to be found while this entry
+/// is the top of the stack).
 #[derive(Clone, Copy, Default)]
 struct StackEntry {
     node: u32,
     t0: f32,
     t1: f32,
+    min_t0: f32,
 }
 
 #[inline(always)]
@@ -82,6 +105,7 @@ fn kernel<T: TriangleTest>(
     let mut pairing = Pairing::new();
     let Some((mut t0, mut t1)) = clip_to_box(ray, &tree.bounds()) else { return 0.0 };
     let prepared = T::prepare(ray);
+    let slack = slack(ray, &tree.bounds());
     let origin = ray.origin.extend(0.0).to_array();
     let inv_dir = ray.inv_dir.extend(0.0).to_array();
     let upper_first = ray.dir.is_negative_bitmask() as usize;
@@ -106,7 +130,9 @@ fn kernel<T: TriangleTest>(
             } else {
                 // Both; a ray in the plane (NaN) visits both over its whole interval.
                 let t_split = if t_plane.is_nan() { t0 } else { t_plane };
-                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_split, t1 };
+                let below = if sp == 0 { f32::INFINITY } else { stack[(sp - 1) % STACK_SIZE].min_t0 };
+                let min_t0 = below.min(t_split);
+                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_split, t1, min_t0 };
                 sp += 1;
                 index = front;
                 if !t_plane.is_nan() {
@@ -117,17 +143,15 @@ fn kernel<T: TriangleTest>(
             continue;
         }
 
-        // Leaf: every hit from this leaf's start on joins the pending list, once.
+        // Leaf: every hit joins the pending list, which counts each triangle once.
         for &prim in tree.leaf_prims(node) {
-            if let Some((t, _, _)) = records[prim as usize].intersect(ray, &prepared, ray.t_max)
-                && t >= t0_wide
-            {
+            if let Some((t, _, _)) = records[prim as usize].intersect(ray, &prepared, ray.t_max) {
                 pending.insert(t, prim, tree, ray.dir);
             }
         }
 
         // Pair the hits no later leaf can precede; stop once the width passes R.
-        let bound = if sp == 0 { f32::INFINITY } else { widen_down(stack[(sp - 1) % STACK_SIZE].t0) };
+        let bound = if sp == 0 { f32::INFINITY } else { stack[(sp - 1) % STACK_SIZE].min_t0 - slack };
         if pending.flush_below(bound, r, &mut pairing, tree, remedies) {
             return f32::INFINITY;
         }
