@@ -68,6 +68,8 @@ pub enum Command {
     Raycast(RaycastArgs),
     /// Print the thesis's Tables 4.1-4.4 (packets, frusta, culling, MFT) for our scenes.
     Tables(TablesArgs),
+    /// Edge-width soft shadows against sampled ones: images, errors, CSV and a plot.
+    Shadows(crate::shadows::ShadowsArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -253,6 +255,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
         }
         Some(Command::Tables(args)) => tables::tables_command(&global, &args),
+        Some(Command::Shadows(args)) => crate::shadows::shadows_command(&global, &args),
         None => render_command(&global, &default_render_args()),
     })
 }

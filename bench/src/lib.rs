@@ -58,6 +58,8 @@
 //! - [`report`]: tree statistics and the text / JSON reports;
 //! - [`progress`]: progress bars that only appear for work taking more than a second;
 //! - [`harness`]: scene, tree and ray setup shared by the benches (and the tests);
+//! - [`shadows`]: edge-width against sampled soft shadows (`rttest shadows`), plotted by
+//!   [`shadow_plot`]; [`table51`]: the thesis's Table 5.1 in `rttest tables`;
 //! - [`leaks`]: watertightness measured, rays at shared edges and vertices (`rttest leaks`);
 //! - [`error`]: the one error type, printed as a single line by the binary.
 
@@ -70,7 +72,10 @@ pub mod raycast;
 pub mod render;
 pub mod report;
 pub mod shade;
+pub mod shadow_plot;
+pub mod shadows;
 pub mod soft;
+pub mod table51;
 pub mod tables;
 
 pub use error::Error;

@@ -312,6 +312,8 @@ pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Erro
         text
     };
     print!("{text}");
+    let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
+    print!("{}", crate::table51::table51(args.size, args.frames, &config, args.csv)?);
     Ok(())
 }
 

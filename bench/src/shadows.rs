@@ -1,0 +1,784 @@
+//! `rttest shadows`: Edge Width Soft Shadows (thesis chapter 5) against sampled soft
+//! shadows, with the speed and the error of each method against a cached reference.
+//!
+//! Methods (each one frame: primary rays, visibility, shading, timed together):
+//! - `hard`: one shadow ray to the light's centre;
+//! - `edge-width` / `edge-width-packet`: one edge-width ray to the centre (single rays, or
+//!   4-wide packets; identical images), occlusion from Eq. 5.1 with `R` from the light's size;
+//! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
+//! - `interleaved-16`: Benthin & Wald's 4x4 interleaved sampling, 16 samples per pixel, then
+//!   their 4x4 discontinuity filter.
+//!
+//! Shading is the light's centre times the visible fraction (both papers). The reference is
+//! `--ref-samples` (1024) stratified samples per pixel, cached on disk (see
+//! [`reference_cache_path`]); for the `analytic` scene (a sphere over a plane under a
+//! spherical light) the plane's pixels take the closed form instead.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args, ValueEnum};
+use edgewidth::analytic::sphere_visible_fraction;
+use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
+use edgewidth::packet::{EdgeScratch4, edge_width4};
+use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, visible_fraction};
+use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
+use glam::Vec3;
+use kdtree::{BuildConfig, Hit, KdTree, Ray};
+use packets::RayPacket;
+use rayon::prelude::*;
+use scenes::builtin::shapes::{MeshBuilder, Part};
+use scenes::{Camera, Image, Scene, SphereLight, View};
+use serde::Serialize;
+
+use crate::Error;
+use crate::cli::{GlobalArgs, IntersectorArg, emit, parse_size};
+use crate::render::{TileLayout, primary_ray};
+use crate::shade;
+
+/// `rttest shadows` options.
+#[derive(Debug, Clone, Args)]
+pub struct ShadowsArgs {
+    /// Scenes (built-in names, `analytic`, or OBJ paths; repeatable). Default: atrium, arena,
+    /// atrium-rotated, grove, analytic and every .obj / .obj.gz in the shared scenes folder.
+    #[arg(long, value_name = "NAME|PATH")]
+    pub scene: Vec<String>,
+    /// The view (default: each scene's default view).
+    #[arg(long)]
+    pub view: Option<String>,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// The area light: the scene's rectangle, or a sphere at its centre with the same area.
+    #[arg(long, value_enum, default_value_t = LightKind::Rect)]
+    pub light: LightKind,
+    /// Scale of the light about its centre (1 = the scene's light).
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub light_size: f32,
+    /// Scale of the edge width `R` (Eq. 5.1): `R = scale * light diameter / distance`.
+    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    pub edge_scale: f32,
+    /// Light-leak remedy: entry/exit pairs count only if their triangles share a vertex.
+    #[arg(long)]
+    pub shared_vertex: bool,
+    /// Light-leak remedy: scale edge widths through materials whose name contains NAME
+    /// (repeatable), e.g. `--thickness banner=8`.
+    #[arg(long, value_name = "NAME=SCALE")]
+    pub thickness: Vec<String>,
+    /// Samples per pixel of the reference.
+    #[arg(long, value_name = "N", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub ref_samples: u32,
+    /// Where references are cached (default: `target/shadow-cache` of the workspace).
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Where images, CSV and plots go (one folder per scene).
+    #[arg(long, value_name = "DIR", default_value = "shadows-out")]
+    pub out_dir: PathBuf,
+    /// Frames timed per method, interleaved across methods; the median is reported.
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub frames: u32,
+    /// The ray-triangle test.
+    #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
+    pub intersector: IntersectorArg,
+}
+
+/// `--light` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LightKind {
+    /// The scene's rectangular area light.
+    Rect,
+    /// A sphere at the rectangle's centre with the rectangle's area as its disc.
+    Sphere,
+}
+
+/// A shadow method (thesis Table 5.1, Benthin & Wald 2009 4.5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShadowMethod {
+    /// One shadow ray to the light's centre.
+    Hard,
+    /// One edge-width ray to the centre (thesis chapter 5).
+    EdgeWidth,
+    /// Edge widths traced four rays at a time.
+    EdgeWidthPacket,
+    /// `N` stratified samples of the light.
+    Sampled(u32),
+    /// 4x4 interleaved sampling (16 samples) and the 4x4 discontinuity filter.
+    Interleaved,
+}
+
+/// Every method `rttest shadows` reports.
+pub const METHODS: [ShadowMethod; 9] = [
+    ShadowMethod::Hard,
+    ShadowMethod::EdgeWidth,
+    ShadowMethod::EdgeWidthPacket,
+    ShadowMethod::Sampled(4),
+    ShadowMethod::Sampled(8),
+    ShadowMethod::Sampled(16),
+    ShadowMethod::Sampled(32),
+    ShadowMethod::Sampled(256),
+    ShadowMethod::Interleaved,
+];
+
+impl ShadowMethod {
+    /// The name in reports and file names.
+    pub fn name(self) -> String {
+        match self {
+            ShadowMethod::Hard => "hard".into(),
+            ShadowMethod::EdgeWidth => "edge-width".into(),
+            ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
+            ShadowMethod::Sampled(n) => format!("sampled-{n}"),
+            ShadowMethod::Interleaved => "interleaved-16".into(),
+        }
+    }
+}
+
+/// One scene, view and light, ready to render any [`ShadowMethod`].
+pub struct ShadowSetup<'a> {
+    scene: &'a Scene,
+    tree: &'a KdTree,
+    camera: Camera,
+    light: AreaLight,
+    layout: TileLayout,
+    edge_scale: f32,
+    shared_vertex: bool,
+    thickness: Option<Vec<f32>>,
+}
+
+/// One rendered frame.
+pub struct ShadowFrame {
+    /// Visible fraction per pixel, row-major (0 where the primary ray misses).
+    pub visibility: Vec<f32>,
+    /// Primary hits, row-major.
+    pub hits: Vec<Option<Hit>>,
+    /// Shadow rays traced (edge-width rays count one each).
+    pub shadow_rays: u64,
+    /// Seconds for the whole frame: primary rays, visibility, filter, shading.
+    pub secs: f64,
+    /// The shaded image.
+    pub image: Image,
+}
+
+/// A deterministic per-pixel seed.
+fn pixel_seed(x: u32, y: u32, salt: u64) -> u64 {
+    (u64::from(y) << 32 | u64::from(x)).wrapping_mul(0x2545_F491_4F6C_DD1D) ^ salt
+}
+
+impl<'a> ShadowSetup<'a> {
+    /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`.
+    pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Self {
+        let layout = TileLayout::new(camera.width, camera.height, crate::render::TILE_SIZE);
+        ShadowSetup { scene, tree, camera, light, layout, edge_scale: 1.0, shared_vertex: false, thickness: None }
+    }
+
+    /// With the edge-width options: `R` scale, shared-vertex rule, per-triangle thickness.
+    pub fn with_edge_options(mut self, scale: f32, shared_vertex: bool, thickness: Option<Vec<f32>>) -> Self {
+        (self.edge_scale, self.shared_vertex, self.thickness) = (scale, shared_vertex, thickness);
+        self
+    }
+
+    /// The light.
+    pub fn light(&self) -> &AreaLight {
+        &self.light
+    }
+
+    fn remedies(&self) -> LeakRemedies<'_> {
+        LeakRemedies { thickness: self.thickness.as_deref(), shared_vertex: self.shared_vertex }
+    }
+
+    fn shading_point(&self, x: u32, y: u32, hit: &Hit) -> ShadingPoint {
+        let (_, dir) = self.camera.pixel_ray(x, y);
+        ShadingPoint::new(self.tree.triangle(hit.prim), *hit, dir)
+    }
+
+    /// `R` (Eq. 5.1) and the edge-width ray of a shading point, or `None` when the light's
+    /// centre is behind the surface.
+    fn edge_ray(&self, p: &ShadingPoint) -> Option<(Ray, f32)> {
+        let center = self.light.center();
+        let ray = p.shadow_ray(center)?;
+        Some((ray, width_from_light(self.light.radius(), (center - p.point).length(), self.edge_scale)))
+    }
+
+    /// Renders one frame with `method`, timing all of it.
+    pub fn frame(&self, method: ShadowMethod) -> ShadowFrame {
+        let start = Instant::now();
+        let n = self.layout.pixel_count();
+        let mut hits = vec![None; n];
+        let camera = &self.camera;
+        self.layout.tiles().par_iter().zip(self.layout.chunks_mut(&mut hits)).for_each(|(tile, out)| {
+            for ((x, y), slot) in tile.pixels().zip(out) {
+                *slot = self.tree.intersect(&primary_ray(camera, x, y));
+            }
+        });
+        let mut vis = vec![0.0f32; n];
+        let sets = InterleavedSets::new(7);
+        let chunks: Vec<_> = self.layout.chunks(&hits).into_iter().zip(self.layout.chunks_mut(&mut vis)).collect();
+        let shadow_rays: u64 = self
+            .layout
+            .tiles()
+            .par_iter()
+            .zip(chunks)
+            .map(|(tile, (hits, out))| self.visibility_tile(method, tile, hits, out, &sets))
+            .sum();
+        let hits = self.layout.to_row_major(&hits);
+        let mut visibility = self.layout.to_row_major(&vis);
+        if method == ShadowMethod::Interleaved {
+            visibility = self.filtered(&hits, &visibility);
+        }
+        let image = self.shade(&hits, &visibility);
+        ShadowFrame { visibility, hits, shadow_rays, secs: start.elapsed().as_secs_f64(), image }
+    }
+
+    /// The visible fractions of one tile's pixels (tile order). Returns the rays traced.
+    fn visibility_tile(
+        &self,
+        method: ShadowMethod,
+        tile: &scenes::Tile,
+        hits: &[Option<Hit>],
+        out: &mut [f32],
+        sets: &InterleavedSets,
+    ) -> u64 {
+        let tree = self.tree;
+        let remedies = self.remedies();
+        let mut rays = 0u64;
+        match method {
+            ShadowMethod::EdgeWidthPacket => {
+                let mut scratch = EdgeScratch4::default();
+                let pixels: Vec<(u32, u32)> = tile.pixels().collect();
+                for ((block, hits), out) in pixels.chunks(4).zip(hits.chunks(4)).zip(out.chunks_mut(4)) {
+                    let mut lanes = [None; 4];
+                    let mut r = [0.0f32; 4];
+                    for (lane, (&(x, y), hit)) in block.iter().zip(hits).enumerate() {
+                        if let Some(hit) = hit
+                            && let Some((ray, rr)) = self.edge_ray(&self.shading_point(x, y, hit))
+                        {
+                            lanes[lane] = Some(ray);
+                            r[lane] = rr;
+                        }
+                    }
+                    let widths = edge_width4(tree, &RayPacket::from_lanes(lanes), r, &remedies, &mut scratch);
+                    for lane in 0..out.len() {
+                        out[lane] =
+                            if lanes[lane].is_some() { 1.0 - occlusion_factor(widths[lane], r[lane]) } else { 0.0 };
+                        rays += u64::from(lanes[lane].is_some());
+                    }
+                }
+            }
+            _ => {
+                let mut scratch = EdgeScratch::default();
+                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+                    let Some(hit) = hit else {
+                        *slot = 0.0;
+                        continue;
+                    };
+                    let p = self.shading_point(x, y, hit);
+                    *slot = match method {
+                        ShadowMethod::Hard => {
+                            rays += 1;
+                            visible_fraction(tree, &self.light, &p, 1, &mut Rng::new(0))
+                        }
+                        ShadowMethod::EdgeWidth => match self.edge_ray(&p) {
+                            Some((ray, r)) => {
+                                rays += 1;
+                                1.0 - occlusion_factor(edge_width(tree, &ray, r, &remedies, &mut scratch), r)
+                            }
+                            None => 0.0,
+                        },
+                        ShadowMethod::Sampled(n) => {
+                            rays += u64::from(n);
+                            visible_fraction(tree, &self.light, &p, n, &mut Rng::new(pixel_seed(x, y, u64::from(n))))
+                        }
+                        ShadowMethod::Interleaved => {
+                            rays += 16;
+                            sets.visible_fraction(tree, &self.light, &p, x, y)
+                        }
+                        ShadowMethod::EdgeWidthPacket => unreachable!("handled above"),
+                    };
+                }
+            }
+        }
+        rays
+    }
+
+    /// The discontinuity filter over a row-major visibility buffer.
+    fn filtered(&self, hits: &[Option<Hit>], vis: &[f32]) -> Vec<f32> {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let mesh = &self.scene.mesh;
+        let mut depth = vec![f32::INFINITY; hits.len()];
+        let mut normal = vec![Vec3::ZERO; hits.len()];
+        for (i, hit) in hits.iter().enumerate() {
+            if let Some(hit) = hit {
+                let (_, dir) = self.camera.pixel_ray(i as u32 % w, i as u32 / w);
+                depth[i] = hit.t;
+                normal[i] = shade::facing_normal(mesh, hit, dir);
+            }
+        }
+        let g = GBuffer { width: w, height: h, depth: &depth, normal: &normal };
+        let params = FilterParams::default();
+        let mut out = vec![0.0f32; vis.len()];
+        out.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+            for (x, v) in row.iter_mut().enumerate() {
+                *v = filter_pixel(x as u32, y as u32, vis, &g, &params);
+            }
+        });
+        out
+    }
+
+    /// The shaded image: the light's centre as a point light, times the visible fraction.
+    pub fn shade(&self, hits: &[Option<Hit>], vis: &[f32]) -> Image {
+        let light = scenes::PointLight { position: self.light.center(), intensity: self.light.intensity() };
+        let w = self.camera.width;
+        let mut pixels = vec![shade::BACKGROUND; hits.len()];
+        pixels.par_iter_mut().enumerate().for_each(|(i, px)| {
+            if let Some(hit) = &hits[i] {
+                let (o, d) = self.camera.pixel_ray(i as u32 % w, i as u32 / w);
+                let dark = shade::shade(&self.scene.mesh, &light, o, d, hit, true);
+                let lit = shade::shade(&self.scene.mesh, &light, o, d, hit, false);
+                *px = dark + (lit - dark) * vis[i];
+            }
+        });
+        Image { width: w, height: self.camera.height, pixels }
+    }
+
+    /// The reference visibility, `samples` stratified samples per pixel (row-major).
+    pub fn reference(&self, samples: u32) -> Vec<f32> {
+        let w = self.camera.width;
+        let n = self.layout.pixel_count();
+        let mut vis = vec![0.0f32; n];
+        vis.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+            for (x, v) in row.iter_mut().enumerate() {
+                let (x, y) = (x as u32, y as u32);
+                if let Some(hit) = self.tree.intersect(&primary_ray(&self.camera, x, y)) {
+                    let p = self.shading_point(x, y, &hit);
+                    let mut rng = Rng::new(pixel_seed(x, y, 0xC0FF_EE00 ^ u64::from(samples)));
+                    *v = visible_fraction(self.tree, &self.light, &p, samples, &mut rng);
+                }
+            }
+        });
+        vis
+    }
+}
+
+/// One method's result against the reference (one JSON object with `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ShadowReport {
+    /// Scene name.
+    pub scene: String,
+    /// Method name.
+    pub method: String,
+    /// Median frame time (primary rays, visibility, shading), milliseconds.
+    pub ms_per_frame: f64,
+    /// Shadow rays per second over the median frame.
+    pub shadow_rays_per_s: f64,
+    /// RMSE of the visible fraction against the reference, over pixels with a hit.
+    pub visibility_rmse: f64,
+    /// Largest absolute visibility error.
+    pub visibility_max_err: f64,
+    /// PSNR of the visibility (peak 1), dB.
+    pub psnr: f64,
+    /// Whether the method is on the speed/error Pareto front of its scene.
+    pub pareto: bool,
+}
+
+impl fmt::Display for ShadowReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:<16} {:<20} {:>9.2} ms {:>8.2} Mrays/s  rmse {:.4}  max {:.3}  psnr {:>6.2} dB{}",
+            self.scene,
+            self.method,
+            self.ms_per_frame,
+            self.shadow_rays_per_s * 1e-6,
+            self.visibility_rmse,
+            self.visibility_max_err,
+            self.psnr,
+            if self.pareto { "  [pareto]" } else { "" }
+        )
+    }
+}
+
+/// `(rmse, max abs, psnr)` of `a` against `b` over the pixels of `mask`.
+pub fn masked_errors(a: &[f32], b: &[f32], mask: &[bool]) -> (f64, f64, f64) {
+    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+    for ((&x, &y), &m) in a.iter().zip(b).zip(mask) {
+        if m {
+            let e = f64::from(x) - f64::from(y);
+            sum += e * e;
+            max = max.max(e.abs());
+            n += 1;
+        }
+    }
+    let mse = if n == 0 { 0.0 } else { sum / n as f64 };
+    (mse.sqrt(), max, if mse > 0.0 { -10.0 * mse.log10() } else { f64::INFINITY })
+}
+
+/// Marks the reports on the Pareto front: no other method is as fast and as accurate, and
+/// strictly better in one.
+pub fn mark_pareto(reports: &mut [ShadowReport]) {
+    let points: Vec<(f64, f64)> = reports.iter().map(|r| (r.ms_per_frame, r.visibility_rmse)).collect();
+    for (i, r) in reports.iter_mut().enumerate() {
+        let (t, e) = points[i];
+        r.pareto = !points.iter().enumerate().any(|(j, &(tj, ej))| j != i && tj <= t && ej <= e && (tj < t || ej < e));
+    }
+}
+
+/// 64-bit FNV-1a.
+fn fnv(bytes: impl IntoIterator<Item = u8>, mut h: u64) -> u64 {
+    for b in bytes {
+        h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+/// The cache file of a reference: keyed by the scene (name and a hash of its geometry), the
+/// camera, the image size, the light, the sample count and the intersector; a `.key` file
+/// beside it holds the full key, checked on load, so any change recomputes it.
+pub fn reference_cache_path(
+    dir: &Path,
+    scene: &Scene,
+    camera: &Camera,
+    light: &AreaLight,
+    samples: u32,
+    tree: &KdTree,
+) -> (PathBuf, String) {
+    let geometry =
+        fnv(scene.mesh.positions.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes), 0xcbf2_9ce4_8422_2325);
+    let geometry = fnv(scene.mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()), geometry);
+    let key = format!(
+        "v1 scene={} geometry={geometry:016x} camera={:?} size={}x{} light={light:?} samples={samples} intersector={}",
+        scene.name,
+        (camera.pixel_ray(0, 0), camera.pixel_ray(camera.width - 1, camera.height - 1)),
+        camera.width,
+        camera.height,
+        tree.intersector().name()
+    );
+    let hash = fnv(key.bytes(), 0xcbf2_9ce4_8422_2325);
+    let safe: String =
+        scene.name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
+    (dir.join(format!("{safe}-{hash:016x}.pfm")), key)
+}
+
+/// The reference visibility of `setup`, from the cache when its key matches, else computed
+/// and stored.
+fn cached_reference(setup: &ShadowSetup, dir: &Path, samples: u32) -> Result<(Vec<f32>, bool), Error> {
+    let (path, key) = reference_cache_path(dir, setup.scene, &setup.camera, &setup.light, samples, setup.tree);
+    let key_path = path.with_extension("key");
+    if std::fs::read_to_string(&key_path).is_ok_and(|k| k == key)
+        && let Ok(img) = scenes::ScalarImage::load_pfm(&path)
+        && img.values.len() == setup.layout.pixel_count()
+    {
+        return Ok((img.values, true));
+    }
+    let values = setup.reference(samples);
+    std::fs::create_dir_all(dir).map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
+    scenes::ScalarImage { width: setup.camera.width, height: setup.camera.height, values: values.clone() }
+        .save_pfm(&path)?;
+    std::fs::write(&key_path, &key).map_err(|e| Error::File { path: key_path.clone(), message: e.to_string() })?;
+    Ok((values, false))
+}
+
+/// The `analytic` scene: a unit sphere (icosphere, 5 subdivisions) 2 above a floor slab,
+/// under a spherical light of radius 1 at height 8; returns the scene, the light, the
+/// sphere (centre, radius) and the floor's material id.
+pub fn analytic_scene() -> (Scene, AreaLight, (Vec3, f32), u32) {
+    let mut b = MeshBuilder::new();
+    let ball = b.material("sphere", Vec3::new(0.8, 0.6, 0.3));
+    let floor = b.material("floor", Vec3::splat(0.7));
+    let sphere = (Vec3::new(0.0, 2.0, 0.0), 1.0);
+    b.add(&Part::icosphere(sphere.1, 5).translated(sphere.0), ball);
+    b.add_box(Vec3::new(-12.0, -1.0, -12.0), Vec3::new(12.0, 0.0, 12.0), floor);
+    let mut scene = Scene::from_mesh("analytic", b.finish());
+    scene.views = vec![View {
+        name: "default".into(),
+        eye: Vec3::new(0.0, 9.0, 9.0),
+        target: Vec3::new(0.5, 0.0, 0.0),
+        fovy_deg: 45.0,
+    }];
+    let light =
+        AreaLight::Sphere(SphereLight { center: Vec3::new(1.2, 8.0, 0.0), radius: 1.0, intensity: Vec3::splat(60.0) });
+    (scene, light, sphere, floor)
+}
+
+fn scene_list(args: &ShadowsArgs) -> Vec<String> {
+    if !args.scene.is_empty() {
+        return args.scene.clone();
+    }
+    let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove", "analytic"].map(String::from).to_vec();
+    if let Some(dir) = scenes::shared_scenes_dir()
+        && let Ok(entries) = std::fs::read_dir(dir)
+    {
+        let mut files: Vec<String> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+                name.ends_with(".obj") || name.ends_with(".obj.gz")
+            })
+            .map(|p| p.display().to_string())
+            .collect();
+        files.sort();
+        list.extend(files);
+    }
+    list
+}
+
+/// Per-triangle thickness scales from `NAME=SCALE` arguments (materials whose name contains
+/// `NAME`), or `None` when none are given.
+pub fn thickness_scales(scene: &Scene, specs: &[String]) -> Result<Option<Vec<f32>>, Error> {
+    if specs.is_empty() {
+        return Ok(None);
+    }
+    let mut per_material = vec![1.0f32; scene.mesh.materials.len()];
+    for spec in specs {
+        let (name, scale) =
+            spec.split_once('=').ok_or_else(|| Error::Usage(format!("--thickness '{spec}': expected NAME=SCALE")))?;
+        let scale: f32 = scale
+            .trim()
+            .parse()
+            .ok()
+            .filter(|s: &f32| s.is_finite() && *s > 0.0)
+            .ok_or_else(|| Error::Usage(format!("--thickness '{spec}': the scale must be a finite number > 0")))?;
+        for (m, material) in scene.mesh.materials.iter().enumerate() {
+            if material.name.contains(name) {
+                per_material[m] = scale;
+            }
+        }
+    }
+    Ok(Some(scene.mesh.material_ids.iter().map(|&m| per_material.get(m as usize).copied().unwrap_or(1.0)).collect()))
+}
+
+/// The light of `--light` and `--light-size` for `scene`.
+fn chosen_light(scene: &Scene, args: &ShadowsArgs) -> AreaLight {
+    let rect = AreaLight::Rect(scene.area_light);
+    let base = match args.light {
+        LightKind::Rect => rect,
+        LightKind::Sphere => AreaLight::Sphere(SphereLight {
+            center: rect.center(),
+            radius: rect.radius(),
+            intensity: scene.area_light.intensity,
+        }),
+    };
+    base.scaled(args.light_size)
+}
+
+fn check_args(args: &ShadowsArgs) -> Result<(), Error> {
+    if !(args.light_size.is_finite() && args.light_size > 0.0) {
+        return Err(Error::Usage(format!("--light-size {} must be a finite number > 0", args.light_size)));
+    }
+    if !(args.edge_scale.is_finite() && args.edge_scale >= 0.0) {
+        return Err(Error::Usage(format!("--edge-scale {} must be a finite number >= 0", args.edge_scale)));
+    }
+    Ok(())
+}
+
+/// `rttest shadows`.
+pub fn shadows_command(global: &GlobalArgs, args: &ShadowsArgs) -> Result<(), Error> {
+    check_args(args)?;
+    let cache_dir =
+        args.cache_dir.clone().unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/shadow-cache"));
+    for spec in scene_list(args) {
+        let (scene, light, analytic) = if spec == "analytic" {
+            let (scene, light, sphere, floor) = analytic_scene();
+            let light = light.scaled(args.light_size);
+            (scene, light, Some((sphere, floor)))
+        } else {
+            let scene = scenes::load_scene(&spec)?;
+            let light = chosen_light(&scene, args);
+            (scene, light, None)
+        };
+        let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
+        let view = match &args.view {
+            Some(name) => scene.view(name)?,
+            None => scene.default_view(),
+        };
+        let camera = view
+            .camera(args.size.0, args.size.1)
+            .ok_or_else(|| Error::Usage(format!("view '{}' gives a degenerate camera", view.name)))?;
+        let thickness = thickness_scales(&scene, &args.thickness)?;
+        let setup = ShadowSetup::new(&scene, &tree, camera, light).with_edge_options(
+            args.edge_scale,
+            args.shared_vertex,
+            thickness,
+        );
+        let (mut reference, _cached) = cached_reference(&setup, &cache_dir, args.ref_samples)?;
+
+        // Frames, interleaved across methods; the median time of each.
+        let mut times: Vec<Vec<f64>> = vec![Vec::new(); METHODS.len()];
+        let mut frames: Vec<Option<ShadowFrame>> = METHODS.iter().map(|_| None).collect();
+        for _ in 0..args.frames {
+            for (i, &m) in METHODS.iter().enumerate() {
+                let f = setup.frame(m);
+                times[i].push(f.secs);
+                frames[i] = Some(f);
+            }
+        }
+        let frames: Vec<ShadowFrame> = frames.into_iter().flatten().collect();
+        let hits = &frames[0].hits;
+        let mut mask: Vec<bool> = hits.iter().map(Option::is_some).collect();
+        if let Some(((center, radius), floor)) = analytic {
+            // The floor's pixels: the closed form, and only those count.
+            for (i, hit) in hits.iter().enumerate() {
+                let on_floor = hit.is_some_and(|h| scene.mesh.material_ids[h.prim as usize] == floor);
+                mask[i] = on_floor;
+                if let (true, Some(h)) = (on_floor, hit) {
+                    let p = kdtree::ray::surface_point(&tree.triangle(h.prim), h);
+                    reference[i] = sphere_visible_fraction(p, light.center(), light.radius(), center, radius) as f32;
+                }
+            }
+        }
+        let mut reports: Vec<ShadowReport> = METHODS
+            .iter()
+            .zip(&frames)
+            .zip(&times)
+            .map(|((m, f), t)| {
+                let secs = median(t);
+                let (rmse, max, psnr) = masked_errors(&f.visibility, &reference, &mask);
+                ShadowReport {
+                    scene: scene.name.clone(),
+                    method: m.name(),
+                    ms_per_frame: secs * 1e3,
+                    shadow_rays_per_s: f.shadow_rays as f64 / secs,
+                    visibility_rmse: rmse,
+                    visibility_max_err: max,
+                    psnr,
+                    pareto: false,
+                }
+            })
+            .collect();
+        mark_pareto(&mut reports);
+        let dir = args.out_dir.join(&scene.name);
+        write_outputs(&dir, &setup, &frames, &reference, &mask, &reports)?;
+        for r in &reports {
+            emit(global, r)?;
+        }
+    }
+    Ok(())
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
+    move |e| Error::File { path: path.to_path_buf(), message: e.to_string() }
+}
+
+/// Images, strip, error images, CSV and the plot of one scene.
+fn write_outputs(
+    dir: &Path,
+    setup: &ShadowSetup,
+    frames: &[ShadowFrame],
+    reference: &[f32],
+    mask: &[bool],
+    reports: &[ShadowReport],
+) -> Result<(), Error> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let (w, h) = (setup.camera.width, setup.camera.height);
+    let ref_image = setup.shade(&frames[0].hits, reference);
+    ref_image.save_png(&dir.join("reference.png"))?;
+    // The strip: reference then each method; below, each method's |error| x 4 (red: off the
+    // measured pixels).
+    let mut strip = Image::new(w * (frames.len() as u32 + 1), 2 * h);
+    let mut put = |col: u32, row: u32, img: &Image| {
+        for y in 0..h {
+            for x in 0..w {
+                strip.set(col * w + x, row * h + y, img.get(x, y));
+            }
+        }
+    };
+    put(0, 0, &ref_image);
+    for (i, (f, r)) in frames.iter().zip(reports).enumerate() {
+        f.image.save_png(&dir.join(format!("{}.png", r.method)))?;
+        let err = Image {
+            width: w,
+            height: h,
+            pixels: f
+                .visibility
+                .iter()
+                .zip(reference)
+                .zip(mask)
+                .map(|((a, b), &m)| if m { Vec3::splat(4.0 * (a - b).abs()) } else { Vec3::new(0.15, 0.0, 0.0) })
+                .collect(),
+        };
+        err.save_png(&dir.join(format!("error-{}.png", r.method)))?;
+        put(i as u32 + 1, 0, &f.image);
+        put(i as u32 + 1, 1, &err);
+    }
+    strip.save_png(&dir.join("strip.png"))?;
+    let mut csv =
+        String::from("scene,method,ms_per_frame,shadow_rays_per_s,visibility_rmse,visibility_max_err,psnr,pareto\n");
+    for r in reports {
+        csv += &format!(
+            "{},{},{:.3},{:.0},{:.6},{:.6},{:.3},{}\n",
+            r.scene,
+            r.method,
+            r.ms_per_frame,
+            r.shadow_rays_per_s,
+            r.visibility_rmse,
+            r.visibility_max_err,
+            r.psnr,
+            r.pareto
+        );
+    }
+    let csv_path = dir.join("shadows.csv");
+    std::fs::write(&csv_path, csv).map_err(io(&csv_path))?;
+    crate::shadow_plot::plot(dir, reports)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_front_keeps_the_undominated() {
+        let r = |m: &str, t: f64, e: f64| ShadowReport {
+            scene: "s".into(),
+            method: m.into(),
+            ms_per_frame: t,
+            shadow_rays_per_s: 0.0,
+            visibility_rmse: e,
+            visibility_max_err: 0.0,
+            psnr: 0.0,
+            pareto: false,
+        };
+        let mut v = vec![r("a", 1.0, 0.5), r("b", 2.0, 0.2), r("c", 3.0, 0.3), r("d", 4.0, 0.1)];
+        mark_pareto(&mut v);
+        assert_eq!(v.iter().map(|r| r.pareto).collect::<Vec<_>>(), [true, true, false, true]);
+    }
+
+    #[test]
+    fn edge_width_packet_frame_equals_single_rays_and_the_reference_cache_is_keyed() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        let light = AreaLight::Rect(scene.area_light).scaled(2.0);
+        let setup = ShadowSetup::new(&scene, &tree, camera, light);
+        let single = setup.frame(ShadowMethod::EdgeWidth);
+        let packet = setup.frame(ShadowMethod::EdgeWidthPacket);
+        assert_eq!(single.visibility, packet.visibility);
+        assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
+        let dir = std::env::temp_dir().join(format!("rttest-shadow-cache-{}", std::process::id()));
+        let (a, cached) = cached_reference(&setup, &dir, 4).unwrap();
+        assert!(!cached);
+        let (b, cached) = cached_reference(&setup, &dir, 4).unwrap();
+        assert!(cached && a == b);
+        // A different light or sample count is a different entry.
+        let other = ShadowSetup::new(&scene, &tree, camera, light.scaled(0.5));
+        assert!(!cached_reference(&other, &dir, 4).unwrap().1);
+        assert!(!cached_reference(&setup, &dir, 8).unwrap().1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_thickness_and_light_size_are_usage_errors() {
+        let scene = scenes::load_scene("cube").unwrap();
+        assert!(thickness_scales(&scene, &["cube".into()]).is_err());
+        assert!(thickness_scales(&scene, &["cube=nan".into()]).is_err());
+        assert!(thickness_scales(&scene, &["cube=-1".into()]).is_err());
+        let t = thickness_scales(&scene, &["cube=3".into()]).unwrap().unwrap();
+        assert!(t.iter().all(|&s| s == 3.0));
+    }
+}

@@ -1,0 +1,312 @@
+//! Sampled soft shadows, the references and competitors of the edge widths: rectangular and
+//! spherical area lights, stratified visibility with `N` shadow rays, and the 4x4 interleaved
+//! sample sets of Benthin & Wald 2009 (4.5).
+//!
+//! As both papers do (thesis chapter 5, Benthin & Wald 4.5), shading uses one sample at the
+//! light's centre and multiplies it by the visible fraction of the light; these functions
+//! compute only that fraction. Every shadow ray starts at `kdtree::ray::offset_origin`.
+
+use glam::{Vec2, Vec3};
+use kdtree::{Hit, KdTree, Ray};
+use scenes::{RectLight, SphereLight};
+
+/// An area light: a rectangle (uniform in area) or a sphere (uniform in the solid angle it
+/// subtends, so that the visible fraction is a solid-angle fraction: the closed form of
+/// [`crate::analytic`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AreaLight {
+    /// A parallelogram light (`scenes::RectLight`).
+    Rect(RectLight),
+    /// A spherical light (`scenes::SphereLight`).
+    Sphere(SphereLight),
+}
+
+impl AreaLight {
+    /// The centre: where hard shadows, edge widths and the shading aim.
+    pub fn center(&self) -> Vec3 {
+        match self {
+            AreaLight::Rect(l) => l.center(),
+            AreaLight::Sphere(l) => l.center,
+        }
+    }
+
+    /// The radius used for the edge width `R` (Eq. 5.1): the sphere's radius, or the radius
+    /// of the disc with the rectangle's area.
+    pub fn radius(&self) -> f32 {
+        match self {
+            AreaLight::Rect(l) => (l.edge_u.cross(l.edge_v).length() / std::f32::consts::PI).sqrt(),
+            AreaLight::Sphere(l) => l.radius,
+        }
+    }
+
+    /// The intensity per colour channel, as if concentrated at the centre.
+    pub fn intensity(&self) -> Vec3 {
+        match self {
+            AreaLight::Rect(l) => l.intensity,
+            AreaLight::Sphere(l) => l.intensity,
+        }
+    }
+
+    /// The light scaled about its centre by `factor` (`--light-size`).
+    pub fn scaled(&self, factor: f32) -> AreaLight {
+        match *self {
+            AreaLight::Rect(l) => {
+                let (u, v) = (l.edge_u * factor, l.edge_v * factor);
+                AreaLight::Rect(RectLight { corner: l.center() - 0.5 * (u + v), edge_u: u, edge_v: v, ..l })
+            }
+            AreaLight::Sphere(l) => AreaLight::Sphere(SphereLight { radius: l.radius * factor, ..l }),
+        }
+    }
+
+    /// The point of the light for the unit-square sample `s`, seen from `p`: on the rectangle
+    /// at `s`, or on the near side of the sphere along a direction uniform in the cone it
+    /// subtends from `p` (the centre when `p` is inside the sphere).
+    #[inline]
+    pub fn sample(&self, p: Vec3, s: Vec2) -> Vec3 {
+        match self {
+            AreaLight::Rect(l) => l.point(s.x, s.y),
+            AreaLight::Sphere(l) => sphere_sample(l, p, s),
+        }
+    }
+}
+
+/// A point on the near side of sphere `l` along a direction uniform in the solid angle it
+/// subtends from `p`.
+///
+/// With `sin^2 = (r / d)^2`, `1 - cos(theta_max) = sin^2 / (1 + cos(theta_max))` (no
+/// cancellation for small lights), `1 - cos(theta) = s.x (1 - cos(theta_max))`, `phi = 2 pi
+/// s.y`; the point is at `d cos(theta) - sqrt(r^2 - d^2 sin^2(theta))` along the direction.
+fn sphere_sample(l: &SphereLight, p: Vec3, s: Vec2) -> Vec3 {
+    let to = l.center - p;
+    let d = to.length();
+    if d <= l.radius || d == 0.0 {
+        return l.center;
+    }
+    let w = to / d;
+    let sin2_max = (l.radius / d).powi(2);
+    let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+    let one_minus_cos = s.x * sin2_max / (1.0 + cos_max);
+    let cos = 1.0 - one_minus_cos;
+    let sin = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+    let phi = std::f32::consts::TAU * s.y;
+    let (u, v) = w.any_orthonormal_pair();
+    let dir = (u * phi.cos() + v * phi.sin()) * sin + w * cos;
+    let disc = (l.radius * l.radius - d * d * sin * sin).max(0.0);
+    p + dir * (d * cos - disc.sqrt())
+}
+
+/// A small deterministic random generator (SplitMix64), seeded per pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// The generator of `seed` (e.g. a pixel index mixed with a frame seed).
+    #[inline]
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed ^ 0x9E37_79B9_7F4A_7C15)
+    }
+
+    /// A uniform `f32` in `[0, 1)`.
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+}
+
+/// The grid of `n` strata, `nx` columns by `n / nx` rows with `nx` the largest divisor of
+/// `n` not above `sqrt(n)` (4 = 2x2, 8 = 2x4, 32 = 4x8, 1024 = 32x32).
+#[inline]
+pub fn strata(n: u32) -> (u32, u32) {
+    let mut nx = (n as f64).sqrt() as u32;
+    while nx > 1 && !n.is_multiple_of(nx) {
+        nx -= 1;
+    }
+    let nx = nx.max(1);
+    (nx, n / nx)
+}
+
+/// The `k`-th of `n` stratified (jittered) samples of the unit square.
+#[inline]
+pub fn stratified(k: u32, (nx, ny): (u32, u32), rng: &mut Rng) -> Vec2 {
+    let (i, j) = (k % nx, k / nx);
+    Vec2::new((i as f32 + rng.next_f32()) / nx as f32, (j as f32 + rng.next_f32()) / ny as f32)
+}
+
+/// Where a shadow ray towards the light starts, and the surface side it may leave on: the
+/// primary hit `hit` on triangle `tri`, with `normal` its geometric normal facing the viewer.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingPoint {
+    /// The triangle's vertices.
+    pub tri: [Vec3; 3],
+    /// The primary hit.
+    pub hit: Hit,
+    /// The geometric normal, facing the viewer.
+    pub normal: Vec3,
+    /// The hit point from its barycentrics (`kdtree::ray::surface_point`).
+    pub point: Vec3,
+}
+
+impl ShadingPoint {
+    /// The shading point of `hit` on `tri` seen along `view_dir`.
+    pub fn new(tri: [Vec3; 3], hit: Hit, view_dir: Vec3) -> ShadingPoint {
+        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
+        let normal = if n.dot(view_dir) > 0.0 { -n } else { n };
+        ShadingPoint { tri, hit, normal, point: kdtree::ray::surface_point(&tri, &hit) }
+    }
+
+    /// The shadow ray from this point to `target` (`t` in `[0, 1]`, reaching `target` at 1),
+    /// or `None` when `target` lies behind the surface.
+    #[inline]
+    pub fn shadow_ray(&self, target: Vec3) -> Option<Ray> {
+        let to = target - self.point;
+        if self.normal.dot(to) <= 0.0 {
+            return None;
+        }
+        let start = kdtree::ray::offset_origin(&self.tri, &self.hit, to);
+        Some(Ray::new(start, target - start, 0.0, 1.0))
+    }
+}
+
+/// The visible fraction of `light` from `p` with `n` stratified samples (`n = 1`: the centre,
+/// hard shadows), jittered by `rng`. Samples behind the surface count as blocked.
+pub fn visible_fraction(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, n: u32, rng: &mut Rng) -> f32 {
+    if n <= 1 {
+        return p.shadow_ray(light.center()).map_or(0.0, |ray| f32::from(u8::from(!tree.occluded(&ray))));
+    }
+    let grid = strata(n);
+    let mut visible = 0u32;
+    for k in 0..n {
+        let target = light.sample(p.point, stratified(k, grid, rng));
+        if let Some(ray) = p.shadow_ray(target) {
+            visible += u32::from(!tree.occluded(&ray));
+        }
+    }
+    visible as f32 / n as f32
+}
+
+/// Benthin & Wald's 4x4 interleaved sampling (2009, 4.5): 16 sets of 16 samples whose
+/// union is one 16x16 stratified pattern; pixel `(x, y)` uses set `4 (y % 4) + x % 4`.
+///
+/// Sample `(i, j)` of the 16x16 jittered grid goes to set `4 (j % 4) + i % 4`, so every set is
+/// itself stratified over the 4x4 strata of the square, and the 16 sets of a 4x4 pixel block
+/// together cover all 256 strata (which the discontinuity filter then averages).
+#[derive(Clone, Debug, PartialEq)]
+pub struct InterleavedSets {
+    sets: [[Vec2; 16]; 16],
+}
+
+impl InterleavedSets {
+    /// The sets of one frame, jittered by `seed`.
+    pub fn new(seed: u64) -> InterleavedSets {
+        let mut rng = Rng::new(seed);
+        let mut sets = [[Vec2::ZERO; 16]; 16];
+        let mut fill = [0usize; 16];
+        for j in 0..16u32 {
+            for i in 0..16u32 {
+                let s = Vec2::new((i as f32 + rng.next_f32()) / 16.0, (j as f32 + rng.next_f32()) / 16.0);
+                let set = (4 * (j % 4) + i % 4) as usize;
+                sets[set][fill[set]] = s;
+                fill[set] += 1;
+            }
+        }
+        InterleavedSets { sets }
+    }
+
+    /// The set of pixel `(x, y)`.
+    #[inline]
+    pub fn for_pixel(&self, x: u32, y: u32) -> &[Vec2; 16] {
+        &self.sets[(4 * (y % 4) + x % 4) as usize]
+    }
+
+    /// The visible fraction of `light` from `p` with the set of pixel `(x, y)`.
+    pub fn visible_fraction(&self, tree: &KdTree, light: &AreaLight, p: &ShadingPoint, x: u32, y: u32) -> f32 {
+        let mut visible = 0u32;
+        for s in self.for_pixel(x, y) {
+            if let Some(ray) = p.shadow_ray(light.sample(p.point, *s)) {
+                visible += u32::from(!tree.occluded(&ray));
+            }
+        }
+        visible as f32 / 16.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strata_are_near_square() {
+        assert_eq!(strata(1), (1, 1));
+        assert_eq!(strata(4), (2, 2));
+        assert_eq!(strata(8), (2, 4));
+        assert_eq!(strata(32), (4, 8));
+        assert_eq!(strata(256), (16, 16));
+        assert_eq!(strata(7), (1, 7));
+    }
+
+    #[test]
+    fn stratified_samples_fill_each_stratum_once() {
+        let mut rng = Rng::new(3);
+        let grid = strata(32);
+        let mut seen = [false; 32];
+        for k in 0..32 {
+            let s = stratified(k, grid, &mut rng);
+            let cell = (s.y * 8.0) as usize * 4 + (s.x * 4.0) as usize;
+            assert!(!seen[cell]);
+            seen[cell] = true;
+        }
+    }
+
+    #[test]
+    fn interleaved_sets_are_each_stratified_and_together_cover_all_strata() {
+        let sets = InterleavedSets::new(11);
+        let mut all = [false; 256];
+        for y in 0..4 {
+            for x in 0..4 {
+                let mut coarse = [false; 16];
+                for s in sets.for_pixel(x, y) {
+                    let c = (s.y * 4.0) as usize * 4 + (s.x * 4.0) as usize;
+                    assert!(!coarse[c], "set of pixel ({x}, {y}) is not stratified");
+                    coarse[c] = true;
+                    all[(s.y * 16.0) as usize * 16 + (s.x * 16.0) as usize] = true;
+                }
+            }
+        }
+        assert!(all.iter().all(|&b| b));
+        assert_eq!(sets.for_pixel(1, 2), sets.for_pixel(5, 6));
+    }
+
+    #[test]
+    fn sphere_samples_lie_on_the_near_side_inside_the_cone() {
+        let l = SphereLight { center: Vec3::new(0.0, 10.0, 0.0), radius: 2.0, intensity: Vec3::ONE };
+        let light = AreaLight::Sphere(l);
+        let p = Vec3::new(1.0, 0.0, 0.5);
+        let mut rng = Rng::new(1);
+        let sin_max = l.radius / (l.center - p).length();
+        for _ in 0..200 {
+            let q = light.sample(p, Vec2::new(rng.next_f32(), rng.next_f32()));
+            assert!(((q - l.center).length() - l.radius).abs() < 1e-4);
+            assert!((q - l.center).dot(p - l.center) >= -1e-4, "near side");
+            let cos = (q - p).normalize().dot((l.center - p).normalize());
+            assert!(cos >= (1.0 - sin_max * sin_max).sqrt() - 1e-5);
+        }
+    }
+
+    #[test]
+    fn scaling_keeps_the_centre_and_scales_the_radius() {
+        let rect = AreaLight::Rect(RectLight {
+            corner: Vec3::new(-1.0, 5.0, -2.0),
+            edge_u: Vec3::new(2.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 4.0),
+            intensity: Vec3::ONE,
+        });
+        let big = rect.scaled(2.0);
+        assert!((big.center() - rect.center()).length() < 1e-6);
+        assert!((big.radius() - 2.0 * rect.radius()).abs() < 1e-5);
+    }
+}
