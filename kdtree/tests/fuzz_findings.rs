@@ -2,7 +2,7 @@
 //! finding's input, decoded with `cargo fuzz fmt`, and the property the target checks.
 
 use glam::Vec3;
-use kdtree::triangle::{TriangleTest, WatertightTriangle};
+use kdtree::triangle::{TriangleTest, WaldTriangle, WatertightTriangle};
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
 
 fn tri(a: [f32; 9]) -> [Vec3; 3] {
@@ -84,5 +84,49 @@ fn ray_beside_a_triangle_outside_its_box() {
         oracle
             .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
             .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+    }
+}
+
+/// `traversal`: a ray with a huge y component (-4e31) and a tiny x component (2e-38) that
+/// crosses the plane of a 2e37-wide sliver triangle at t = 5.9e-42, at x = -7.7e-37, outside
+/// the triangle's x range [2.35e-38, 2.2e37] (the ray reaches that range only at t = 34, far
+/// past its t_max = 4.7e-41). Wald's test reports a hit there: the triangle's edge
+/// coefficient `c_nu` (exactly -8e-53) rounds to -0.0 in `f32`, and `c_nv * hv` (exactly
+/// -3.6e-74) underflows to zero, so the third barycentric is 0 instead of slightly negative.
+/// The tree culls the ray at the root box exactly and reports none; the oracle excused such
+/// artefacts only for zero direction components. It now excuses every triangle whose box the
+/// ray's segment surely misses (`BruteForce::unreachable`).
+#[test]
+fn ray_with_a_tiny_direction_component_beside_a_sliver_triangle() {
+    let t = tri([
+        2.3691403e-38,
+        2.3418052e-38,
+        1.01376515e-25,
+        2.3510604e-38,
+        9.19e-41,
+        -1.5028658e-36,
+        2.1851257e37,
+        -7.729682e-37,
+        -7.065031e24,
+    ]);
+    let ray = Ray::try_new(
+        Vec3::new(-7.729682e-37, 2.3944935e-10, 1.7578e-41),
+        Vec3::new(2.3476166e-38, -4.0658027e31, -2.9818803e-8),
+        -2.729787e24,
+        4.725e-41,
+    )
+    .unwrap();
+    assert_ne!(ray.dir.x, 0.0, "the tiny component is kept: its reciprocal is finite");
+    let record = WaldTriangle::new(&t);
+    let artefact = record.intersect(&ray, &WaldTriangle::prepare(&ray), ray.t_max);
+    assert_eq!(artefact.map(|h| h.0), Some(5.89e-42), "Wald's test reports the hit outside the triangle");
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&[t], &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        assert_eq!(tree.intersect(&ray), None);
+        oracle
+            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
+            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+        assert!(oracle.unreachable(&ray, 0), "x < 0 over the whole segment, the triangle has x > 2.3e-38");
     }
 }
