@@ -176,6 +176,46 @@ impl BruteForce {
         Ok(())
     }
 
+    /// Whether `got`, one traversal method's closest hit for `ray`, may stand for `want`,
+    /// another's (e.g. a packet lane against the single-ray kernel): the same hit; or a tie,
+    /// another triangle that the test hits at exactly the same distance (which of two
+    /// triangles at one distance is reported depends on the order leaves are visited in); or
+    /// answers that differ by a hit on a triangle the ray cannot reach in exact arithmetic
+    /// ([`BruteForce::unreachable`]), each of them accepted by [`BruteForce::check`].
+    ///
+    /// The last case is a rounding artefact of the triangle test that a method reports or not
+    /// depending on which leaves it visits, and methods legitimately visit different leaves:
+    /// the single-ray kernel's plane distance `(split - o) / d` can underflow to 0 and visit
+    /// both children, where a cone, measuring distances along its axis, culls exactly.
+    pub fn equivalent_hits(&self, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
+        if got == want {
+            return true;
+        }
+        if let (Some(g), Some(w)) = (got, want)
+            && g.prim != w.prim
+            && g.t == w.t
+            && self.all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t)
+        {
+            return true;
+        }
+        let artefact = |h: Option<Hit>| h.is_some_and(|h| self.unreachable(ray, h.prim));
+        (artefact(got) || artefact(want))
+            && self.check(ray, got, got.is_some()).is_ok()
+            && self.check(ray, want, want.is_some()).is_ok()
+    }
+
+    /// Whether `got`, one traversal method's any-hit answer for `ray`, may stand for `want`,
+    /// another's: the same answer, or different answers when the test's only hits in the
+    /// ray's interval are on triangles it cannot reach in exact arithmetic (rounding
+    /// artefacts, see [`BruteForce::equivalent_hits`]).
+    pub fn equivalent_occlusion(&self, ray: &Ray, got: bool, want: bool) -> bool {
+        if got == want {
+            return true;
+        }
+        let hits = self.all_hits(ray);
+        !hits.is_empty() && hits.iter().all(|&(_, p)| self.unreachable(ray, p))
+    }
+
     /// Every triangle hit by the ray, as `(t, prim)`, in index order.
     pub fn all_hits(&self, ray: &Ray) -> Vec<(f32, u32)> {
         match self.intersector {
@@ -285,5 +325,52 @@ mod tests {
         // The segment ends just before the plane z = 0: one ulp short of t = 1.
         assert!(oracle.unreachable(&ray(Vec3::new(1.2, 1.2, 1.0), Vec3::new(0.0, 0.0, -1.0), 0.99999994), 0));
         assert!(!oracle.unreachable(&ray(Vec3::new(1.2, 1.2, 1.0), Vec3::new(0.0, 0.0, -1.0), 1.0), 0));
+    }
+
+    #[test]
+    fn answers_may_differ_only_by_ties_and_unreachable_hits() {
+        // Triangle 0 at z = 1 and its twin 1 (a tie); triangle 2 at z = 2, behind them.
+        let tris = [
+            [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)],
+            [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)],
+            [Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0), Vec3::new(0.0, 1.0, 2.0)],
+        ];
+        let oracle = BruteForce::new(&tris, Intersector::Wald);
+        let ray = Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        let first = oracle.intersect(&ray).expect("triangle 0 is hit");
+        let twin = Hit { prim: 1, ..first };
+        let far = Hit { t: 2.0, prim: 2, ..first };
+        assert!(oracle.equivalent_hits(&ray, Some(first), Some(first)));
+        assert!(oracle.equivalent_hits(&ray, Some(twin), Some(first)), "a tie");
+        assert!(!oracle.equivalent_hits(&ray, Some(far), Some(first)), "a later hit");
+        assert!(!oracle.equivalent_hits(&ray, None, Some(first)), "a miss");
+        assert!(!oracle.equivalent_hits(&ray, Some(Hit { u: 0.3, ..first }), Some(first)), "other barycentrics");
+        assert!(oracle.equivalent_occlusion(&ray, true, true));
+        assert!(!oracle.equivalent_occlusion(&ray, false, true));
+        let miss = Ray::new(Vec3::new(2.0, 2.0, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        assert!(!oracle.equivalent_occlusion(&miss, true, false), "no hit at all");
+
+        // A sliver whose Wald record reports a hit for a ray that misses its box (the
+        // `traversal` fuzz finding in `tests/fuzz_findings.rs`): either answer goes, for the
+        // closest hit and the any-hit query.
+        let sliver = [
+            Vec3::new(2.3691403e-38, 2.3418052e-38, 1.01376515e-25),
+            Vec3::new(2.3510604e-38, 9.19e-41, -1.5028658e-36),
+            Vec3::new(2.1851257e37, -7.729682e-37, -7.065031e24),
+        ];
+        let oracle = BruteForce::new(&[sliver], Intersector::Wald);
+        let ray = Ray::new(
+            Vec3::new(-7.729682e-37, 2.3944935e-10, 1.7578e-41),
+            Vec3::new(2.3476166e-38, -4.0658027e31, -2.9818803e-8),
+            -2.729787e24,
+            4.725e-41,
+        );
+        let artefact = oracle.intersect(&ray).expect("Wald's test reports it");
+        assert!(oracle.unreachable(&ray, 0));
+        assert!(oracle.equivalent_hits(&ray, None, Some(artefact)));
+        assert!(oracle.equivalent_hits(&ray, Some(artefact), None));
+        assert!(!oracle.equivalent_hits(&ray, Some(Hit { t: 1e-42, ..artefact }), None), "not a hit of the test");
+        assert!(oracle.equivalent_occlusion(&ray, false, true));
+        assert!(oracle.equivalent_occlusion(&ray, true, false));
     }
 }

@@ -130,3 +130,52 @@ fn ray_with_a_tiny_direction_component_beside_a_sliver_triangle() {
         assert!(oracle.unreachable(&ray, 0), "x < 0 over the whole segment, the triangle has x > 2.3e-38");
     }
 }
+
+/// `traversal`: a ray along -x whose interval is the single point `t = 0`, its origin at
+/// x = 1.5e-39, beside triangle 1, whose x range ends at 1.076e-42. The plane distance to the
+/// root split x = 1.076e-42, 8.9e-78, underflows to 0, so the tree visits both children and
+/// reports Wald's rounding hit on triangle 1 at `t = -0.0`; the cone methods measure the
+/// plane along their axis (1.5e-39), cull that child and report none, which the target took
+/// for a disagreement. Either answer is right: `BruteForce::equivalent_hits` and
+/// `equivalent_occlusion` accept them (the cone side is in `cones/tests/fuzz_findings.rs`).
+#[test]
+fn plane_distance_underflow_finds_an_artefact_that_exact_culling_skips() {
+    let soup = [
+        tri([
+            -7.729682e-37,
+            -7.729682e-37,
+            6.938894e-18,
+            8.843688e-18,
+            8.843688e-18,
+            8.843688e-18,
+            1.2605e-41,
+            9.723689e-35,
+            -1.0909784e-18,
+        ]),
+        tri([
+            -1.0952567e-18,
+            5.167039e-29,
+            1.37753e-40,
+            1.076e-42,
+            3.345292e-30,
+            -7.729725e-37,
+            -5.09907e-37,
+            6.762284e-23,
+            1.0858565e-19,
+        ]),
+    ];
+    let ray =
+        Ray::try_new(Vec3::new(1.516545e-39, 3.22545e-40, 1.3591833e-38), Vec3::new(-1.7023464e38, 0.0, 0.0), 0.0, 0.0)
+            .unwrap();
+    let tree = KdTree::build_soup(&soup, &BuildConfig::default()).unwrap();
+    let (root, oracle) = (tree.nodes()[0], BruteForce::for_tree(&tree));
+    assert_eq!((root.axis(), root.split()), (0, 1.076e-42));
+    assert_eq!((root.split() - ray.origin.x) * ray.inv_dir.x, 0.0, "8.9e-78 underflows");
+    let single = tree.intersect(&ray);
+    assert_eq!(single.map(|h| (h.t, h.prim)), Some((-0.0, 1)));
+    assert!(oracle.unreachable(&ray, 1), "the ray's one point lies at x = 1.5e-39 > 1.076e-42");
+    oracle.check(&ray, single, tree.occluded(&ray)).unwrap();
+    oracle.check(&ray, None, false).unwrap();
+    assert!(oracle.equivalent_hits(&ray, None, single));
+    assert!(oracle.equivalent_occlusion(&ray, false, tree.occluded(&ray)));
+}
