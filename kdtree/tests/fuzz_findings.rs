@@ -1,5 +1,6 @@
 //! Regression tests for the inputs the cargo-fuzz targets found (`fuzz/`): each is the
 //! finding's input, decoded with `cargo fuzz fmt`, and the property the target checks.
+//! The findings that involve the cone methods are in `cones/tests/fuzz_findings.rs`.
 
 use glam::Vec3;
 use kdtree::triangle::{TriangleTest, WaldTriangle, WatertightTriangle};
