@@ -28,6 +28,7 @@
 
 use glam::{DVec3, Vec3};
 use kdtree::KdTree;
+use packets::frustum::T_UNDERFLOW;
 use packets::{Frusta, FrustumBound, OmniPacket, PacketCounters, TileTracer};
 use scenes::{Camera, Tile};
 
@@ -71,17 +72,23 @@ pub fn primary_cone(camera: &Camera, tile: &Tile) -> Result<Cone, ConeError> {
 /// The frustum bound of `cone` (apex at the rays' origin) for rays whose root box interval of
 /// ray parameters is `pyramid.near..pyramid.far` and whose direction lengths lie in
 /// `len = (min, max)`: Listing 4.4's factors and that interval converted to distances along
-/// the axis.
+/// the axis, moved outwards by the rounding of the parameters it is made of (relative, and
+/// [`T_UNDERFLOW`] absolute).
 pub fn cone_bound(cone: &Cone, pyramid: &FrustumBound, len: (f64, f64)) -> FrustumBound {
     let f = cone.factors();
     if is_empty(pyramid) {
         return FrustumBound { k0: f.k0, k1: f.k1, ..*pyramid };
     }
     let cos = 1.0 / (1.0 + cone.tan_alpha * cone.tan_alpha).sqrt();
+    // The pyramid's interval is in ray parameters computed in f32: widened relatively, but a
+    // parameter that underflowed is off by up to `T_UNDERFLOW` absolutely (a clip exit of
+    // 1.7e-46 is 0), which the conversion to distances multiplies by up to `|d|` (a fuzz
+    // finding: 1.7e32). Both ends are moved out by it before they are scaled.
+    let t_err = f64::from(T_UNDERFLOW);
     let near = f64::from(pyramid.near);
-    let near = if near > 0.0 { (near * len.0 * cos * (1.0 - 1e-6)) as f32 } else { pyramid.near };
+    let near = if near > 0.0 { ((near - t_err).max(0.0) * len.0 * cos * (1.0 - 1e-6)) as f32 } else { pyramid.near };
     let up = |t: f64| if t.is_finite() { (t * (1.0 + 1e-6)) as f32 } else { t as f32 };
-    FrustumBound { k0: f.k0, k1: f.k1, near, far: up(f64::from(pyramid.far) * len.1), hit_scale: up(len.1) }
+    FrustumBound { k0: f.k0, k1: f.k1, near, far: up((f64::from(pyramid.far) + t_err) * len.1), hit_scale: up(len.1) }
 }
 
 /// Whether no ray is left in the bound (an empty or NaN interval).
@@ -211,6 +218,29 @@ mod tests {
             }
         }
         assert!(worst < CORNER_MARGIN / 4.0, "a ray lies {worst} rad outside its tile's corner cone");
+    }
+
+    /// The pyramid's ends are ray parameters that may have underflowed; the cone's ends must
+    /// still bound the distances along the axis. The far end is the `traversal` fuzz
+    /// finding's: a ray leaving the root box through y = -7.7e-37 from y = 2.9e-14 with
+    /// `d.y = -1.66e32`, whose clip exit (exactly 1.75e-46) is computed as 0.
+    #[test]
+    fn cone_ends_cover_parameters_that_underflowed() {
+        let (o, lo, d) = (2.9090455e-14f32, -7.740593e-37f32, -1.6607714e32f32);
+        let computed = (lo - o) * (1.0 / d);
+        let exact = (f64::from(lo) - f64::from(o)) / f64::from(d);
+        assert_eq!(computed, 0.0, "the exit underflows");
+        let cone = Cone::from_tan(DVec3::ZERO, DVec3::NEG_Y, 1e-12).unwrap();
+        let len = (f64::from(d.abs()), f64::from(d.abs()));
+        let pyramid = FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near: 0.0, far: computed, hit_scale: 1.0 };
+        let bound = cone_bound(&cone, &pyramid, len);
+        assert!(f64::from(bound.far) >= exact * len.1, "far {} < {}", bound.far, exact * len.1);
+        // A near end computed as the smallest subnormal, exactly 0.6 of it: the cone's starts
+        // at or before the exact distance.
+        let exact_near = 0.6 * f64::from(T_UNDERFLOW);
+        let pyramid = FrustumBound { near: T_UNDERFLOW, far: 1.0, ..pyramid };
+        let bound = cone_bound(&cone, &pyramid, len);
+        assert!(f64::from(bound.near) <= exact_near * len.0, "near {} > {}", bound.near, exact_near * len.0);
     }
 
     #[test]

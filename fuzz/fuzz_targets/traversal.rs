@@ -2,8 +2,9 @@
 //! a tree of an arbitrary finite soup: never panics; rays accepted by `Ray::try_new` agree
 //! with the brute-force oracle (`BruteForce::check`) as single rays, and the packet methods
 //! (omni-directional, same-sign, frustum and MFT) and the cone methods (one cone, MFT cones)
-//! give the single-ray hits (or a tie at the same distance), closest and any hit; rejected
-//! rays still traverse without a panic.
+//! give the single-ray hits (or a tie at the same distance, or a difference by a rounding
+//! artefact on a triangle the ray cannot reach: `BruteForce::equivalent_hits`), closest and
+//! any hit; rejected rays still traverse without a panic.
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -22,15 +23,19 @@ struct Input {
     eye: u8,
 }
 
-/// `got` is `want`, or a tie: another triangle that the ray hits at the same distance (which
-/// of two triangles at one distance is reported depends on the order leaves are visited in).
+/// `got` is `want`, or a tie (another triangle that the ray hits at the same distance: which
+/// of two triangles at one distance is reported depends on the order leaves are visited in),
+/// or they differ by a rounding artefact on a triangle the ray cannot reach in exact
+/// arithmetic, which a method reports or not depending on the leaves it visits
+/// (`BruteForce::equivalent_hits`).
 fn same_hit(oracle: &BruteForce, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
-    match (got, want) {
-        (Some(g), Some(w)) if g.prim != w.prim => {
-            g.t == w.t && oracle.all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t)
-        }
-        (g, w) => g == w,
-    }
+    oracle.equivalent_hits(ray, got, want)
+}
+
+/// The any-hit answer `got` is `want`, or they differ only by such artefacts
+/// (`BruteForce::equivalent_occlusion`).
+fn same_any(oracle: &BruteForce, ray: &Ray, got: bool, want: bool) -> bool {
+    oracle.equivalent_occlusion(ray, got, want)
 }
 
 fuzz_target!(|input: Input| {
@@ -87,7 +92,8 @@ fuzz_target!(|input: Input| {
         for (lane, want) in want.iter().enumerate() {
             let got = hits.get(lane);
             assert!(same_hit(&oracle, &rays[lane], got, *want), "omni lane {lane}: {got:?}, single ray {want:?}");
-            assert_eq!(any.found.bitmask() >> lane & 1 != 0, tree.occluded(&rays[lane]), "omni any-hit lane {lane}");
+            let (found, want) = (any.found.bitmask() >> lane & 1 != 0, tree.occluded(&rays[lane]));
+            assert!(same_any(&oracle, &rays[lane], found, want), "omni any-hit lane {lane}: {found}, single ray {want}");
         }
     }
     let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
@@ -111,7 +117,7 @@ fuzz_target!(|input: Input| {
         }
     }
     // Any-hit mode (shadow rays): the frustum, MFT and cones find a hit exactly where the
-    // single ray's occlusion query does.
+    // single ray's occlusion query does (up to artefacts on unreachable triangles).
     tracer.set_any_hit(true);
     for method in 0..4 {
         match method {
@@ -123,7 +129,8 @@ fuzz_target!(|input: Input| {
         for (hits, rays) in tracer.packet_hits().iter().zip(shared.chunks(4)) {
             for (lane, ray) in rays.iter().enumerate() {
                 let found = hits.found.bitmask() >> lane & 1 != 0;
-                assert_eq!(found, tree.occluded(ray), "any-hit method {method} lane {lane}");
+                let want = tree.occluded(ray);
+                assert!(same_any(&oracle, ray, found, want), "any-hit method {method} lane {lane}: {found}, single ray {want}");
             }
         }
     }

@@ -48,18 +48,47 @@ impl BruteForce {
         self.intersect(ray).is_some()
     }
 
-    /// True if, in exact arithmetic, `ray` cannot meet triangle `prim`: on an axis along
-    /// which its direction is zero, its origin lies outside the triangle's extent. These are
-    /// exact comparisons, and traversal culls such a ray exactly (the ray stays in one slab
-    /// of every split on that axis), so a hit that the triangle test reports on such a
-    /// triangle is a rounding artefact of the test. Wald's test can report them (its
-    /// barycentrics come from rounded coefficients); the watertight test cannot.
+    /// True if, in exact arithmetic, `ray` cannot meet triangle `prim`: its segment
+    /// `origin + t dir`, `t` in `[t_min, t_max]`, misses the triangle's bounding box. Then a
+    /// hit that the triangle test reports on the triangle is a rounding artefact of the test,
+    /// and a traversal may report it (its leaf may be on the ray's path) or not. Wald's test
+    /// reports such hits (its barycentrics come from coefficients rounded to `f32`, and
+    /// products that underflow to zero count as "on the edge"); the watertight test can too
+    /// (its shear is rounded).
+    ///
+    /// Only sure misses count, so that no real hit is ever excused:
+    /// - an axis along which the direction is zero: the origin lies outside the triangle's
+    ///   extent (exact comparisons; traversal culls such a ray exactly, the ray staying in
+    ///   one slab of every split on that axis);
+    /// - the other axes: the slab intervals `[(lo - o) / d, (hi - o) / d]` and
+    ///   `[t_min, t_max]` are disjoint by more than their rounding error. They are computed
+    ///   in `f64`, where nothing made of `f32` values underflows or overflows (`|lo - o|` is
+    ///   0 or at least `2^-149`, `|d|` at most `2^128`, so the quotient lies in `[2^-277,
+    ///   2^278]`), so each is the exact value times `(1 + e)` with `|e| < 2^-52` (two
+    ///   roundings of `2^-53`); each is widened by `2^-50` of its magnitude before they are
+    ///   compared.
     pub fn unreachable(&self, ray: &Ray, prim: u32) -> bool {
+        /// Relative widening of the `f64` slab bounds, `2^-50`: above their rounding error.
+        const MARGIN: f64 = 4.0 * f64::EPSILON;
         let Some(tri) = self.tris.get(prim as usize) else { return false };
-        (0..3).any(|a| {
-            let (lo, hi) = (tri[0][a].min(tri[1][a]).min(tri[2][a]), tri[0][a].max(tri[1][a]).max(tri[2][a]));
-            ray.dir[a] == 0.0 && (ray.origin[a] < lo || ray.origin[a] > hi)
-        })
+        let (lo, hi) = (tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+        let (mut t0, mut t1) = (f64::from(ray.t_min), f64::from(ray.t_max));
+        for a in 0..3 {
+            let (o, d) = (ray.origin[a], ray.dir[a]);
+            if d == 0.0 {
+                if o < lo[a] || o > hi[a] {
+                    return true;
+                }
+                continue;
+            }
+            let (o, d) = (f64::from(o), f64::from(d));
+            let (near, far) = ((f64::from(lo[a]) - o) / d, (f64::from(hi[a]) - o) / d);
+            let (near, far) = if near > far { (far, near) } else { (near, far) };
+            t0 = t0.max(near - near.abs() * MARGIN);
+            t1 = t1.min(far + far.abs() * MARGIN);
+        }
+        // NaN input (which `Ray::try_new` rejects) compares false: not excused.
+        t0 > t1
     }
 
     /// Checks the answers of a traversal method for `ray` (its closest hit `got` and its
@@ -74,10 +103,10 @@ impl BruteForce {
     ///   (or one ulp off) a surface: the triangle test may round the distance to 0 for a point
     ///   the ray never reaches in exact arithmetic, while traversal follows exact arithmetic.
     ///   The method may report it or not; past it, it must agree.
-    /// - A hit on a triangle the ray cannot reach in exact arithmetic
-    ///   ([`BruteForce::unreachable`]). The method may report it (its leaf may be on the
-    ///   ray's path) or not, but a reported one must be a hit of the test, and no reachable
-    ///   hit may lie before it.
+    /// - A hit on a triangle the ray cannot reach in exact arithmetic (its segment surely
+    ///   misses the triangle's box, [`BruteForce::unreachable`]). The method may report it
+    ///   (its leaf may be on the ray's path) or not, but a reported one must be a hit of the
+    ///   test, and no reachable hit may lie before it.
     pub fn check(&self, ray: &Ray, got: Option<Hit>, occluded: bool) -> Result<(), String> {
         let hits = self.all_hits(ray);
         let (real, artefacts): (Vec<_>, Vec<_>) = hits.iter().partition(|&&(_, p)| !self.unreachable(ray, p));
@@ -145,6 +174,46 @@ impl BruteForce {
             return Err(format!("ray {ray:?}: occluded {occluded}, oracle hit (t, prim) {want:?}"));
         }
         Ok(())
+    }
+
+    /// Whether `got`, one traversal method's closest hit for `ray`, may stand for `want`,
+    /// another's (e.g. a packet lane against the single-ray kernel): the same hit; or a tie,
+    /// another triangle that the test hits at exactly the same distance (which of two
+    /// triangles at one distance is reported depends on the order leaves are visited in); or
+    /// answers that differ by a hit on a triangle the ray cannot reach in exact arithmetic
+    /// ([`BruteForce::unreachable`]), each of them accepted by [`BruteForce::check`].
+    ///
+    /// The last case is a rounding artefact of the triangle test that a method reports or not
+    /// depending on which leaves it visits, and methods legitimately visit different leaves:
+    /// the single-ray kernel's plane distance `(split - o) / d` can underflow to 0 and visit
+    /// both children, where a cone, measuring distances along its axis, culls exactly.
+    pub fn equivalent_hits(&self, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
+        if got == want {
+            return true;
+        }
+        if let (Some(g), Some(w)) = (got, want)
+            && g.prim != w.prim
+            && g.t == w.t
+            && self.all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t)
+        {
+            return true;
+        }
+        let artefact = |h: Option<Hit>| h.is_some_and(|h| self.unreachable(ray, h.prim));
+        (artefact(got) || artefact(want))
+            && self.check(ray, got, got.is_some()).is_ok()
+            && self.check(ray, want, want.is_some()).is_ok()
+    }
+
+    /// Whether `got`, one traversal method's any-hit answer for `ray`, may stand for `want`,
+    /// another's: the same answer, or different answers when the test's only hits in the
+    /// ray's interval are on triangles it cannot reach in exact arithmetic (rounding
+    /// artefacts, see [`BruteForce::equivalent_hits`]).
+    pub fn equivalent_occlusion(&self, ray: &Ray, got: bool, want: bool) -> bool {
+        if got == want {
+            return true;
+        }
+        let hits = self.all_hits(ray);
+        !hits.is_empty() && hits.iter().all(|&(_, p)| self.unreachable(ray, p))
     }
 
     /// Every triangle hit by the ray, as `(t, prim)`, in index order.
@@ -227,5 +296,81 @@ mod tests {
         let through = Ray::new(Vec3::new(0.0, 0.0, 1.2), Vec3::X, 0.0, f32::INFINITY);
         assert!(!oracle.unreachable(&through, 0));
         assert!(!oracle.unreachable(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, -0.5), 0.0, 1.0), 0));
+    }
+
+    #[test]
+    fn rays_whose_segment_surely_misses_the_triangles_box_are_unreachable() {
+        // Triangle 0 spans x, y in [1, 2] at z = 0.
+        let tris = [[Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.0), Vec3::new(1.0, 2.0, 0.0)]];
+        let oracle = BruteForce::new(&tris, Intersector::Wald);
+        let ray = |o: Vec3, d: Vec3, t_max: f32| Ray::new(o, d, 0.0, t_max);
+        // A tiny non-zero x component (its reciprocal, 1e38, is finite, so it is kept): x
+        // stays below 1e-8 for t in [0, 1e30], left of the box.
+        let tiny = Vec3::new(1e-38, 0.0, -1.0);
+        assert_ne!(Ray::new(Vec3::ZERO, tiny, 0.0, 1.0).dir.x, 0.0);
+        assert!(oracle.unreachable(&ray(Vec3::new(0.0, 1.5, 1.0), tiny, 1e30), 0));
+        // A ray in the triangle's plane with that x component reaches x = 1 at t = 1e38:
+        // excused up to t = 1e30, not with an infinite interval.
+        let in_plane = Vec3::new(1e-38, 0.0, 0.0);
+        assert!(oracle.unreachable(&ray(Vec3::new(0.0, 1.5, 0.0), in_plane, 1e30), 0));
+        assert!(!oracle.unreachable(&ray(Vec3::new(0.0, 1.5, 0.0), in_plane, f32::INFINITY), 0));
+        // Every axis overlaps the box over the segment, but not at one time: it passes the
+        // box's corner (x + y = 4.5 at z = 0, the corner has x + y = 4).
+        let corner = ray(Vec3::new(2.5, 2.0, 1.0), Vec3::new(0.0, 0.0, -1.0) + Vec3::new(-1.0, 1.0, 0.0) * 0.5, 4.0);
+        assert!(oracle.unreachable(&corner, 0));
+        // Through the box's corner exactly (touching counts as reaching), and through the middle.
+        let touch = ray(Vec3::new(2.5, 1.5, 1.0), Vec3::new(-0.5, 0.5, -1.0), 4.0);
+        assert!(!oracle.unreachable(&touch, 0));
+        assert!(!oracle.unreachable(&ray(Vec3::new(1.2, 1.2, 1.0), Vec3::new(0.0, 0.0, -1.0), 4.0), 0));
+        // The segment ends just before the plane z = 0: one ulp short of t = 1.
+        assert!(oracle.unreachable(&ray(Vec3::new(1.2, 1.2, 1.0), Vec3::new(0.0, 0.0, -1.0), 0.99999994), 0));
+        assert!(!oracle.unreachable(&ray(Vec3::new(1.2, 1.2, 1.0), Vec3::new(0.0, 0.0, -1.0), 1.0), 0));
+    }
+
+    #[test]
+    fn answers_may_differ_only_by_ties_and_unreachable_hits() {
+        // Triangle 0 at z = 1 and its twin 1 (a tie); triangle 2 at z = 2, behind them.
+        let tris = [
+            [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)],
+            [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)],
+            [Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.0), Vec3::new(0.0, 1.0, 2.0)],
+        ];
+        let oracle = BruteForce::new(&tris, Intersector::Wald);
+        let ray = Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        let first = oracle.intersect(&ray).expect("triangle 0 is hit");
+        let twin = Hit { prim: 1, ..first };
+        let far = Hit { t: 2.0, prim: 2, ..first };
+        assert!(oracle.equivalent_hits(&ray, Some(first), Some(first)));
+        assert!(oracle.equivalent_hits(&ray, Some(twin), Some(first)), "a tie");
+        assert!(!oracle.equivalent_hits(&ray, Some(far), Some(first)), "a later hit");
+        assert!(!oracle.equivalent_hits(&ray, None, Some(first)), "a miss");
+        assert!(!oracle.equivalent_hits(&ray, Some(Hit { u: 0.3, ..first }), Some(first)), "other barycentrics");
+        assert!(oracle.equivalent_occlusion(&ray, true, true));
+        assert!(!oracle.equivalent_occlusion(&ray, false, true));
+        let miss = Ray::new(Vec3::new(2.0, 2.0, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        assert!(!oracle.equivalent_occlusion(&miss, true, false), "no hit at all");
+
+        // A sliver whose Wald record reports a hit for a ray that misses its box (the
+        // `traversal` fuzz finding in `tests/fuzz_findings.rs`): either answer goes, for the
+        // closest hit and the any-hit query.
+        let sliver = [
+            Vec3::new(2.3691403e-38, 2.3418052e-38, 1.01376515e-25),
+            Vec3::new(2.3510604e-38, 9.19e-41, -1.5028658e-36),
+            Vec3::new(2.1851257e37, -7.729682e-37, -7.065031e24),
+        ];
+        let oracle = BruteForce::new(&[sliver], Intersector::Wald);
+        let ray = Ray::new(
+            Vec3::new(-7.729682e-37, 2.3944935e-10, 1.7578e-41),
+            Vec3::new(2.3476166e-38, -4.0658027e31, -2.9818803e-8),
+            -2.729787e24,
+            4.725e-41,
+        );
+        let artefact = oracle.intersect(&ray).expect("Wald's test reports it");
+        assert!(oracle.unreachable(&ray, 0));
+        assert!(oracle.equivalent_hits(&ray, None, Some(artefact)));
+        assert!(oracle.equivalent_hits(&ray, Some(artefact), None));
+        assert!(!oracle.equivalent_hits(&ray, Some(Hit { t: 1e-42, ..artefact }), None), "not a hit of the test");
+        assert!(oracle.equivalent_occlusion(&ray, false, true));
+        assert!(oracle.equivalent_occlusion(&ray, true, false));
     }
 }

@@ -1,8 +1,9 @@
 //! Regression tests for the inputs the cargo-fuzz targets found (`fuzz/`): each is the
 //! finding's input, decoded with `cargo fuzz fmt`, and the property the target checks.
+//! The findings that involve the cone methods are in `cones/tests/fuzz_findings.rs`.
 
 use glam::Vec3;
-use kdtree::triangle::{TriangleTest, WatertightTriangle};
+use kdtree::triangle::{TriangleTest, WaldTriangle, WatertightTriangle};
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
 
 fn tri(a: [f32; 9]) -> [Vec3; 3] {
@@ -85,4 +86,97 @@ fn ray_beside_a_triangle_outside_its_box() {
             .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
             .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
     }
+}
+
+/// `traversal`: a ray with a huge y component (-4e31) and a tiny x component (2e-38) that
+/// crosses the plane of a 2e37-wide sliver triangle at t = 5.9e-42, at x = -7.7e-37, outside
+/// the triangle's x range [2.35e-38, 2.2e37] (the ray reaches that range only at t = 34, far
+/// past its t_max = 4.7e-41). Wald's test reports a hit there: the triangle's edge
+/// coefficient `c_nu` (exactly -8e-53) rounds to -0.0 in `f32`, and `c_nv * hv` (exactly
+/// -3.6e-74) underflows to zero, so the third barycentric is 0 instead of slightly negative.
+/// The tree culls the ray at the root box exactly and reports none; the oracle excused such
+/// artefacts only for zero direction components. It now excuses every triangle whose box the
+/// ray's segment surely misses (`BruteForce::unreachable`).
+#[test]
+fn ray_with_a_tiny_direction_component_beside_a_sliver_triangle() {
+    let t = tri([
+        2.3691403e-38,
+        2.3418052e-38,
+        1.01376515e-25,
+        2.3510604e-38,
+        9.19e-41,
+        -1.5028658e-36,
+        2.1851257e37,
+        -7.729682e-37,
+        -7.065031e24,
+    ]);
+    let ray = Ray::try_new(
+        Vec3::new(-7.729682e-37, 2.3944935e-10, 1.7578e-41),
+        Vec3::new(2.3476166e-38, -4.0658027e31, -2.9818803e-8),
+        -2.729787e24,
+        4.725e-41,
+    )
+    .unwrap();
+    assert_ne!(ray.dir.x, 0.0, "the tiny component is kept: its reciprocal is finite");
+    let record = WaldTriangle::new(&t);
+    let artefact = record.intersect(&ray, &WaldTriangle::prepare(&ray), ray.t_max);
+    assert_eq!(artefact.map(|h| h.0), Some(5.89e-42), "Wald's test reports the hit outside the triangle");
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&[t], &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        assert_eq!(tree.intersect(&ray), None);
+        oracle
+            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
+            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+        assert!(oracle.unreachable(&ray, 0), "x < 0 over the whole segment, the triangle has x > 2.3e-38");
+    }
+}
+
+/// `traversal`: a ray along -x whose interval is the single point `t = 0`, its origin at
+/// x = 1.5e-39, beside triangle 1, whose x range ends at 1.076e-42. The plane distance to the
+/// root split x = 1.076e-42, 8.9e-78, underflows to 0, so the tree visits both children and
+/// reports Wald's rounding hit on triangle 1 at `t = -0.0`; the cone methods measure the
+/// plane along their axis (1.5e-39), cull that child and report none, which the target took
+/// for a disagreement. Either answer is right: `BruteForce::equivalent_hits` and
+/// `equivalent_occlusion` accept them (the cone side is in `cones/tests/fuzz_findings.rs`).
+#[test]
+fn plane_distance_underflow_finds_an_artefact_that_exact_culling_skips() {
+    let soup = [
+        tri([
+            -7.729682e-37,
+            -7.729682e-37,
+            6.938894e-18,
+            8.843688e-18,
+            8.843688e-18,
+            8.843688e-18,
+            1.2605e-41,
+            9.723689e-35,
+            -1.0909784e-18,
+        ]),
+        tri([
+            -1.0952567e-18,
+            5.167039e-29,
+            1.37753e-40,
+            1.076e-42,
+            3.345292e-30,
+            -7.729725e-37,
+            -5.09907e-37,
+            6.762284e-23,
+            1.0858565e-19,
+        ]),
+    ];
+    let ray =
+        Ray::try_new(Vec3::new(1.516545e-39, 3.22545e-40, 1.3591833e-38), Vec3::new(-1.7023464e38, 0.0, 0.0), 0.0, 0.0)
+            .unwrap();
+    let tree = KdTree::build_soup(&soup, &BuildConfig::default()).unwrap();
+    let (root, oracle) = (tree.nodes()[0], BruteForce::for_tree(&tree));
+    assert_eq!((root.axis(), root.split()), (0, 1.076e-42));
+    assert_eq!((root.split() - ray.origin.x) * ray.inv_dir.x, 0.0, "8.9e-78 underflows");
+    let single = tree.intersect(&ray);
+    assert_eq!(single.map(|h| (h.t, h.prim)), Some((-0.0, 1)));
+    assert!(oracle.unreachable(&ray, 1), "the ray's one point lies at x = 1.5e-39 > 1.076e-42");
+    oracle.check(&ray, single, tree.occluded(&ray)).unwrap();
+    oracle.check(&ray, None, false).unwrap();
+    assert!(oracle.equivalent_hits(&ray, None, single));
+    assert!(oracle.equivalent_occlusion(&ray, false, tree.occluded(&ray)));
 }

@@ -51,7 +51,8 @@ use crate::triangle4::PacketTest;
 /// values, distances measured along the cone's axis). `hit_scale` converts a ray's hit
 /// parameter into the bound's distance: a hit at `t` lies no further than `t * hit_scale`
 /// along the bound's measure (1 for the pyramid; for a cone the longest direction among its
-/// rays, since a point at parameter `t` of ray `d` is `t |d| cos(angle)` along the axis).
+/// rays, since a point at parameter `t` of ray `d` is `t |d| cos(angle)` along the axis;
+/// the conversion must also cover the rounding of `t`, see [`distance_up`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrustumBound {
     /// First factor per axis (`[x, y, z, 0]`): `1 / lo[k]` for a pyramid.
@@ -64,6 +65,26 @@ pub struct FrustumBound {
     pub far: f32,
     /// A bound on `distance / t` for a hit at ray parameter `t` (1 for a pyramid).
     pub hit_scale: f32,
+}
+
+/// Bound on the absolute rounding error of a ray parameter `t` computed in `f32` that
+/// underflowed below `f32::MIN_POSITIVE`: the spacing of the subnormals, `2^-149` (the
+/// smallest positive `f32`; the error of one rounding is half of it). The relative widening
+/// ([`kdtree::traverse::WIDEN`]) adds nothing to such a `t` (`|t| W` rounds to zero), which is
+/// harmless while `t` is compared with other parameters rounded alike, but not once `t` is
+/// converted into another measure: scaled by a long direction (a cone's `hit_scale`, up to
+/// `3e38`) it becomes a large distance. A clip exit of `1.7e-46` rounds to 0 and, times
+/// `|d| = 1.7e32`, would put a cone's far end `2.9e-14` short of the ray's (a fuzz finding).
+pub const T_UNDERFLOW: f32 = f32::from_bits(1);
+
+/// An upper bound on the distance, along a bound's measure, of a point at a ray parameter
+/// computed as `t`, with `scale` the bound's `hit_scale` (`t * scale` when exact):
+/// `(t + T_UNDERFLOW) * scale` widened by [`kdtree::traverse::WIDEN`], so that both the
+/// parameter's relative rounding and its underflow ([`T_UNDERFLOW`]) are covered.
+/// Infinities stay as they are.
+#[inline(always)]
+pub fn distance_up(t: f32, scale: f32) -> f32 {
+    widen_up1((t + T_UNDERFLOW) * scale)
 }
 
 /// Marks the lanes of `tracer`'s packets in `range` that miss the tree's root box as finished
@@ -345,11 +366,44 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             sp -= 1;
             let e = stack[sp % STACK_SIZE];
             near = e.near;
-            far = e.far.min(widen_up1(limit * f.hit_scale));
+            far = e.far.min(distance_up(limit, f.hit_scale));
             if near <= far {
                 (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
                 break;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ray parameter computed as `(plane - o) * (1 / d)` in `f32` (as the clips compute
+    /// them), against its exact value: once it underflows below `f32::MIN_POSITIVE` the
+    /// relative widening adds nothing, and only the absolute term keeps the converted
+    /// distance an upper bound.
+    #[test]
+    fn distances_bound_parameters_that_underflowed() {
+        let mut widened_short = 0;
+        for i in 0..2000u32 {
+            // Origins from 4e-31 down to the subnormals, direction lengths from 1.3 to 2e38:
+            // the parameters span both sides of f32::MIN_POSITIVE.
+            let o = f32::from_bits(0x0D00_0000 / 2000 * (2000 - i));
+            let d = -1.3 * 2f32.powi((i % 127) as i32);
+            let (t, exact) = ((0.0 - o) * (1.0 / d), (0.0 - f64::from(o)) / f64::from(d));
+            assert!(t >= 0.0 && exact > 0.0);
+            let scale = d.abs();
+            let bound = f64::from(distance_up(t, scale));
+            assert!(bound >= exact * f64::from(scale), "t = {t:e} (exact {exact:e}), |d| = {scale:e}");
+            // Without the absolute term some of them fall short.
+            widened_short += usize::from(f64::from(widen_up1(t * scale)) < exact * f64::from(scale));
+        }
+        assert!(widened_short > 0, "the cases include underflowed parameters");
+        assert_eq!(distance_up(f32::INFINITY, 3.0), f32::INFINITY);
+        assert_eq!(distance_up(f32::NEG_INFINITY, 3.0), f32::NEG_INFINITY);
+        assert_eq!(distance_up(0.0, 1.0), T_UNDERFLOW, "at least one subnormal spacing");
+        // Normal parameters: the absolute term is below their rounding.
+        assert_eq!(distance_up(1.0, 1.0), widen_up1(1.0));
     }
 }

@@ -22,7 +22,7 @@ use glam::Vec4;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
-use crate::frustum::{FrustumBound, children, leaf};
+use crate::frustum::{FrustumBound, T_UNDERFLOW, children, leaf};
 use crate::packet::{widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::tile::TileTracer;
@@ -165,7 +165,9 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             sp -= 1;
             let e = stack[sp % STACK_SIZE];
             near = e.near;
-            far = e.far.min(widen_up(limit * f.hit_scale));
+            // As `frustum::distance_up`, lane-wise: the hit limit in the bounds' measures,
+            // covering the underflow of the hit parameters.
+            far = e.far.min(widen_up((limit + Vec4::splat(T_UNDERFLOW)) * f.hit_scale));
             if near.cmple(far).any() {
                 (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
                 break;
