@@ -68,6 +68,9 @@ pub enum Command {
     Raycast(RaycastArgs),
     /// Print the thesis's Tables 4.1-4.4 (packets, frusta, culling, MFT) for our scenes.
     Tables(TablesArgs),
+    /// Our methods against Embree and Rust BVH crates on the same rays (build, primary, shadow
+    /// and soft-shadow Mrays/s, primitive mismatches).
+    Compare(crate::compare::CompareArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -253,6 +256,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
         }
         Some(Command::Tables(args)) => tables::tables_command(&global, &args),
+        Some(Command::Compare(args)) => crate::compare::compare_command(&global, &args),
         None => render_command(&global, &default_render_args()),
     })
 }

@@ -61,7 +61,9 @@
 //! - [`leaks`]: watertightness measured, rays at shared edges and vertices (`rttest leaks`);
 //! - [`error`]: the one error type, printed as a single line by the binary.
 
+pub mod baselines;
 pub mod cli;
+pub mod compare;
 pub mod error;
 pub mod harness;
 pub mod leaks;
