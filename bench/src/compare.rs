@@ -279,9 +279,9 @@ impl<'a> Frame<'a> {
 }
 
 /// A timed primary pass: returns its seconds and, when asked, the hits (row-major).
-type PrimaryPass<'a> = Box<dyn FnMut(bool) -> (f64, Option<Vec<Option<Hit>>>) + 'a>;
+pub type PrimaryPass<'a> = Box<dyn FnMut(bool) -> (f64, Option<Vec<Option<Hit>>>) + 'a>;
 /// A timed shadow pass: returns its seconds and the rays traced.
-type RaysPass<'a> = Box<dyn FnMut() -> (f64, u64) + 'a>;
+pub type RaysPass<'a> = Box<dyn FnMut() -> (f64, u64) + 'a>;
 
 /// One method under test.
 struct Contender<'a> {
@@ -321,13 +321,13 @@ fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
 }
 
 /// A shadow or soft-shadow pass, made when its kernel is first needed.
-type MakePass<'a> = Box<dyn FnOnce() -> RaysPass<'a> + 'a>;
+pub type MakePass<'a> = Box<dyn FnOnce() -> RaysPass<'a> + 'a>;
 
 /// The primary, shadow and soft-shadow passes of a baseline.
-pub(crate) type Passes<'a> = (PrimaryPass<'a>, MakePass<'a>, MakePass<'a>);
+pub type Passes<'a> = (PrimaryPass<'a>, MakePass<'a>, MakePass<'a>);
 
 /// The primary, shadow and soft-shadow passes of a baseline [`BlockTracer`] on `frame`.
-pub(crate) fn block_passes<'a, B: BlockTracer + 'a>(b: B, frame: &'a Frame<'a>) -> Passes<'a> {
+pub fn block_passes<'a, B: BlockTracer + 'a>(b: B, frame: &'a Frame<'a>) -> Passes<'a> {
     let b = Rc::new(b);
     let mut hits = vec![None; frame.layout.pixel_count()];
     let pb = Rc::clone(&b);

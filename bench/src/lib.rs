@@ -16,6 +16,8 @@
 //!               [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
 //!               [--intersector wald|watertight]
 //! rttest leaks  [--rays N] [--meshes NAME,...]
+//! rttest compare [--scene NAME|FILE] [--view NAME] [--size WxH] [--rounds N] [--methods LIST]
+//!               [--tiles LIST] [--light-radius R] [--no-soft] [--build-rounds N]
 //! global flags: --threads N (rayon pool size, default all cores), --json (one object per line)
 //! ```
 //!
@@ -52,7 +54,10 @@
 //! - [`raycast`]: ray files in, one result per ray out (`rttest raycast`);
 //! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
 //!   per-pixel buffers, shading and image output come after and are timed apart;
-//! - [`tables`]: the thesis's Tables 4.1-4.6 (`rttest tables`);
+//! - [`tables`]: the thesis's Tables 4.1-4.6 and 6.2 (`rttest tables`);
+//! - [`scaling`]: Table 6.2, frame rate against threads (rayon pool sizes);
+//! - [`compare`]: our methods against Embree and the `bvh` / `obvhs` crates on the same
+//!   rays (`rttest compare`); [`baselines`]: those tracers and the passes that run them;
 //! - [`soft`]: 16-sample soft shadows to a spherical light, cone vs pyramid vs single rays;
 //! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
 //! - [`report`]: tree statistics and the text / JSON reports;
@@ -71,6 +76,7 @@ pub mod progress;
 pub mod raycast;
 pub mod render;
 pub mod report;
+pub mod scaling;
 pub mod shade;
 pub mod soft;
 pub mod tables;
