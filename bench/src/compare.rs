@@ -97,12 +97,12 @@ pub struct CompareRow {
     pub shadow_mrays_per_s: Option<f64>,
     /// 16-sample soft-shadow rays per second (millions), median; `null` with `--no-soft`.
     pub soft16_mrays_per_s: Option<f64>,
-    /// Pixels whose primary hit names another triangle than our single rays (or hits where
-    /// they miss, or misses where they hit).
-    pub prim_mismatch: u64,
-    /// Of those, ties: both hit at the same distance (relative 1e-4) on triangles that share
-    /// an edge or vertex, next to it.
-    pub prim_ties: u64,
+    /// How the mismatches divide into ties (of which edge ties and coincident faces) and
+    /// hit-vs-miss (flattened: `prim_mismatch`, `prim_ties`, `prim_edge_ties`,
+    /// `prim_coincident`, `prim_hit_vs_miss`); the rest hit another triangle at another
+    /// distance.
+    #[serde(flatten)]
+    pub mismatches: Mismatches,
     /// Pixels.
     pub pixels: u64,
     /// Median milliseconds of the primary pass.
@@ -373,25 +373,62 @@ pub fn median(v: &[f64]) -> f64 {
     if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
-/// Pixels whose hit in `got` names another triangle than in `reference` (row-major, rays of
-/// `camera`), and how many of those are ties: both hit, at the same distance (relative
-/// 1e-4), on triangles sharing a vertex position, with our hit point next to the shared edge
-/// or vertex (within 1e-4 of the triangles' size).
-pub fn mismatches(scene: &Scene, camera: &Camera, reference: &[Option<Hit>], got: &[Option<Hit>]) -> (u64, u64) {
-    let (mut mismatch, mut ties) = (0, 0);
+/// How the primary hits of a method differ from ours, pixel by pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Mismatches {
+    /// Pixels whose hit names another triangle (or hits where ours misses, or misses where
+    /// ours hits).
+    pub prim_mismatch: u64,
+    /// Of those, ties: both hit at the same distance (relative 1e-4), so the ray meets both
+    /// triangles there (at a shared edge or vertex, where two surfaces meet, or on coincident
+    /// faces) and either is a right answer.
+    pub prim_ties: u64,
+    /// Of the ties, those at a shared edge or vertex (triangles sharing a vertex position,
+    /// our hit point within 1e-4 of the triangles' size of the shared edge or vertex).
+    pub prim_edge_ties: u64,
+    /// Of the ties, those on coincident faces: coplanar triangles sharing no edge there
+    /// (faces of touching objects, z-fighting).
+    pub prim_coincident: u64,
+    /// Of those, a hit where the other misses (a ray through a crack or an edge).
+    pub prim_hit_vs_miss: u64,
+}
+
+/// The pixels whose hit in `got` differs from `reference` (row-major, rays of `camera`),
+/// classified (see [`Mismatches`]).
+pub fn mismatches(scene: &Scene, camera: &Camera, reference: &[Option<Hit>], got: &[Option<Hit>]) -> Mismatches {
+    let mut m = Mismatches::default();
     for (i, (r, g)) in reference.iter().zip(got).enumerate() {
         if r.map(|h| h.prim) == g.map(|h| h.prim) {
             continue;
         }
-        mismatch += 1;
-        let (Some(r), Some(g)) = (r, g) else { continue };
+        m.prim_mismatch += 1;
+        let (Some(r), Some(g)) = (r, g) else {
+            m.prim_hit_vs_miss += 1;
+            continue;
+        };
+        if (r.t - g.t).abs() > 1e-4 * r.t.abs().max(g.t.abs()) {
+            continue;
+        }
         let (x, y) = ((i % camera.width as usize) as u32, (i / camera.width as usize) as u32);
         let (origin, dir) = camera.pixel_ray(x, y);
+        m.prim_ties += 1;
         if is_edge_tie(scene, origin + r.t * dir, r, g) {
-            ties += 1;
+            m.prim_edge_ties += 1;
+        } else if coplanar(&scene.mesh.triangle(r.prim as usize), &scene.mesh.triangle(g.prim as usize)) {
+            m.prim_coincident += 1;
         }
     }
-    (mismatch, ties)
+    m
+}
+
+/// Whether two triangles lie in one plane (normals parallel within 1e-4 rad, the second's
+/// vertices within 1e-4 of the triangles' size from the first's plane).
+fn coplanar(a: &[glam::Vec3; 3], b: &[glam::Vec3; 3]) -> bool {
+    let [a, b] = [a, b].map(|t| t.map(|v| v.as_dvec3()));
+    let (na, nb) = ((a[1] - a[0]).cross(a[2] - a[0]), (b[1] - b[0]).cross(b[2] - b[0]));
+    let (Some(na), Some(nb)) = (na.try_normalize(), nb.try_normalize()) else { return false };
+    let size = a.iter().chain(&b).fold(0.0f64, |m, v| m.max((*v - a[0]).length()));
+    na.cross(nb).length() <= 1e-4 && b.iter().all(|v| na.dot(*v - a[0]).abs() <= 1e-4 * size)
 }
 
 /// Whether hits `a` and `b` on different triangles are a tie at their shared edge or vertex
@@ -566,7 +603,7 @@ pub fn compare_command(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Er
         .iter()
         .zip(&primary_secs)
         .zip(&checks)
-        .map(|((c, secs), &(prim_mismatch, prim_ties))| {
+        .map(|((c, secs), &mismatches)| {
             let primary = median(secs);
             let shadow = c.shadow.map(|i| (median(&shadow_secs[i]), shadow_rays[i], shadows.names[i].clone()));
             let soft = c.soft.map(|i| (median(&soft_secs[i]), soft_rays[i], softs.names[i].clone()));
@@ -578,8 +615,7 @@ pub fn compare_command(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Er
                 primary_mrays_per_s: mrays_per_s(pixels, primary),
                 shadow_mrays_per_s: shadow.as_ref().map(|s| mrays_per_s(s.1, s.0)),
                 soft16_mrays_per_s: soft.as_ref().map(|s| mrays_per_s(s.1, s.0)),
-                prim_mismatch,
-                prim_ties,
+                mismatches,
                 pixels,
                 primary_ms: primary * 1e3,
                 shadow_ms: shadow.as_ref().map(|s| s.0 * 1e3),
@@ -665,29 +701,35 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     let _ = writeln!(out);
     let _ = writeln!(
         out,
-        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | prim mismatch | of which edge ties | shadow kernel | soft16 kernel |"
+        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | prim mismatch | ties | of which edge | of which coincident | hit vs miss | shadow kernel | soft16 kernel |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---|---|");
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|");
     for r in rows {
         let _ = writeln!(
             out,
-            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.method,
             r.build_ms,
             r.primary_mrays_per_s,
             opt(r.shadow_mrays_per_s, 2),
             opt(r.soft16_mrays_per_s, 2),
-            r.prim_mismatch,
-            r.prim_ties,
+            r.mismatches.prim_mismatch,
+            r.mismatches.prim_ties,
+            r.mismatches.prim_edge_ties,
+            r.mismatches.prim_coincident,
+            r.mismatches.prim_hit_vs_miss,
             r.shadow_kernel.as_deref().unwrap_or("-"),
             r.soft16_kernel.as_deref().unwrap_or("-"),
         );
     }
     let best = |fam: &dyn Fn(&str) -> bool, col: Column| {
-        rows.iter()
-            .filter(|r| fam(&r.family))
-            .filter_map(|r| col(r).map(|v| (v, r.method.clone())))
-            .max_by(|a, b| a.0.total_cmp(&b.0))
+        rows.iter().filter(|r| fam(&r.family)).filter_map(|r| col(r).map(|v| (v, r.method.clone()))).fold(
+            None,
+            |best: Option<(f64, String)>, x| match best {
+                Some(b) if b.0 >= x.0 => Some(b),
+                _ => Some(x),
+            },
+        )
     };
     let columns: [(&str, Column); 3] = [
         ("primary", |r| Some(r.primary_mrays_per_s)),

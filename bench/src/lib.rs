@@ -34,6 +34,11 @@
 //! `primary_steps_per_packet`, `primary_tests_per_packet` and, for frusta, `culled_percent`). `trace_secs` is the best frame's ray
 //! generation + traversal + intersection (primary and shadow passes), never shading or I/O.
 //!
+//! `compare --json` keys (one object per method): `scene, method, family, build_ms,
+//! primary_mrays_per_s, shadow_mrays_per_s, soft16_mrays_per_s, prim_mismatch, prim_ties,
+//! prim_edge_ties, prim_coincident, prim_hit_vs_miss, pixels, primary_ms, shadow_ms,
+//! soft16_ms, shadow_kernel, soft16_kernel, threads, rounds` (see [`compare`]).
+//!
 //! `raycast` traces the rays of a file and writes one result per ray, in input order:
 //! - rays in **text**: one ray per line, `ox oy oz dx dy dz tmin tmax` (whitespace separated;
 //!   blank lines and `#` comments skipped; `inf` allowed), or **binary** (`--format binary`
