@@ -70,6 +70,9 @@ pub enum Command {
     Tables(TablesArgs),
     /// Edge-width soft shadows against sampled ones: images, errors, CSV and a plot.
     Shadows(crate::shadows::ShadowsArgs),
+    /// Our methods against Embree and Rust BVH crates on the same rays (build, primary, shadow
+    /// and soft-shadow Mrays/s, primitive mismatches).
+    Compare(crate::compare::CompareArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -256,6 +259,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         }
         Some(Command::Tables(args)) => tables::tables_command(&global, &args),
         Some(Command::Shadows(args)) => crate::shadows::shadows_command(&global, &args),
+        Some(Command::Compare(args)) => crate::compare::compare_command(&global, &args),
         None => render_command(&global, &default_render_args()),
     })
 }

@@ -16,6 +16,8 @@
 //!               [--out FILE|-] [--out-format text|binary] [--method mono] [--any-hit]
 //!               [--intersector wald|watertight]
 //! rttest leaks  [--rays N] [--meshes NAME,...]
+//! rttest compare [--scene NAME|FILE] [--view NAME] [--size WxH] [--rounds N] [--methods LIST]
+//!               [--tiles LIST] [--light-radius R] [--no-soft] [--build-rounds N]
 //! global flags: --threads N (rayon pool size, default all cores), --json (one object per line)
 //! ```
 //!
@@ -31,6 +33,11 @@
 //! `{primary,shadow}_{nodes,leaves,isects}_per_ray` (for packet methods also
 //! `primary_steps_per_packet`, `primary_tests_per_packet` and, for frusta, `culled_percent`). `trace_secs` is the best frame's ray
 //! generation + traversal + intersection (primary and shadow passes), never shading or I/O.
+//!
+//! `compare --json` keys (one object per method): `scene, method, family, build_ms,
+//! primary_mrays_per_s, shadow_mrays_per_s, soft16_mrays_per_s, prim_mismatch, prim_ties,
+//! prim_edge_ties, prim_coincident, prim_hit_vs_miss, pixels, primary_ms, shadow_ms,
+//! soft16_ms, shadow_kernel, soft16_kernel, threads, rounds` (see [`compare`]).
 //!
 //! `raycast` traces the rays of a file and writes one result per ray, in input order:
 //! - rays in **text**: one ray per line, `ox oy oz dx dy dz tmin tmax` (whitespace separated;
@@ -52,7 +59,10 @@
 //! - [`raycast`]: ray files in, one result per ray out (`rttest raycast`);
 //! - [`render`]: the tile renderer; tracing is a separate, timed pass over preallocated
 //!   per-pixel buffers, shading and image output come after and are timed apart;
-//! - [`tables`]: the thesis's Tables 4.1-4.6 (`rttest tables`);
+//! - [`tables`]: the thesis's Tables 4.1-4.6 and 6.2 (`rttest tables`);
+//! - [`scaling`]: Table 6.2, frame rate against threads (rayon pool sizes);
+//! - [`compare`]: our methods against Embree and the `bvh` / `obvhs` crates on the same
+//!   rays (`rttest compare`); [`baselines`]: those tracers and the passes that run them;
 //! - [`soft`]: 16-sample soft shadows to a spherical light, cone vs pyramid vs single rays;
 //! - [`shade`]: shadow-ray construction and the diffuse point-light shading of the thesis;
 //! - [`report`]: tree statistics and the text / JSON reports;
@@ -63,7 +73,9 @@
 //! - [`leaks`]: watertightness measured, rays at shared edges and vertices (`rttest leaks`);
 //! - [`error`]: the one error type, printed as a single line by the binary.
 
+pub mod baselines;
 pub mod cli;
+pub mod compare;
 pub mod error;
 pub mod harness;
 pub mod leaks;
@@ -71,6 +83,7 @@ pub mod progress;
 pub mod raycast;
 pub mod render;
 pub mod report;
+pub mod scaling;
 pub mod shade;
 pub mod shadow_plot;
 pub mod shadows;

@@ -37,8 +37,9 @@ pub fn primary_hits(tree: &KdTree, camera: &Camera) -> Vec<Option<Hit>> {
 
 /// The shadow rays' origin and cone of the primary hit `hit`: the point moved off its
 /// surface towards the light's centre. `None` when the light's centre is behind the surface
-/// or the point is inside the light.
-fn shadow_start(scene: &Scene, light: &SphereLight, hit: &Hit, dir: Vec3) -> Option<(Vec3, Cone)> {
+/// or the point is inside the light. Public so that other tracers (`rttest compare`) trace
+/// exactly these rays.
+pub fn shadow_start(scene: &Scene, light: &SphereLight, hit: &Hit, dir: Vec3) -> Option<(Vec3, Cone)> {
     let tri = scene.mesh.triangle(hit.prim as usize);
     let p = kdtree::ray::surface_point(&tri, hit);
     let n = crate::shade::facing_normal(&scene.mesh, hit, dir);

@@ -53,6 +53,9 @@ pub struct TablesArgs {
     /// Leave out Table 4.6 (16-sample soft shadows, the slowest part).
     #[arg(long)]
     pub no_soft_shadows: bool,
+    /// Leave out Table 6.2 (frame rate against threads, the best method of each scene).
+    #[arg(long)]
+    pub no_scaling: bool,
 }
 
 /// One measured soft-shadow configuration of one scene (Table 4.6).
@@ -288,11 +291,21 @@ pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Erro
     let show = progress::enabled(global.json);
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
+    let mut scaling_rows = Vec::new();
     for spec in scene_list(args) {
         let scene = scenes::load_scene(&spec)?;
         let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
-        all.extend(measure(&scene, &tree, args, show)?);
+        let rows = measure(&scene, &tree, args, show)?;
+        if !args.no_scaling
+            && let Some(best) = rows.iter().filter(|r| r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
+            && let Some(camera) = scene.default_view().camera(args.size.0, args.size.1)
+        {
+            let cores = crate::scaling::cores();
+            let rounds = args.frames.max(5);
+            scaling_rows.extend(crate::scaling::measure(&scene, &tree, camera, best.method, best.tile, cores, rounds)?);
+        }
+        all.extend(rows);
         if !args.no_soft_shadows {
             soft_rows.extend(measure_soft(&scene, &tree, args, show)?);
         }
@@ -303,11 +316,18 @@ pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Erro
             text.push('\n');
             text.push_str(&soft_csv(&soft_rows));
         }
+        if !scaling_rows.is_empty() {
+            text.push('\n');
+            text.push_str(&crate::scaling::csv(&scaling_rows));
+        }
         text
     } else {
         let mut text = markdown(&all, args);
         if !soft_rows.is_empty() {
             text.push_str(&soft_markdown(&soft_rows, args));
+        }
+        if !scaling_rows.is_empty() {
+            text.push_str(&crate::scaling::markdown(&scaling_rows, args.size, args.frames.max(5)));
         }
         text
     };
