@@ -180,3 +180,59 @@ fn plane_distance_underflow_finds_an_artefact_that_exact_culling_skips() {
     assert!(oracle.equivalent_hits(&ray, None, single));
     assert!(oracle.equivalent_occlusion(&ray, false, tree.occluded(&ray)));
 }
+
+/// `traversal` (Wald's test): a ray starting on the root split plane z = 0 with dz > 0 (so
+/// the tree visits only the z > 0 side) crosses the plane of triangle 1 at t = 1.5e-9, where,
+/// in exact arithmetic, its third barycentric `1 - u - v` is -1.13e-29: just outside an edge,
+/// and below z = 0 near the ray. Wald's test rounds it to a hit; the tree, right, reports
+/// none. The exact crossing point, (1.2e-38, 5.17e-29, 5.6e-46), lies in the triangle's box
+/// (the edge functions' ratios are 5.2e-26, -1.13e-29 and 1), so the oracle's old box test
+/// could not excuse the artefact; `BruteForce::unreachable` now decides exactly
+/// (`kdtree::oracle::segment_meets_triangle`, big-integer arithmetic).
+#[test]
+fn wald_rounds_a_ray_just_outside_an_edge_into_a_hit() {
+    let soup = [
+        tri([
+            -7.729682e-37,
+            -7.729682e-37,
+            1.2306499e-38,
+            9.629911e-35,
+            2.342128e-38,
+            2.3073668e-38,
+            2.524355e-29,
+            3.22684e-40,
+            -0.0,
+        ]),
+        tri([
+            -7.740702e-37,
+            -7.729682e-37,
+            -3.318156e-8,
+            5.42e-43,
+            5.167039e-29,
+            -3.761585e-37,
+            2.3361182e-13,
+            1.39013e-40,
+            1.7578e-41,
+        ]),
+    ];
+    let ray = Ray::try_new(
+        Vec3::new(1.203171e-38, 0.0, 0.0),
+        Vec3::new(-7.699488e-37, 3.4624963e-20, 3.761582e-37),
+        3.7619277e-37,
+        0.032061588,
+    )
+    .unwrap();
+    let record = WaldTriangle::new(&soup[1]);
+    let artefact = record.intersect(&ray, &WaldTriangle::prepare(&ray), ray.t_max);
+    assert_eq!(artefact.map(|h| h.0), Some(1.4922872e-9), "Wald's test reports the hit outside the triangle");
+    assert!(!kdtree::oracle::segment_meets_triangle(&soup[1], ray.origin, ray.dir, ray.t_min, ray.t_max));
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&soup, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        assert!(oracle.unreachable(&ray, 1));
+        assert_eq!(tree.intersect(&ray), None);
+        oracle
+            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
+            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+    }
+}

@@ -142,10 +142,15 @@ fn bound_of<const DIRS: bool>(tree: &KdTree, tracer: &mut TileTracer, range: std
 /// The plane distances bounding a frustum at a split plane `dist` away from the origin along
 /// an axis with factors `k0`, `k1` (see [`FrustumBound`]): `(dmin, dmax)`, negative distances
 /// taken as `+inf` (modification 1), widened by a few ulps. `dist` must not be 0.
+///
+/// A distance is negative when `dist` and the factor have opposite signs, whatever their
+/// product rounds to: a product that underflows to -0.0 is still a plane behind the origin
+/// (the fuzzer found rays sent to the far side of a plane 2.3e-38 behind their origin, at
+/// distance -6e-54, and missing their hit).
 #[inline(always)]
 pub fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
-    let fix = |d: f32| if d < 0.0 { f32::INFINITY } else { d };
-    let (a, b) = (fix(dist * k0), fix(dist * k1));
+    let fix = |k: f32| if (dist > 0.0 && k < 0.0) || (dist < 0.0 && k > 0.0) { f32::INFINITY } else { dist * k };
+    let (a, b) = (fix(k0), fix(k1));
     (widen_down1(a.min(b)), widen_up1(a.max(b)))
 }
 

@@ -121,10 +121,14 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
                 (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
-            // Modification 1 per frustum: negative distances become +inf.
-            let fix = |d: Vec4| Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
+            // Modification 1 per frustum: negative distances become +inf, decided by the signs
+            // of `dist` and the factor (a product that underflows to -0.0 is still behind).
             let dist4 = Vec4::splat(dist);
-            let (a, b) = (fix(dist4 * f.k0[axis]), fix(dist4 * f.k1[axis]));
+            let fix = |k: Vec4| {
+                let behind = if dist > 0.0 { k.cmplt(Vec4::ZERO) } else { k.cmpgt(Vec4::ZERO) };
+                Vec4::select(behind, Vec4::INFINITY, dist4 * k)
+            };
+            let (a, b) = (fix(f.k0[axis]), fix(f.k1[axis]));
             let (dmin, dmax) = (widen_down(a.min(b)), widen_up(a.max(b)));
             let front_far = far.min(dmax);
             let back_near = near.max(dmin);

@@ -107,9 +107,13 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
                 index = left;
                 continue;
             }
-            // Modification 1: negative distances (planes behind the origin) become +inf.
-            let d = Vec4::splat(dist) * rays.inv[axis];
-            let d = Vec4::select(d.cmplt(Vec4::ZERO), Vec4::INFINITY, d);
+            // Modification 1: negative distances (planes behind the origin) become +inf. Behind
+            // is decided by the signs of `dist` and `1 / d`, not by the product's: a product
+            // that underflows to -0.0 is still a plane behind the origin (the fuzzer found a
+            // lane sent to the far side of a plane 2.3e-38 behind it, at distance -6e-54).
+            let inv = rays.inv[axis];
+            let behind = if dist > 0.0 { inv.cmplt(Vec4::ZERO) } else { inv.cmpgt(Vec4::ZERO) };
+            let d = Vec4::select(behind, Vec4::INFINITY, Vec4::splat(dist) * inv);
             // Modification 2: front and back from the origin's side of the plane.
             let upper_front = (dist < 0.0) as usize;
             let (front, back) = (left + upper_front, left + 1 - upper_front);
