@@ -23,7 +23,7 @@ fn primary(c: &mut Criterion) {
 
 fn soft_shadows(c: &mut Criterion) {
     for (name, scene, tree, camera) in bench::harness::packet_workloads(256) {
-        let hits = primary_hits(&tree, &camera);
+        let hits = primary_hits(&scene, &tree, &camera);
         let diag = (tree.bounds().max - tree.bounds().min).length();
         for r in [1.0, 2.0] {
             let light = SphereLight {

@@ -3,14 +3,14 @@
 //! [`cones::ShadowMethod`] (one cone, one pyramid, or single rays), in parallel over rows.
 
 use glam::Vec3;
-use kdtree::{Hit, KdTree, Ray};
+use kdtree::{Hit, KdTree};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight};
 
 use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
 use cones::{Cone, ShadowMethod, SoftShadowTracer};
 
-use crate::render::TileCounters;
+use crate::render::{Method, Renderer, Shadows, TileCounters};
 
 /// The diagonal of the Sponza atrium's bounding box, 41.59 units (the vertex bounds of the Dabrovic
 /// model of `../shared/scenes/sponza-dabrovic.obj.gz`, whose units the thesis's light radii 1
@@ -22,17 +22,13 @@ pub fn scaled_radius(r: f32, diag: f32) -> f32 {
     r * diag / SPONZA_DIAGONAL
 }
 
-/// The primary hits of `camera`'s image, row by row (single rays, all cores).
-pub fn primary_hits(tree: &KdTree, camera: &Camera) -> Vec<Option<Hit>> {
-    let w = camera.width as usize;
-    let mut hits = vec![None; w * camera.height as usize];
-    hits.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, slot) in row.iter_mut().enumerate() {
-            let (o, d) = camera.pixel_ray(x as u32, y as u32);
-            *slot = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY));
-        }
-    });
-    hits
+/// The primary hits of `camera`'s image, row by row: the renderer's single-ray pass (all
+/// cores), reordered from its tile layout.
+pub fn primary_hits(scene: &Scene, tree: &KdTree, camera: &Camera) -> Vec<Option<Hit>> {
+    let renderer = Renderer::new(scene, tree, *camera, Method::Mono, Shadows::None);
+    let mut buffers = renderer.buffers();
+    renderer.trace(&mut buffers);
+    renderer.layout().to_row_major(&buffers.hits)
 }
 
 /// The shadow rays' origin and cone of the primary hit `hit`: the point moved off its
@@ -114,7 +110,7 @@ mod tests {
         let scene = scenes::load_scene("atrium").unwrap();
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(48, 32).unwrap();
-        let hits = primary_hits(&tree, &camera);
+        let hits = primary_hits(&scene, &tree, &camera);
         let diag = (tree.bounds().max - tree.bounds().min).length();
         let light =
             SphereLight { center: scene.point_light.position, radius: scaled_radius(2.0, diag), intensity: Vec3::ONE };

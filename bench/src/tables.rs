@@ -229,7 +229,7 @@ fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> 
         .default_view()
         .camera(w, h)
         .ok_or_else(|| Error::Usage(format!("the default view of '{}' is degenerate", scene.name)))?;
-    let hits = soft::primary_hits(tree, &camera);
+    let hits = soft::primary_hits(scene, tree, &camera);
     let diag = (tree.bounds().max - tree.bounds().min).length();
     let frames = args.frames.min(3);
     let bar = Progress::bar(2 * ShadowMethod::ALL.len() as u64, &format!("table 4.6: {}", scene.name), show);

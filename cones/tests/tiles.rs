@@ -13,14 +13,11 @@ use scenes::{Camera, SphereLight, tiles};
 
 const METHODS: [ConeMethod; 2] = [ConeMethod::Cone, ConeMethod::MftCone];
 
-/// `got` is the single ray's hit, or a tie: another triangle the ray hits at the same `t`.
+/// `got` stands for the single ray's hit `want` by the oracle's one rule
+/// ([`BruteForce::equivalent_hits`]: the same hit, a tie at the same distance, or a rounding
+/// artefact on a triangle the ray cannot reach).
 fn same_hit(tree: &KdTree, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
-    match (got, want) {
-        (Some(g), Some(w)) if g.prim != w.prim => {
-            g.t == w.t && BruteForce::for_tree(tree).all_hits(ray).iter().any(|&(t, p)| p == g.prim && t == g.t)
-        }
-        (g, w) => g == w,
-    }
+    got == want || BruteForce::for_tree(tree).equivalent_hits(ray, got, want)
 }
 
 /// Pixels of `camera`'s image where `method` at `tile_size` differs from single rays, with

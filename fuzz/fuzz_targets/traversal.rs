@@ -23,21 +23,6 @@ struct Input {
     eye: u8,
 }
 
-/// `got` is `want`, or a tie (another triangle that the ray hits at the same distance: which
-/// of two triangles at one distance is reported depends on the order leaves are visited in),
-/// or they differ by a rounding artefact on a triangle the ray cannot reach in exact
-/// arithmetic, which a method reports or not depending on the leaves it visits
-/// (`BruteForce::equivalent_hits`).
-fn same_hit(oracle: &BruteForce, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
-    oracle.equivalent_hits(ray, got, want)
-}
-
-/// The any-hit answer `got` is `want`, or they differ only by such artefacts
-/// (`BruteForce::equivalent_occlusion`).
-fn same_any(oracle: &BruteForce, ray: &Ray, got: bool, want: bool) -> bool {
-    oracle.equivalent_occlusion(ray, got, want)
-}
-
 fuzz_target!(|input: Input| {
     let tris: Vec<[Vec3; 3]> = input
         .soup
@@ -73,7 +58,7 @@ fuzz_target!(|input: Input| {
         let hits = samesign::intersect(&tree, &RayPacket::new(rays), &mut NoCounters);
         for (lane, want) in want.iter().enumerate() {
             let got = hits.get(lane);
-            assert!(same_hit(&oracle, &rays[lane], got, *want), "same-sign lane {lane}: {got:?}, single ray {want:?}");
+            assert!(oracle.equivalent_hits(&rays[lane], got, *want), "same-sign lane {lane}: {got:?}, single ray {want:?}");
         }
     }
 
@@ -91,9 +76,9 @@ fuzz_target!(|input: Input| {
         let any = omni::occluded(&tree, packet, &mut NoCounters);
         for (lane, want) in want.iter().enumerate() {
             let got = hits.get(lane);
-            assert!(same_hit(&oracle, &rays[lane], got, *want), "omni lane {lane}: {got:?}, single ray {want:?}");
+            assert!(oracle.equivalent_hits(&rays[lane], got, *want), "omni lane {lane}: {got:?}, single ray {want:?}");
             let (found, want) = (any.found.bitmask() >> lane & 1 != 0, tree.occluded(&rays[lane]));
-            assert!(same_any(&oracle, &rays[lane], found, want), "omni any-hit lane {lane}: {found}, single ray {want}");
+            assert!(oracle.equivalent_occlusion(&rays[lane], found, want), "omni any-hit lane {lane}: {found}, single ray {want}");
         }
     }
     let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
@@ -103,7 +88,7 @@ fuzz_target!(|input: Input| {
         for ((hits, want), rays) in tracer.packet_hits().iter().zip(want.chunks(4)).zip(shared.chunks(4)) {
             for (lane, want) in want.iter().enumerate() {
                 let got = hits.get(lane);
-                assert!(same_hit(&oracle, &rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
+                assert!(oracle.equivalent_hits(&rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
             }
         }
     }
@@ -112,7 +97,7 @@ fuzz_target!(|input: Input| {
         for ((hits, want), rays) in tracer.packet_hits().iter().zip(want.chunks(4)).zip(shared.chunks(4)) {
             for (lane, want) in want.iter().enumerate() {
                 let got = hits.get(lane);
-                assert!(same_hit(&oracle, &rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
+                assert!(oracle.equivalent_hits(&rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
             }
         }
     }
@@ -130,7 +115,7 @@ fuzz_target!(|input: Input| {
             for (lane, ray) in rays.iter().enumerate() {
                 let found = hits.found.bitmask() >> lane & 1 != 0;
                 let want = tree.occluded(ray);
-                assert!(same_any(&oracle, ray, found, want), "any-hit method {method} lane {lane}: {found}, single ray {want}");
+                assert!(oracle.equivalent_occlusion(ray, found, want), "any-hit method {method} lane {lane}: {found}, single ray {want}");
             }
         }
     }
