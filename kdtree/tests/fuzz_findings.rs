@@ -3,6 +3,7 @@
 //! The findings that involve the cone methods are in `cones/tests/fuzz_findings.rs`.
 
 use glam::Vec3;
+use kdtree::oracle::segment_meets_triangle;
 use kdtree::triangle::{TriangleTest, WaldTriangle, WatertightTriangle};
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
 
@@ -235,4 +236,88 @@ fn wald_rounds_a_ray_just_outside_an_edge_into_a_hit() {
             .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
             .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
     }
+}
+
+/// `traversal` (Wald's test): every triangle but one has a vertex exactly at the ray's
+/// origin, and the ray (direction of length 3.9e31, interval from -1.5e31) meets them all at
+/// exactly `t = 0`. Triangle 3, 3.9e31 wide, is reported at `t = -3.6e-8`, rounded below its
+/// exact crossing by the test's error at that scale; triangle 2 (unreachable) gives a rounding
+/// hit at `t = -3.5e-25`. The tree, visiting leaves in exact order, finds triangle 2 first and
+/// then drops the leaves beyond it, triangle 3's among them. The oracle took the f32 distance
+/// -3.6e-8 for "a reachable hit before the reported one"; it now asks exactly whether the ray
+/// meets that triangle before the reported distance (`BruteForce::check`).
+#[test]
+fn huge_triangle_through_the_origin_is_reported_before_its_exact_crossing() {
+    let soup = [
+        tri([
+            3.8500897e-37,
+            3.8207024e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+            3.877748e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+        ]),
+        tri([
+            3.8500897e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+            -3.850675e31,
+            -3.8655884e31,
+            0.072267435,
+            5.113515e-37,
+            9.953485e17,
+            9.96938e17,
+        ]),
+        tri([
+            9.96938e17,
+            9.96938e17,
+            2321374500.0,
+            6.81e-43,
+            -6.0375343e23,
+            -0.09230613,
+            1.2053782e-38,
+            9.1817e-41,
+            13362867.0,
+        ]),
+        tri([
+            3.8500897e-37,
+            3.8500897e-37,
+            -3.850675e31,
+            -1.0380112e31,
+            -1.4811937e31,
+            1.4338264e-36,
+            3.8500897e-37,
+            3.8500897e-37,
+            3.8500897e-37,
+        ]),
+    ];
+    let ray = Ray::try_new(
+        Vec3::splat(3.8500897e-37),
+        Vec3::new(3.8500897e-37, 1.4282948e-36, -3.8655304e31),
+        -1.4811937e31,
+        1.4338264e-36,
+    )
+    .unwrap();
+    let tree =
+        KdTree::build_soup(&soup, &BuildConfig { intersector: Intersector::Wald, ..BuildConfig::default() }).unwrap();
+    let oracle = BruteForce::for_tree(&tree);
+    assert_eq!(oracle.all_hits(&ray), vec![(-0.0, 1), (-3.4569297e-25, 2), (-3.640144e-8, 3)]);
+    assert!(oracle.unreachable(&ray, 2) && !oracle.unreachable(&ray, 3));
+    assert!(segment_meets_triangle(&soup[3], ray.origin, ray.dir, 0.0, 0.0), "the origin is its vertex");
+    assert!(!segment_meets_triangle(&soup[3], ray.origin, ray.dir, ray.t_min, -3.4569297e-25));
+    let single = tree.intersect(&ray);
+    assert_eq!(single.map(|h| (h.t, h.prim)), Some((-3.4569297e-25, 2)));
+    oracle.check(&ray, single, tree.occluded(&ray)).unwrap();
+    assert!(oracle.equivalent_hits(&ray, single, oracle.intersect(&ray)));
+    // Still caught: no hit, and a hit at t = -0.0, where the ray has met triangle 3 (at 0).
+    assert!(oracle.check(&ray, None, false).is_err());
+    let at_zero = kdtree::Hit { t: -0.0, u: 0.0, v: 0.0, prim: 1 };
+    assert!(oracle.check(&ray, Some(at_zero), true).is_err());
+    let tree =
+        KdTree::build_soup(&soup, &BuildConfig { intersector: Intersector::Watertight, ..BuildConfig::default() })
+            .unwrap();
+    BruteForce::for_tree(&tree).check(&ray, tree.intersect(&ray), tree.occluded(&ray)).unwrap();
 }
