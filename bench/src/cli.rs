@@ -285,6 +285,13 @@ pub(crate) struct Built {
 
 /// Loads the scene and builds its tree `repeat` times, keeping the fastest build.
 fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<Built, Error> {
+    // The builder checks these too; here they fail before the scene is loaded, naming the option.
+    if !(args.c_isect.is_finite() && args.c_isect > 0.0) {
+        return Err(Error::Usage(format!("--c-isect {} must be a finite number > 0", args.c_isect)));
+    }
+    if !(0.0..1.0).contains(&args.empty_bonus) {
+        return Err(Error::Usage(format!("--empty-bonus {} must be in [0, 1)", args.empty_bonus)));
+    }
     let show = progress::enabled(global.json);
     let start = Instant::now();
     let loading = Progress::spinner(&format!("loading {}", args.scene), show);

@@ -71,7 +71,7 @@ pub struct CompareArgs {
           value_parser = clap::value_parser!(u32).range(4..=64))]
     pub tiles: Vec<u32>,
     /// Radius of the spherical light of the soft shadows, in Sponza units (scaled by the
-    /// scene's diagonal, as Table 4.6).
+    /// scene's diagonal, as Table 4.6): a finite number >= 0.
     #[arg(long, default_value_t = 1.0, value_name = "R")]
     pub light_radius: f32,
     /// Leave out the 16-sample soft shadows (the slowest column).
@@ -454,6 +454,9 @@ fn is_edge_tie(scene: &Scene, p: glam::Vec3, a: &Hit, b: &Hit) -> bool {
 
 /// `rttest compare`.
 pub fn compare_command(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Error> {
+    if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
+        return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
+    }
     let names = select_methods(args)?;
     let show = progress::enabled(global.json);
     let scene = scenes::load_scene(&args.scene)?;

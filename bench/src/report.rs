@@ -87,7 +87,8 @@ pub fn parse_vm_hwm(status: &str) -> Option<u64> {
 
 /// Parses a byte count: a whole number of bytes (`1500000000`), or a number with a binary
 /// unit `KiB`, `MiB`, `GiB` or `TiB` (`512MiB`, `1.5GiB`, case-insensitive, a space allowed),
-/// for `--memory-budget`. Errors name the input.
+/// for `--memory-budget`. Errors name the input; `nan`, `inf` and the like are errors (the
+/// number is digits and one dot).
 pub fn parse_bytes(s: &str) -> Result<u64, String> {
     let t = s.trim();
     let split = t.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(t.len());

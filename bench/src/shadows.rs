@@ -530,14 +530,7 @@ pub fn thickness_scales(scene: &Scene, specs: &[String]) -> Result<Option<Vec<f3
     }
     let mut per_material = vec![1.0f32; scene.mesh.materials.len()];
     for spec in specs {
-        let (name, scale) =
-            spec.split_once('=').ok_or_else(|| Error::Usage(format!("--thickness '{spec}': expected NAME=SCALE")))?;
-        let scale: f32 = scale
-            .trim()
-            .parse()
-            .ok()
-            .filter(|s: &f32| s.is_finite() && *s > 0.0)
-            .ok_or_else(|| Error::Usage(format!("--thickness '{spec}': the scale must be a finite number > 0")))?;
+        let (name, scale) = parse_thickness(spec)?;
         for (m, material) in scene.mesh.materials.iter().enumerate() {
             if material.name.contains(name) {
                 per_material[m] = scale;
@@ -545,6 +538,20 @@ pub fn thickness_scales(scene: &Scene, specs: &[String]) -> Result<Option<Vec<f3
         }
     }
     Ok(Some(scene.mesh.material_ids.iter().map(|&m| per_material.get(m as usize).copied().unwrap_or(1.0)).collect()))
+}
+
+/// One `--thickness NAME=SCALE`: the name and a finite scale > 0 (NaN, infinities and
+/// non-numbers are usage errors naming the argument).
+fn parse_thickness(spec: &str) -> Result<(&str, f32), Error> {
+    let (name, scale) =
+        spec.split_once('=').ok_or_else(|| Error::Usage(format!("--thickness '{spec}': expected NAME=SCALE")))?;
+    let scale: f32 = scale
+        .trim()
+        .parse()
+        .ok()
+        .filter(|s: &f32| s.is_finite() && *s > 0.0)
+        .ok_or_else(|| Error::Usage(format!("--thickness '{spec}': the scale must be a finite number > 0")))?;
+    Ok((name, scale))
 }
 
 /// The light of `--light` and `--light-size` for `scene`.
@@ -567,6 +574,10 @@ fn check_args(args: &ShadowsArgs) -> Result<(), Error> {
     }
     if !(args.edge_scale.is_finite() && args.edge_scale >= 0.0) {
         return Err(Error::Usage(format!("--edge-scale {} must be a finite number >= 0", args.edge_scale)));
+    }
+    // Before any scene is loaded or any reference computed.
+    for spec in &args.thickness {
+        parse_thickness(spec)?;
     }
     Ok(())
 }
@@ -776,7 +787,10 @@ mod tests {
     fn bad_thickness_and_light_size_are_usage_errors() {
         let scene = scenes::load_scene("cube").unwrap();
         assert!(thickness_scales(&scene, &["cube".into()]).is_err());
-        assert!(thickness_scales(&scene, &["cube=nan".into()]).is_err());
+        for bad in ["cube=nan", "cube=inf", "cube=-inf", "cube=1e39", "cube=NaN"] {
+            let e = thickness_scales(&scene, &[bad.into()]).unwrap_err().to_string();
+            assert!(e.contains(bad) && e.contains("finite"), "{e}");
+        }
         assert!(thickness_scales(&scene, &["cube=-1".into()]).is_err());
         let t = thickness_scales(&scene, &["cube=3".into()]).unwrap().unwrap();
         assert!(t.iter().all(|&s| s == 3.0));

@@ -19,6 +19,11 @@ fn byte_counts_parse_with_binary_units() {
         assert!(parse_bytes(bad).is_err(), "{bad:?} parsed");
     }
     assert!(parse_bytes("99999999999TiB").unwrap_err().contains("too large"));
+    // NaN and infinities are not byte counts, with or without a unit.
+    for bad in ["nan", "NaN", "inf", "-inf", "infinity", "nanGiB", "inf MiB", "1e400GiB"] {
+        let e = parse_bytes(bad).unwrap_err();
+        assert!(e.contains(bad), "{bad:?}: {e}");
+    }
 }
 
 #[test]

@@ -71,7 +71,7 @@ fn sah_options_reach_the_builder() {
     assert!(cheap["nodes"].as_u64() < deep["nodes"].as_u64());
     let out = rttest(&dir, &["build", "--scene", "sphere", "--empty-bonus", "1.5"]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("empty_bonus"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--empty-bonus 1.5"));
 }
 
 #[test]
@@ -166,6 +166,44 @@ fn bad_input_gives_one_line_and_non_zero_exit() {
         assert_eq!(stderr.lines().count(), 1, "{args:?}: stderr is not one line: {stderr}");
         assert!(stderr.starts_with("rttest: error: "), "{args:?}: {stderr}");
         assert!(out.stdout.is_empty(), "{args:?}: wrote to stdout");
+    }
+}
+
+/// NaN and infinite numbers in any option are one-line usage errors naming the option,
+/// before any expensive work.
+#[test]
+fn non_finite_numbers_are_errors_naming_the_option() {
+    let dir = scratch("non-finite");
+    let cases: &[(&[&str], &str)] = &[
+        (&["build", "--c-isect", "nan"], "--c-isect NaN"),
+        (&["build", "--c-isect", "inf"], "--c-isect inf"),
+        (&["render", "--c-isect=-inf"], "--c-isect -inf"),
+        (&["build", "--empty-bonus", "NaN"], "--empty-bonus NaN"),
+        (&["build", "--scene", "cube", "--memory-budget", "nanGiB"], "nanGiB"),
+        (&["build", "--scene", "cube", "--memory-budget", "inf"], "inf"),
+        (&["render", "--scene", "cube", "--camera", "nan,0,5,0,0,0,45"], "--camera"),
+        (&["render", "--scene", "cube", "--camera", "0,0,5,0,0,0,inf"], "--camera"),
+        (&["render", "--scene", "cube", "--camera", "1e39,0,5,0,0,0,45"], "finite"),
+        (&["render", "--scene", "cube", "--camera=0,0,5,0,-inf,0,45"], "finite"),
+        (&["shadows", "--scene", "cube", "--edge-scale", "nan"], "--edge-scale"),
+        (&["shadows", "--scene", "cube", "--edge-scale", "inf"], "--edge-scale"),
+        (&["shadows", "--scene", "cube", "--light-size", "NaN"], "--light-size"),
+        (&["shadows", "--scene", "cube", "--light-size", "inf"], "--light-size"),
+        (&["shadows", "--scene", "atrium", "--thickness", "floor=nan"], "--thickness 'floor=nan'"),
+        (&["shadows", "--scene", "atrium", "--thickness", "floor=inf"], "--thickness 'floor=inf'"),
+        (&["compare", "--light-radius", "nan"], "--light-radius"),
+        (&["compare", "--light-radius=-inf"], "--light-radius"),
+    ];
+    for (args, name) in cases {
+        let start = std::time::Instant::now();
+        let out = rttest(&dir, args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: stderr is not one line: {stderr}");
+        assert!(stderr.starts_with("rttest: error: ") && !stderr.contains("internal error"), "{args:?}: {stderr}");
+        assert!(stderr.contains(name), "{args:?} should name '{name}': {stderr}");
+        assert!(out.stdout.is_empty(), "{args:?}: wrote to stdout");
+        assert!(start.elapsed().as_secs() < 20, "{args:?}: the error came late");
     }
 }
 

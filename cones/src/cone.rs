@@ -126,8 +126,12 @@ impl Cone {
 
     /// The cone of apex `apex` and axis `axis` with the smallest half-angle holding every
     /// direction of `dirs`, opened by `margin` radians (for the rounding of directions that
-    /// are bounded without being looked at, see [`crate::tile`]).
+    /// are bounded without being looked at, see [`crate::tile`]). A NaN or infinite apex,
+    /// axis, direction or margin is [`ConeError::NotFinite`] naming it.
     pub fn around(apex: Vec3, axis: DVec3, dirs: &[Vec3], margin: f64) -> Result<Cone, ConeError> {
+        if !margin.is_finite() {
+            return Err(ConeError::NotFinite("margin"));
+        }
         let mut alpha: f64 = 0.0;
         for d in dirs {
             if !d.is_finite() {
@@ -150,8 +154,12 @@ impl Cone {
     /// them (a diameter) or three (a circumcircle): every pair and triple is tried, and the
     /// candidate axis whose farthest direction is nearest (largest smallest cosine) is kept.
     /// For more than 8 directions the axis is their mean ([`Cone::around`]). Allocates
-    /// nothing: it runs once per tile.
+    /// nothing: it runs once per tile. A NaN or infinite apex, direction or margin is
+    /// [`ConeError::NotFinite`] naming it.
     pub fn smallest_enclosing(apex: Vec3, dirs: &[Vec3], margin: f64) -> Result<Cone, ConeError> {
+        if !margin.is_finite() {
+            return Err(ConeError::NotFinite("margin"));
+        }
         if dirs.len() > 8 {
             let mean: DVec3 = dirs.iter().map(|d| d.as_dvec3().normalize_or_zero()).sum();
             if !mean.is_finite() {
@@ -224,10 +232,10 @@ impl Cone {
         self.tan_alpha.atan()
     }
 
-    /// Whether the ray from the apex along `dir` lies inside the cone (the zero direction does
-    /// not).
+    /// Whether the ray from the apex along `dir` lies inside the cone (the zero direction and
+    /// directions with a NaN or infinite component do not).
     pub fn contains(&self, dir: Vec3) -> bool {
-        dir != Vec3::ZERO && angle_between(self.axis, dir.as_dvec3()) <= self.half_angle()
+        dir != Vec3::ZERO && dir.is_finite() && angle_between(self.axis, dir.as_dvec3()) <= self.half_angle()
     }
 
     /// `b = tan α sqrt(1 - v[k]²)` for axis `k`, the square root taken as the length of the
@@ -241,8 +249,8 @@ impl Cone {
 
     /// Eq. 4.8 with the cases of the module documentation: the axis distances `(t1, t2)`,
     /// `t1 <= t2`, between which the cone's cross-section meets the plane `x[k] = split`;
-    /// `(inf, inf)` when it never does in front of the apex. In `f64`; the reference the
-    /// single-precision traversal step is checked against.
+    /// `(inf, inf)` when it never does in front of the apex (and for a NaN `split`). In
+    /// `f64`; the reference the single-precision traversal step is checked against.
     pub fn split_distances(&self, k: usize, split: f64) -> (f64, f64) {
         let d = split - self.apex[k];
         let c = self.axis[k];
@@ -489,6 +497,48 @@ mod tests {
         assert_eq!(Cone::new(Vec3::ZERO, Vec3::Y, -0.1), Err(ConeError::BadAngle(-0.1)));
         assert!(Cone::smallest_enclosing(Vec3::ZERO, &[Vec3::X, -Vec3::X], 0.0).is_err());
         assert!(Cone::tangent_to_sphere(Vec3::ZERO, Vec3::new(0.5, 0.0, 0.0), 1.0).is_none());
+    }
+
+    #[test]
+    fn non_finite_input_is_an_error_naming_it() {
+        let (nan, inf) = (f64::NAN, f64::INFINITY);
+        let nan3 = Vec3::new(0.0, f32::NAN, 0.0);
+        assert_eq!(Cone::new(Vec3::ZERO, Vec3::Y, inf), Err(ConeError::NotFinite("half-angle")));
+        assert_eq!(Cone::from_tan(DVec3::ZERO, DVec3::Y, nan), Err(ConeError::NotFinite("tan of the half-angle")));
+        assert_eq!(Cone::from_tan(DVec3::ZERO, DVec3::Y, inf), Err(ConeError::NotFinite("tan of the half-angle")));
+        assert_eq!(Cone::from_tan(DVec3::NEG_INFINITY, DVec3::Y, 0.1), Err(ConeError::NotFinite("apex")));
+        let dirs = [Vec3::new(0.1, 0.0, 1.0), Vec3::new(-0.1, 0.0, 1.0), Vec3::new(0.0, 0.1, 1.0)];
+        let many = [dirs[0]; 9];
+        for m in [nan, inf, -inf] {
+            assert_eq!(Cone::around(Vec3::ZERO, DVec3::Z, &dirs, m), Err(ConeError::NotFinite("margin")));
+            assert_eq!(Cone::smallest_enclosing(Vec3::ZERO, &dirs, m), Err(ConeError::NotFinite("margin")));
+            assert_eq!(Cone::smallest_enclosing(Vec3::ZERO, &many, m), Err(ConeError::NotFinite("margin")));
+        }
+        assert_eq!(Cone::around(Vec3::ZERO, DVec3::Z, &[dirs[0], nan3], 0.0), Err(ConeError::NotFinite("direction")));
+        assert_eq!(Cone::around(Vec3::ZERO, DVec3::NAN, &dirs, 0.0), Err(ConeError::NotFinite("axis")));
+        assert_eq!(Cone::around(nan3, DVec3::Z, &dirs, 0.0), Err(ConeError::NotFinite("apex")));
+        assert_eq!(
+            Cone::smallest_enclosing(Vec3::ZERO, &[dirs[0], Vec3::INFINITY], 0.0),
+            Err(ConeError::NotFinite("direction"))
+        );
+        let mut nine = many;
+        nine[8] = nan3;
+        assert_eq!(Cone::smallest_enclosing(Vec3::ZERO, &nine, 0.0), Err(ConeError::NotFinite("direction")));
+        assert_eq!(Cone::smallest_enclosing(nan3, &dirs, 0.0), Err(ConeError::NotFinite("apex")));
+        for (apex, centre, r) in [
+            (nan3, Vec3::new(0.0, 5.0, 0.0), 1.0),
+            (Vec3::ZERO, Vec3::new(0.0, f32::INFINITY, 0.0), 1.0),
+            (Vec3::ZERO, Vec3::new(0.0, 5.0, 0.0), f32::NAN),
+            (Vec3::ZERO, Vec3::new(0.0, 5.0, 0.0), f32::INFINITY),
+        ] {
+            assert!(Cone::tangent_to_sphere(apex, centre, r).is_none(), "{apex} {centre} {r}");
+        }
+        let c = Cone::smallest_enclosing(Vec3::ZERO, &dirs, 0.0).unwrap();
+        assert!(c.contains(dirs[0]) && !c.contains(nan3) && !c.contains(Vec3::new(0.0, 0.0, f32::INFINITY)));
+        // A wide cone whose axis has no zero component: atan2(inf, inf) would be 45 degrees.
+        let wide = Cone::new(Vec3::ZERO, Vec3::new(0.1, 0.1, 1.0), 1.2).unwrap();
+        assert!(wide.contains(Vec3::Z) && !wide.contains(Vec3::new(0.0, 0.0, f32::INFINITY)));
+        assert_eq!(c.split_distances(0, nan), (inf, inf));
     }
 
     #[test]

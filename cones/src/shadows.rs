@@ -101,6 +101,8 @@ pub fn sample_cone(p: Vec3, light: &SphereLight) -> Option<Cone> {
 }
 
 /// The 16 shadow rays from `origin` (already off the surface) to `samples`, over `[0, 1]`.
+/// Not checked: a NaN or infinite origin or sample gives a ray that
+/// [`SoftShadowTracer::occluded`] reports as not occluded.
 pub fn shadow_rays(origin: Vec3, samples: &[Vec3; SAMPLES]) -> [Ray; SAMPLES] {
     samples.map(|s| Ray::new(origin, s - origin, 0.0, 1.0))
 }
@@ -130,6 +132,11 @@ impl SoftShadowTracer {
     /// occluded, as bit `i` for ray `i`, traced with `method`. `cone` must hold every ray's
     /// direction ([`sample_cone`] does, and the [`Cone::tangent_to_sphere`] of the light);
     /// it is used by [`ShadowMethod::Cone`] only.
+    ///
+    /// Input that breaks these rules never makes it panic: a ray with a NaN or infinite
+    /// origin or direction (or a NaN interval) is not occluded, by every method, as
+    /// `KdTree::occluded` answers; rays with different origins are traced one by one; a cone
+    /// with a NaN field is replaced by the rays' pyramid (see `TileTracer::trace_frusta`).
     pub fn occluded<C: PacketCounters + Counters>(
         &mut self,
         tree: &KdTree,
@@ -153,7 +160,10 @@ impl SoftShadowTracer {
                 None => return self.occluded(tree, rays, cone, ShadowMethod::Single, counters),
             }
         }
-        self.tracer.load_packets(&self.packets).expect("one origin");
+        if self.tracer.load_packets(&self.packets).is_none() {
+            // The packets' origins differ.
+            return self.occluded(tree, rays, cone, ShadowMethod::Single, counters);
+        }
         match method {
             ShadowMethod::Pyramid => self.tracer.trace(tree, TileMethod::Frustum, counters),
             _ => {
@@ -206,6 +216,75 @@ mod tests {
             }
         }
         assert!(light_samples(light.center, &light).is_none());
+    }
+
+    #[test]
+    fn non_finite_points_and_lights_give_no_samples_and_no_cone() {
+        let light = SphereLight { center: Vec3::new(1.0, 5.0, -2.0), radius: 0.75, intensity: Vec3::ONE };
+        let p = Vec3::new(0.2, 0.1, 0.3);
+        assert!(light_samples(p, &light).is_some() && sample_cone(p, &light).is_some());
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        for (p, light) in [
+            (Vec3::new(nan, 0.1, 0.3), light),
+            (Vec3::new(0.2, -inf, 0.3), light),
+            (p, SphereLight { center: Vec3::new(1.0, nan, -2.0), ..light }),
+            (p, SphereLight { center: Vec3::new(inf, 5.0, -2.0), ..light }),
+            (p, SphereLight { radius: nan, ..light }),
+            (p, SphereLight { radius: inf, ..light }),
+        ] {
+            assert!(light_samples(p, &light).is_none(), "{p} {light:?}");
+            assert!(sample_cone(p, &light).is_none(), "{p} {light:?}");
+        }
+    }
+
+    /// Rays that break `occluded`'s rules: NaN or infinite lanes are not occluded and the
+    /// others get the single rays' answers, whatever the method; rays from two origins are
+    /// traced one by one. Never a panic.
+    #[test]
+    fn bad_rays_never_panic_and_match_single_rays() {
+        let tris = [
+            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0)],
+            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0), Vec3::new(-5.0, 2.0, 5.0)],
+        ];
+        let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
+        let light = SphereLight { center: Vec3::new(1.0, 4.0, 0.0), radius: 0.8, intensity: Vec3::ONE };
+        let p = Vec3::new(1.0, 0.0, 0.0);
+        let good = shadow_rays(p, &light_samples(p, &light).unwrap());
+        let cone = sample_cone(p, &light).unwrap();
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        let mut t = SoftShadowTracer::new();
+        let mut cases: Vec<([Ray; SAMPLES], u16)> = Vec::new();
+        // The first packet's origins NaN: those rays are invalid lanes, the rest is traced.
+        let mut rays = good;
+        for r in &mut rays[..4] {
+            *r = Ray::new(Vec3::new(nan, 0.0, 0.0), r.dir, 0.0, 1.0);
+        }
+        cases.push((rays, 0xFFF0));
+        // Scattered bad directions and intervals.
+        let mut rays = good;
+        rays[5] = Ray::new(p, Vec3::new(0.0, nan, 0.0), 0.0, 1.0);
+        rays[9] = Ray::new(p, Vec3::new(inf, 4.0, 0.0), 0.0, 1.0);
+        rays[14] = Ray::new(p, rays[14].dir, 0.0, nan);
+        cases.push((rays, !(1 << 5 | 1 << 9 | 1 << 14)));
+        // Two origins, one per half: packets cannot be loaded as one tile.
+        let mut rays = good;
+        let q = Vec3::new(0.5, 0.0, 0.0);
+        for r in &mut rays[8..] {
+            *r = Ray::new(q, light.center - q, 0.0, 1.0);
+        }
+        cases.push((rays, 0xFFFF));
+        for (rays, mask) in cases {
+            let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
+            assert!(single & mask != 0, "something is blocked");
+            assert_eq!(single & !mask, 0, "the bad rays are not occluded: {single:016b}");
+            for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
+                assert_eq!(t.occluded(&tree, &rays, &cone, m, &mut NoCounters), single, "{m:?}");
+            }
+        }
+        // A cone with NaN fields (made by hand) is not trusted: the pyramid is used.
+        let bad_cone = Cone { tan_alpha: f64::NAN, ..cone };
+        let single = t.occluded(&tree, &good, &cone, ShadowMethod::Single, &mut NoCounters);
+        assert_eq!(t.occluded(&tree, &good, &bad_cone, ShadowMethod::Cone, &mut NoCounters), single);
     }
 
     /// A wall half across the light: the three methods agree ray by ray, and some rays are

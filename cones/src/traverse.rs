@@ -62,7 +62,9 @@ impl ConeMethod {
 }
 
 /// The cone of a primary tile: the narrowest cone from the camera's eye holding the rays of
-/// the tile's four corner pixels, opened by [`CORNER_MARGIN`].
+/// the tile's four corner pixels, opened by [`CORNER_MARGIN`]. A camera with a NaN or
+/// infinite field (made by hand; `Camera::look_at` refuses them) is
+/// [`ConeError::NotFinite`].
 pub fn primary_cone(camera: &Camera, tile: &Tile) -> Result<Cone, ConeError> {
     let (x1, y1) = (tile.x1.saturating_sub(1).max(tile.x0), tile.y1.saturating_sub(1).max(tile.y0));
     let corners = [(tile.x0, tile.y0), (x1, tile.y0), (tile.x0, y1), (x1, y1)].map(|(x, y)| camera.pixel_ray(x, y).1);
@@ -73,7 +75,8 @@ pub fn primary_cone(camera: &Camera, tile: &Tile) -> Result<Cone, ConeError> {
 /// ray parameters is `pyramid.near..pyramid.far` and whose direction lengths lie in
 /// `len = (min, max)`: Listing 4.4's factors and that interval converted to distances along
 /// the axis, moved outwards by the rounding of the parameters it is made of (relative, and
-/// [`T_UNDERFLOW`] absolute).
+/// [`T_UNDERFLOW`] absolute). NaN in the cone or the pyramid gives a bound with a NaN, which
+/// `TileTracer::trace_frusta` replaces by the pyramid.
 pub fn cone_bound(cone: &Cone, pyramid: &FrustumBound, len: (f64, f64)) -> FrustumBound {
     let f = cone.factors();
     if is_empty(pyramid) {
@@ -177,7 +180,8 @@ pub fn cone_frusta(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, i
 
 /// Traces the tile loaded in `tracer` (a primary tile or packets sharing one origin) with
 /// a cone or MFT cones: the closest hits (any hits in the tracer's any-hit mode), exactly
-/// those of single rays.
+/// those of single rays. Invalid lanes (rays with NaN or infinite components, see
+/// `packets::RayPacket::new`) get no hit and do not shape the cone.
 pub fn trace<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
     let intervals = tracer.prepare_intervals(tree);
     let frusta = cone_frusta(tree, tracer, method, &intervals);

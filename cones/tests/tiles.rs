@@ -216,6 +216,65 @@ fn loaded_packets_in_narrow_and_wide_bundles() {
     }
 }
 
+/// Loaded packets with NaN or infinite lanes (the whole first packet among them): the cone
+/// methods give those lanes no hit and the others the single rays' hits.
+#[test]
+fn loaded_packets_with_non_finite_lanes() {
+    let scene = scenes::load_scene("arena").unwrap();
+    let origin = scene.default_view().eye;
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    let bad = [
+        Ray::new(Vec3::new(origin.x, nan, origin.z), Vec3::NEG_Z, 0.0, inf),
+        Ray::new(origin, Vec3::new(nan, 0.1, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::new(0.0, -inf, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::NEG_Z, 0.0, nan),
+    ];
+    let is_bad = |i: usize| i < 4 || i % 7 == 3;
+    let rays: Vec<Ray> = (0..64)
+        .map(|i| {
+            if is_bad(i) {
+                return bad[i % 4];
+            }
+            let (a, b) = (i as f32 * 0.05, i as f32 * 0.03);
+            Ray::new(origin, Vec3::new(a.sin() * 0.3, b.cos() * 0.2 - 0.3, -1.0), 0.0, inf)
+        })
+        .collect();
+    let packets: Vec<OmniPacket> = rays.chunks(4).map(|r| OmniPacket::new(RayPacket::new(r)).unwrap()).collect();
+    let mut tracer = TileTracer::new(8).unwrap();
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = build(&scene, intersector);
+        for method in METHODS {
+            tracer.load_packets(&packets).expect("the valid lanes share one origin");
+            traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
+            for (i, ray) in rays.iter().enumerate() {
+                let got = tracer.packet_hits()[i / 4].get(i % 4);
+                if is_bad(i) {
+                    assert_eq!(got, None, "ray {i} {method:?}");
+                } else {
+                    assert!(same_hit(&tree, ray, got, tree.intersect(ray)), "ray {i} {method:?}: {got:?}");
+                }
+            }
+        }
+    }
+}
+
+/// A hand-made camera with a NaN or infinite field has no cone, and no tile to trace.
+#[test]
+fn non_finite_cameras_have_no_cone() {
+    let good = Camera::look_at(Vec3::new(0.0, 1.0, 5.0), Vec3::ZERO, 60.0, 16, 16).unwrap();
+    let tile = tiles(16, 16, 8)[0];
+    assert!(traverse::primary_cone(&good, &tile).is_ok());
+    for camera in [
+        Camera { eye: Vec3::new(f32::NAN, 1.0, 5.0), ..good },
+        Camera { forward: Vec3::new(0.0, f32::INFINITY, -1.0), ..good },
+        Camera { tan_half_fovy: f32::NAN, ..good },
+    ] {
+        let e = traverse::primary_cone(&camera, &tile).unwrap_err();
+        assert!(matches!(e, cones::ConeError::NotFinite(_)), "{e:?}");
+        assert!(TileTracer::new(8).unwrap().load_primary(&camera, &tile).is_err());
+    }
+}
+
 fn vertex() -> impl Strategy<Value = Vec3> {
     let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
     (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))

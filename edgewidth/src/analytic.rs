@@ -21,8 +21,11 @@ use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 
 /// The solid angle shared by two spherical caps of angular radii `a` and `b` whose centres
-/// are `g` apart (all in radians, `a, b` in `[0, pi / 2]`).
+/// are `g` apart (all in radians, `a, b` in `[0, pi / 2]`). A NaN argument gives NaN.
 pub fn cap_overlap(a: f64, b: f64, g: f64) -> f64 {
+    if a.is_nan() || b.is_nan() || g.is_nan() {
+        return f64::NAN;
+    }
     if g >= a + b {
         return 0.0;
     }
@@ -39,7 +42,8 @@ pub fn cap_overlap(a: f64, b: f64, g: f64) -> f64 {
 
 /// The fraction of the spherical light (`light_center`, `light_radius`) visible from `p`
 /// past the sphere (`occluder_center`, `occluder_radius`), which must lie nearer to `p` than
-/// the light. `0` inside the occluder, `1` inside the light.
+/// the light. `0` inside the occluder, `1` inside the light. A NaN or infinite input gives
+/// NaN (the closed form has no answer to compare with), never a panic.
 pub fn sphere_visible_fraction(
     p: Vec3,
     light_center: Vec3,
@@ -47,6 +51,14 @@ pub fn sphere_visible_fraction(
     occluder_center: Vec3,
     occluder_radius: f32,
 ) -> f64 {
+    if !(p.is_finite()
+        && light_center.is_finite()
+        && light_radius.is_finite()
+        && occluder_center.is_finite()
+        && occluder_radius.is_finite())
+    {
+        return f64::NAN;
+    }
     let p = p.as_dvec3();
     let (to_l, to_o): (DVec3, DVec3) = (light_center.as_dvec3() - p, occluder_center.as_dvec3() - p);
     let (dl, d_o) = (to_l.length(), to_o.length());
@@ -102,6 +114,26 @@ mod tests {
         // Continuous at the contained limit.
         assert!((cap_overlap(0.1, 0.3, 0.2 + 1e-9) - small).abs() < 1e-6);
         assert!(cap_overlap(0.1, 0.3, 0.4 - 1e-9) < 1e-6);
+    }
+
+    #[test]
+    fn non_finite_input_gives_nan() {
+        assert!(cap_overlap(f64::NAN, 0.1, 0.1).is_nan() && cap_overlap(0.1, f64::NAN, 0.1).is_nan());
+        assert!(cap_overlap(0.1, 0.1, f64::NAN).is_nan());
+        let (l, o) = (Vec3::new(0.0, 10.0, 0.0), Vec3::new(0.0, 2.0, 0.0));
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        assert!(sphere_visible_fraction(Vec3::ZERO, l, 0.5, o, 0.05).is_finite());
+        for bad in [nan, inf] {
+            for (p, lc, lr, oc, or) in [
+                (Vec3::new(bad, 0.0, 0.0), l, 0.5, o, 0.05),
+                (Vec3::ZERO, Vec3::new(0.0, bad, 0.0), 0.5, o, 0.05),
+                (Vec3::ZERO, l, bad, o, 0.05),
+                (Vec3::ZERO, l, 0.5, Vec3::new(0.0, 0.0, bad), 0.05),
+                (Vec3::ZERO, l, 0.5, o, bad),
+            ] {
+                assert!(sphere_visible_fraction(p, lc, lr, oc, or).is_nan(), "{p} {lc} {lr} {oc} {or}");
+            }
+        }
     }
 
     #[test]

@@ -8,7 +8,8 @@ use kdtree::{Intersector, KdTree, Ray};
 use crate::pairing::{HitList, LeakRemedies, Pairing};
 
 /// The edge width of `ray` from all of `tree`'s triangles (same contract as
-/// [`crate::edge_width`]: infinite past `r` or with an entry never closed).
+/// [`crate::edge_width`]: infinite past `r` or with an entry never closed, `0` for a NaN
+/// ray).
 pub fn edge_width_brute(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies) -> f32 {
     match tree.intersector() {
         Intersector::Wald => brute(tree, tree.wald_records(), ray, r, remedies),

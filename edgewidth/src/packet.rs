@@ -29,7 +29,8 @@ pub struct EdgeScratch4 {
 }
 
 /// The edge widths of the four rays of `rays` (as [`crate::edge_width`] gives for each lane's
-/// ray with `r[lane]`); invalid lanes get `0`.
+/// ray with `r[lane]`); invalid lanes, rays with NaN or infinite components among them (see
+/// [`RayPacket::new`]), get `0`.
 pub fn edge_width4(
     tree: &KdTree,
     rays: &RayPacket,

@@ -40,7 +40,8 @@ use kdtree::KdTree;
 pub struct LeakRemedies<'a> {
     /// Per-triangle thickness scale (indexed like the tree's triangles; `1` = as measured):
     /// an edge width is multiplied by the larger scale of its entry and exit triangles, so
-    /// that thin occluders marked by the artist cast an umbra. Missing entries count as `1`.
+    /// that thin occluders marked by the artist cast an umbra. Missing and NaN entries count
+    /// as `1` (an infinite one makes every pair through it an umbra).
     pub thickness: Option<&'a [f32]>,
     /// The shared-vertex rule (Figure 5.10): an entry/exit pair whose triangles share no
     /// vertex has an infinite width.
@@ -84,7 +85,7 @@ impl Pairing {
             Some((t_entry, entry)) => {
                 let mut width = t - t_entry;
                 if let Some(scale) = remedies.thickness {
-                    let s = |p: u32| scale.get(p as usize).copied().unwrap_or(1.0);
+                    let s = |p: u32| scale.get(p as usize).copied().filter(|s| !s.is_nan()).unwrap_or(1.0);
                     width *= s(entry).max(s(prim));
                 }
                 if remedies.shared_vertex && !share_vertex(&tree.triangle(entry), &tree.triangle(prim)) {
@@ -259,6 +260,23 @@ mod tests {
         assert!((p.finish() - 0.3).abs() < 1e-6);
         p.push(0.9, 0, &tree, &off);
         assert_eq!(p.finish(), f32::INFINITY, "an entry never closed is full occlusion");
+    }
+
+    #[test]
+    fn nan_thickness_scales_count_as_one() {
+        let tree = two_quads();
+        for (scale, want) in [
+            ([f32::NAN, 1.0, f32::NAN], 0.1),
+            ([f32::NAN, 1.0, 3.0], 0.3),
+            ([f32::INFINITY, 1.0, f32::NAN], f32::INFINITY),
+        ] {
+            let thick = LeakRemedies { thickness: Some(&scale), shared_vertex: false };
+            let mut p = Pairing::new();
+            p.push(0.1, 0, &tree, &thick);
+            p.push(0.2, 2, &tree, &thick);
+            let w = p.finish();
+            assert!((w - want).abs() < 1e-6 || w == want, "{scale:?}: {w}");
+        }
     }
 
     #[test]

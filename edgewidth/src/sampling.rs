@@ -60,7 +60,9 @@ impl AreaLight {
 
     /// The point of the light for the unit-square sample `s`, seen from `p`: on the rectangle
     /// at `s`, or on the near side of the sphere along a direction uniform in the cone it
-    /// subtends from `p` (the centre when `p` is inside the sphere).
+    /// subtends from `p` (the centre when `p` is inside the sphere). A NaN or infinite `p`,
+    /// `s` or light gives a point that is not finite (never a panic), which
+    /// [`ShadingPoint::shadow_ray`] turns into no ray.
     #[inline]
     pub fn sample(&self, p: Vec3, s: Vec2) -> Vec3 {
         match self {
@@ -160,11 +162,13 @@ impl ShadingPoint {
     }
 
     /// The shadow ray from this point to `target` (`t` in `[0, 1]`, reaching `target` at 1),
-    /// or `None` when `target` lies behind the surface.
+    /// or `None` when `target` lies behind the surface, or when `target`, the point or its
+    /// normal is not finite (NaN or infinite input: no ray, never a NaN one).
     #[inline]
     pub fn shadow_ray(&self, target: Vec3) -> Option<Ray> {
         let to = target - self.point;
-        if self.normal.dot(to) <= 0.0 {
+        // Written so that NaN fails.
+        if !(to.is_finite() && self.normal.dot(to) > 0.0) {
             return None;
         }
         let start = kdtree::ray::offset_origin(&self.tri, &self.hit, to);
@@ -173,7 +177,9 @@ impl ShadingPoint {
 }
 
 /// The visible fraction of `light` from `p` with `n` stratified samples (`n = 1`: the centre,
-/// hard shadows), jittered by `rng`. Samples behind the surface count as blocked.
+/// hard shadows), jittered by `rng`. Samples behind the surface count as blocked, and so do
+/// samples that are not finite (from a NaN or infinite light or shading point; with `n = 1`
+/// only the centre is sampled, so a NaN radius alone does not matter).
 pub fn visible_fraction(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, n: u32, rng: &mut Rng) -> f32 {
     if n <= 1 {
         return p.shadow_ray(light.center()).map_or(0.0, |ray| f32::from(u8::from(!tree.occluded(&ray))));
@@ -223,7 +229,8 @@ impl InterleavedSets {
         &self.sets[(4 * (y % 4) + x % 4) as usize]
     }
 
-    /// The visible fraction of `light` from `p` with the set of pixel `(x, y)`.
+    /// The visible fraction of `light` from `p` with the set of pixel `(x, y)`; samples are
+    /// counted as in [`visible_fraction`] (non-finite ones as blocked).
     pub fn visible_fraction(&self, tree: &KdTree, light: &AreaLight, p: &ShadingPoint, x: u32, y: u32) -> f32 {
         let mut visible = 0u32;
         for s in self.for_pixel(x, y) {
@@ -295,6 +302,51 @@ mod tests {
             let cos = (q - p).normalize().dot((l.center - p).normalize());
             assert!(cos >= (1.0 - sin_max * sin_max).sqrt() - 1e-5);
         }
+    }
+
+    #[test]
+    fn non_finite_lights_and_points_count_as_blocked() {
+        // A floor triangle under a light, nothing to block it.
+        let tri = [Vec3::new(-5.0, 0.0, -5.0), Vec3::new(0.0, 0.0, 5.0), Vec3::new(5.0, 0.0, -5.0)];
+        let tree = KdTree::build_soup(&[tri], &kdtree::BuildConfig::default()).unwrap();
+        let hit = Hit { t: 1.0, u: 0.3, v: 0.3, prim: 0 };
+        let p = ShadingPoint::new(tri, hit, Vec3::NEG_Y);
+        let sphere = SphereLight { center: Vec3::new(0.0, 4.0, 0.0), radius: 0.5, intensity: Vec3::ONE };
+        let rect =
+            RectLight { corner: Vec3::new(-0.5, 4.0, -0.5), edge_u: Vec3::X, edge_v: Vec3::Z, intensity: Vec3::ONE };
+        let sets = InterleavedSets::new(3);
+        for light in [AreaLight::Sphere(sphere), AreaLight::Rect(rect)] {
+            assert_eq!(visible_fraction(&tree, &light, &p, 16, &mut Rng::new(1)), 1.0);
+            assert_eq!(sets.visible_fraction(&tree, &light, &p, 1, 2), 1.0);
+        }
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        // (light, visible with the centre alone): a NaN radius leaves the centre finite.
+        let lights = [
+            (AreaLight::Sphere(SphereLight { center: Vec3::new(0.0, nan, 0.0), ..sphere }), 0.0),
+            (AreaLight::Sphere(SphereLight { center: Vec3::new(0.0, inf, 0.0), ..sphere }), 0.0),
+            (AreaLight::Sphere(SphereLight { radius: nan, ..sphere }), 1.0),
+            (AreaLight::Sphere(sphere).scaled(nan), 1.0),
+            (AreaLight::Rect(RectLight { corner: Vec3::new(nan, 4.0, 0.0), ..rect }), 0.0),
+            (AreaLight::Rect(RectLight { edge_u: Vec3::new(inf, 0.0, 0.0), ..rect }), 0.0),
+            (AreaLight::Rect(rect).scaled(inf), 0.0),
+        ];
+        for (light, centre) in lights {
+            assert_eq!(visible_fraction(&tree, &light, &p, 1, &mut Rng::new(1)), centre, "{light:?}");
+            assert_eq!(visible_fraction(&tree, &light, &p, 16, &mut Rng::new(1)), 0.0, "{light:?}");
+            assert_eq!(sets.visible_fraction(&tree, &light, &p, 1, 2), 0.0, "{light:?}");
+        }
+        // A shading point from a NaN hit or triangle: no shadow ray at all.
+        let good = AreaLight::Sphere(sphere);
+        let mut bad_tri = tri;
+        bad_tri[1].x = nan;
+        for q in
+            [ShadingPoint::new(tri, Hit { u: nan, ..hit }, Vec3::NEG_Y), ShadingPoint::new(bad_tri, hit, Vec3::NEG_Y)]
+        {
+            assert!(q.shadow_ray(sphere.center).is_none());
+            assert_eq!(visible_fraction(&tree, &good, &q, 4, &mut Rng::new(1)), 0.0);
+        }
+        assert!(p.shadow_ray(Vec3::new(0.0, inf, 0.0)).is_none());
+        assert!(p.shadow_ray(sphere.center).is_some());
     }
 
     #[test]

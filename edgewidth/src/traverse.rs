@@ -73,6 +73,8 @@ fn widen_up(t: f32) -> f32 {
 /// [`crate::occlusion_factor`] with the same `r`.
 ///
 /// Never allocates once `scratch` has grown; a NaN ray gets `0` (no crossing), never a panic.
+/// A NaN `r` never triggers the early exit (the width is computed in full, as with
+/// `r = +inf`).
 pub fn edge_width(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies, scratch: &mut EdgeScratch) -> f32 {
     match tree.intersector() {
         Intersector::Wald => kernel(tree, tree.wald_records(), ray, r, remedies, scratch),

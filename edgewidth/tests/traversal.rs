@@ -214,6 +214,43 @@ fn open_geometry_is_a_hard_shadow_and_missing_geometry_no_shadow() {
     assert_eq!(edge_width(&tree, &nan, 0.5, &off, &mut s), 0.0);
 }
 
+/// NaN and infinite rays cross nothing, with the kernel, the packet kernel and the brute
+/// force alike; a NaN `r` never exits early (the width of `r = +inf`).
+#[test]
+fn non_finite_rays_and_widths() {
+    let tris = cuboid(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.5, 1.0));
+    let off = LeakRemedies::default();
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = tree(&tris, 5.0, intersector);
+        let mut s = EdgeScratch::default();
+        let through = Ray::new(Vec3::new(0.3, -1.0, -0.2), Vec3::new(0.0, 2.0, 0.0), 0.0, 1.0);
+        let full = edge_width(&tree, &through, inf, &off, &mut s);
+        assert!((full - 0.25).abs() < 1e-6, "{full}");
+        assert_eq!(edge_width(&tree, &through, 0.1, &off, &mut s), inf, "early exit past r");
+        assert_eq!(edge_width(&tree, &through, nan, &off, &mut s), full);
+        assert_eq!(edge_width_brute(&tree, &through, nan, &off), full);
+        let bad = [
+            Ray::new(Vec3::new(0.3, nan, -0.2), Vec3::new(0.0, 2.0, 0.0), 0.0, 1.0),
+            Ray::new(Vec3::new(0.3, -inf, -0.2), Vec3::new(0.0, 2.0, 0.0), 0.0, 1.0),
+            Ray::new(Vec3::new(0.3, -1.0, -0.2), Vec3::new(0.0, nan, 0.0), 0.0, 1.0),
+            Ray::new(Vec3::new(0.3, -1.0, -0.2), Vec3::new(0.0, inf, 0.0), 0.0, 1.0),
+            Ray::new(Vec3::new(0.3, -1.0, -0.2), Vec3::new(0.0, 2.0, 0.0), nan, 1.0),
+            Ray::new(Vec3::new(0.3, -1.0, -0.2), Vec3::new(0.0, 2.0, 0.0), 0.0, nan),
+        ];
+        for ray in &bad {
+            assert_eq!(edge_width(&tree, ray, 0.5, &off, &mut s), 0.0, "{ray:?}");
+            assert_eq!(edge_width_brute(&tree, ray, 0.5, &off), 0.0, "{ray:?}");
+        }
+        let mut s4 = EdgeScratch4::default();
+        for (i, ray) in bad.iter().enumerate() {
+            let lanes = [*ray, through, bad[(i + 1) % bad.len()], through];
+            let w = edge_width4(&tree, &RayPacket::new(&lanes), [0.5, nan, 0.5, inf], &off, &mut s4);
+            assert_eq!(w, [0.0, full, 0.0, full], "{ray:?}");
+        }
+    }
+}
+
 #[test]
 fn built_in_scene_shadow_rays_match() {
     for name in ["touching-boxes", "sphere", "arena"] {

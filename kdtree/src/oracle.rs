@@ -24,7 +24,8 @@ pub struct BruteForce {
 }
 
 impl BruteForce {
-    /// The oracle for a triangle soup with the given test.
+    /// The oracle for a triangle soup with the given test. Triangles with a NaN or infinite
+    /// vertex are never hit, like degenerate ones (their records are NaN).
     pub fn new(tris: &[[Vec3; 3]], intersector: Intersector) -> BruteForce {
         BruteForce {
             intersector,
@@ -39,7 +40,8 @@ impl BruteForce {
         BruteForce::new(&tree.tris, tree.intersector)
     }
 
-    /// The closest hit over all triangles; ties go to the lowest triangle index.
+    /// The closest hit over all triangles; ties go to the lowest triangle index. A ray with
+    /// NaN components gets `None`, as from [`KdTree::intersect`].
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         match self.intersector {
             Intersector::Wald => closest(&self.wald, ray),
@@ -291,6 +293,36 @@ mod tests {
         let miss = Ray::new(Vec3::new(2.0, 2.0, 0.0), Vec3::Z, 0.0, f32::INFINITY);
         assert!(oracle.check(&miss, None, false).is_ok());
         assert!(oracle.check(&miss, None, true).is_err());
+    }
+
+    #[test]
+    fn non_finite_triangles_and_rays() {
+        let good = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
+        let mut bad = good.map(|p| p + Vec3::Z);
+        bad[1].x = f32::INFINITY;
+        let mut nan = good.map(|p| p - 0.5 * Vec3::Z);
+        nan[0].y = f32::NAN;
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let oracle = BruteForce::new(&[nan, good, bad], intersector);
+            let ray = Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+            assert_eq!(oracle.all_hits(&ray).iter().map(|h| h.1).collect::<Vec<_>>(), [1]);
+            for nan_ray in [
+                Ray::new(Vec3::new(0.2, f32::NAN, 0.0), Vec3::Z, 0.0, f32::INFINITY),
+                Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::NAN, 0.0, f32::INFINITY),
+                Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::Z, 0.0, f32::NAN),
+            ] {
+                assert_eq!(oracle.intersect(&nan_ray), None);
+                assert!(!oracle.occluded(&nan_ray) && oracle.all_hits(&nan_ray).is_empty());
+                // "No hit" is the right answer for a NaN ray; a hit is never excused.
+                assert!(oracle.check(&nan_ray, None, false).is_ok());
+                let h = oracle.intersect(&ray);
+                assert!(oracle.check(&nan_ray, h, true).is_err());
+                assert!(oracle.check(&nan_ray, None, true).is_err());
+                assert!(!oracle.unreachable(&nan_ray, 1));
+                assert!(oracle.equivalent_hits(&nan_ray, None, None) && !oracle.equivalent_hits(&nan_ray, h, None));
+                assert!(!oracle.equivalent_occlusion(&nan_ray, true, false));
+            }
+        }
     }
 
     #[test]

@@ -38,8 +38,11 @@ pub enum RayError {
 impl Ray {
     /// A ray over `[t_min, t_max]`, with `inv_dir` precomputed.
     ///
-    /// This does not check its input: traversal of a ray with NaN components returns no hit
-    /// and never panics, but the answer is meaningless. Use [`Ray::try_new`] on user input.
+    /// This does not reject its input (use [`Ray::try_new`] on user input), but gives every
+    /// input a defined answer: an origin or direction with an infinite component is stored as
+    /// all NaN (it names no point or no direction; left as it is, a direction of `-inf` made
+    /// the triangle test report a hit at `t = 0`), and every query answers a ray with a NaN
+    /// origin, direction or interval end with no hit, never a panic.
     ///
     /// A direction component so tiny that its reciprocal overflows (a denormal such as
     /// `6e-45`) is flushed to a zero of the same sign, so that traversal and the triangle
@@ -47,8 +50,24 @@ impl Ray {
     /// while `d` was not zero).
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
+        if !(origin.is_finite() && dir.is_finite()) {
+            return Ray::non_finite(origin, dir, t_min, t_max);
+        }
         let inv_dir = dir.recip();
-        // Keep a component when its reciprocal is finite, or it is zero, or it is NaN.
+        // Keep a component when its reciprocal is finite, or it is zero.
+        let keep = inv_dir.is_finite_mask() | dir.cmpeq(Vec3::ZERO);
+        let dir = if keep.all() { dir } else { Vec3::select(keep, dir, Vec3::ZERO.copysign(dir)) };
+        Ray { origin, dir, inv_dir, t_min, t_max }
+    }
+
+    /// [`Ray::new`] for an origin or direction with a NaN or infinite component: a vector
+    /// with an infinite component becomes all NaN, one with only NaN stays as it is (and the
+    /// direction's tiny components are flushed as for finite rays).
+    #[cold]
+    fn non_finite(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
+        let nan_if_infinite = |v: Vec3| if (v.is_finite_mask() | v.is_nan_mask()).all() { v } else { Vec3::NAN };
+        let (origin, dir) = (nan_if_infinite(origin), nan_if_infinite(dir));
+        let inv_dir = dir.recip();
         let keep = inv_dir.is_finite_mask() | dir.cmpeq(Vec3::ZERO) | dir.is_nan_mask();
         let dir = if keep.all() { dir } else { Vec3::select(keep, dir, Vec3::ZERO.copysign(dir)) };
         Ray { origin, dir, inv_dir, t_min, t_max }
@@ -100,6 +119,7 @@ pub struct Hit {
 /// rounding only moves it within the plane). A point computed along the ray carries the
 /// rounding of the ray's own origin and length instead: a camera 8 units away from a hit near
 /// the world origin puts it off the plane by more than a few ulps of the hit's coordinates.
+/// A NaN or infinite vertex or barycentric gives a non-finite point (never a panic).
 #[inline]
 pub fn surface_point(tri: &[Vec3; 3], hit: &Hit) -> Vec3 {
     let [a, b, c] = *tri;
@@ -131,6 +151,10 @@ pub fn surface_point(tri: &[Vec3; 3], hit: &Hit) -> Vec3 {
 /// degrees, scales 1e-3 to 1e5, at the origin and moved 1000 times their size away, both
 /// triangle tests: no self-shadowed pixel and no leak under the contacts of a plate 5% of the
 /// scene's size thick and of a sphere.
+///
+/// Non-finite input never panics: a NaN or infinite vertex or barycentric gives a non-finite
+/// origin (which [`Ray::try_new`] rejects and traversal answers with no hit), and a `toward`
+/// that is NaN or perpendicular to the surface moves the point to the normal's own side.
 #[inline]
 pub fn offset_origin(tri: &[Vec3; 3], hit: &Hit, toward: Vec3) -> Vec3 {
     let p = surface_point(tri, hit);
@@ -164,10 +188,39 @@ mod tests {
     }
 
     #[test]
+    fn offset_origin_of_non_finite_input() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Z];
+        let hit = Hit { t: 1.0, u: 0.25, v: 0.25, prim: 0 };
+        // The normal (b - a) x (c - a) is -Y: a NaN `toward` keeps its side.
+        assert!(offset_origin(&tri, &hit, Vec3::NAN).y < 0.0);
+        assert!(offset_origin(&tri, &hit, Vec3::new(0.0, f32::INFINITY, 0.0)).y > 0.0);
+        for bad in [f32::NAN, f32::INFINITY] {
+            let h = Hit { u: bad, ..hit };
+            assert!(!surface_point(&tri, &h).is_finite());
+            assert!(!offset_origin(&tri, &h, Vec3::Y).is_finite());
+            let mut t = tri;
+            t[2].z = bad;
+            assert!(!offset_origin(&t, &hit, Vec3::Y).is_finite());
+            assert!(Ray::try_new(offset_origin(&t, &hit, Vec3::Y), Vec3::Y, 0.0, 1.0).is_err());
+        }
+    }
+
+    #[test]
     fn try_new_rejects_non_finite_input() {
         let o = Vec3::ZERO;
         let d = Vec3::X;
         assert!(Ray::try_new(o, d, 0.0, f32::INFINITY).is_ok());
+        assert!(Ray::try_new(o, d, f32::NEG_INFINITY, 1.0).is_ok());
+        assert!(matches!(
+            Ray::try_new(Vec3::new(0.0, f32::NEG_INFINITY, 0.0), d, 0.0, 1.0),
+            Err(RayError::NonFiniteOrigin(_))
+        ));
+        assert!(matches!(Ray::try_new(o, Vec3::new(f32::NAN, 1.0, 0.0), 0.0, 1.0), Err(RayError::BadDirection(_))));
+        assert!(matches!(Ray::try_new(o, d, 0.0, f32::NAN), Err(RayError::BadInterval(..))));
+        assert!(matches!(Ray::try_new(o, d, f32::INFINITY, f32::INFINITY), Err(RayError::BadInterval(..))));
+        assert!(matches!(Ray::try_new(o, d, f32::NEG_INFINITY, f32::NEG_INFINITY), Err(RayError::BadInterval(..))));
+        let e = Ray::try_new(Vec3::new(f32::NAN, 0.0, 0.0), d, 0.0, 1.0).unwrap_err().to_string();
+        assert!(e.contains("origin") && e.contains("NaN"), "{e}");
         assert!(matches!(Ray::try_new(Vec3::new(f32::NAN, 0.0, 0.0), d, 0.0, 1.0), Err(RayError::NonFiniteOrigin(_))));
         assert!(matches!(
             Ray::try_new(o, Vec3::new(0.0, f32::INFINITY, 0.0), 0.0, 1.0),
@@ -185,6 +238,22 @@ mod tests {
         assert_eq!(r.dir.z.to_bits(), (-0.0f32).to_bits());
         assert_eq!((r.inv_dir.y, r.inv_dir.z), (f32::INFINITY, f32::NEG_INFINITY));
         assert_eq!(r.dir.x, 5.684_224_5e32);
+    }
+
+    #[test]
+    fn infinite_origins_and_directions_become_nan() {
+        let inf = f32::INFINITY;
+        let r = Ray::new(Vec3::new(1.0, -inf, 2.0), Vec3::X, 0.0, 1.0);
+        assert!(r.origin.x.is_nan() && r.origin.y.is_nan() && r.origin.z.is_nan() && r.dir == Vec3::X);
+        let r = Ray::new(Vec3::ONE, Vec3::new(0.0, 0.0, -inf), 0.0, 1.0);
+        assert!(r.dir.is_nan() && r.inv_dir.is_nan() && r.origin == Vec3::ONE);
+        // NaN stays where it is; tiny components of a NaN direction are still flushed.
+        let r = Ray::new(Vec3::new(f32::NAN, 1.0, 2.0), Vec3::new(f32::NAN, 6e-45, 1.0), 0.0, 1.0);
+        assert_eq!((r.origin.y, r.origin.z), (1.0, 2.0));
+        assert!(r.dir.x.is_nan() && r.dir.y.to_bits() == 0 && r.dir.z == 1.0);
+        // Infinite intervals are meaningful and kept.
+        let r = Ray::new(Vec3::ONE, Vec3::X, f32::NEG_INFINITY, inf);
+        assert_eq!((r.t_min, r.t_max), (f32::NEG_INFINITY, inf));
     }
 
     #[test]

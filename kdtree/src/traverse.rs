@@ -42,14 +42,19 @@ pub const WIDEN: f32 = 8.0 * f32::EPSILON;
 impl KdTree {
     /// The closest hit of `ray` in `[ray.t_min, ray.t_max]`, or `None`.
     ///
-    /// A ray with NaN components gets `None` (never a panic); reject such rays earlier with
-    /// [`Ray::try_new`].
+    /// A ray with NaN components gets `None` (never a panic), and so does one made by
+    /// [`Ray::new`] from an infinite origin or direction (stored as NaN); reject such rays
+    /// earlier with [`Ray::try_new`].
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.intersect_counted(ray, &mut NoCounters)
     }
 
     /// True if anything blocks `ray` in `[ray.t_min, ray.t_max]` (any hit, the shadow query).
+    ///
+    /// A ray with NaN components is not blocked (never a panic), nor one made by
+    /// [`Ray::new`] from an infinite origin or direction; reject such rays earlier with
+    /// [`Ray::try_new`].
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.occluded_counted(ray, &mut NoCounters)

@@ -82,7 +82,8 @@ impl KdTree {
         Self::build_from_triangles(tris, config, &meter)
     }
 
-    /// Builds the tree over a triangle soup given as vertex triples.
+    /// Builds the tree over a triangle soup given as vertex triples. A NaN or infinite
+    /// coordinate is [`BuildError::NonFiniteVertex`] with index `3 * triangle + corner`.
     pub fn build_soup(tris: &[[Vec3; 3]], config: &BuildConfig) -> Result<KdTree, BuildError> {
         if let Some((t, v)) = tris.iter().enumerate().find(|(_, v)| !v.iter().all(|p| p.is_finite())) {
             let k = v.iter().position(|p| !p.is_finite()).unwrap_or(0);
@@ -122,7 +123,9 @@ impl KdTree {
     /// the triangle soup `tris`, with the root box `bounds`.
     ///
     /// The arrays are checked structurally (indices in range, depth within the stack); use
-    /// [`KdTree::validate`] for the full check that every triangle is reachable.
+    /// [`KdTree::validate`] for the full check that every triangle is reachable. A NaN or
+    /// infinite vertex, a NaN in `bounds` or a NaN or infinite split plane is an error naming
+    /// it (the empty box [`Aabb::EMPTY`], whose corners are infinite, is allowed).
     pub fn from_parts(
         tris: Vec<[Vec3; 3]>,
         nodes: Vec<KdNode>,
@@ -132,6 +135,15 @@ impl KdTree {
     ) -> Result<KdTree, String> {
         if nodes.is_empty() {
             return Err("no nodes".into());
+        }
+        if let Some((t, v)) = tris.iter().enumerate().find(|(_, v)| !v.iter().all(|p| p.is_finite())) {
+            return Err(format!("triangle {t} has a vertex that is not finite: {v:?}"));
+        }
+        if bounds.min.is_nan() || bounds.max.is_nan() {
+            return Err(format!("the bounds {bounds:?} have a NaN corner"));
+        }
+        if let Some(i) = nodes.iter().position(|n| !n.is_leaf() && !n.split().is_finite()) {
+            return Err(format!("node {i} has the split plane {}, which is not finite", nodes[i].split()));
         }
         if let Some(r) = prim_refs.iter().find(|&&r| r as usize >= tris.len()) {
             return Err(format!("reference to triangle {r} of {}", tris.len()));

@@ -79,8 +79,8 @@ pub struct WaldTriangle {
 const _: () = assert!(std::mem::size_of::<WaldTriangle>() == 40);
 
 impl WaldTriangle {
-    /// The record of triangle `[a, b, c]`. A zero-area triangle gets NaN coefficients, which
-    /// make every test fail.
+    /// The record of triangle `[a, b, c]`. A zero-area triangle, or one with a NaN or
+    /// infinite vertex, gets NaN coefficients, which make every test fail.
     pub fn new(tri: &[Vec3; 3]) -> WaldTriangle {
         // Precomputed in f64 so that tiny (1e-30) and huge (1e30) triangles neither underflow
         // nor overflow before the ratios are formed.
@@ -97,7 +97,7 @@ impl WaldTriangle {
         };
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
         let nk = n[k];
-        if nk == 0.0 || !nk.is_finite() {
+        if nk == 0.0 || !nk.is_finite() || !tri.iter().all(|p| p.is_finite()) {
             let nan = f32::NAN;
             return WaldTriangle {
                 kuv: pack_axes(k),
@@ -200,9 +200,9 @@ impl WatertightTriangle {
     /// The record of triangle `[a, b, c]`. A zero-area triangle gets NaN vertices, which make
     /// every test fail (in ray space a collinear triangle can otherwise round to a tiny
     /// non-zero area and report a hit that the tree, which leaves such triangles out, never
-    /// could).
+    /// could); so does a triangle with a NaN or infinite vertex.
     pub fn new(tri: &[Vec3; 3]) -> WatertightTriangle {
-        if crate::tree::is_degenerate(tri) {
+        if crate::tree::is_degenerate(tri) || !tri.iter().all(|p| p.is_finite()) {
             return WatertightTriangle { v: [Vec3::NAN; 3] };
         }
         WatertightTriangle { v: *tri }
@@ -323,6 +323,38 @@ mod tests {
                 assert_relative_eq!(u, 0.25, epsilon = 1e-6);
                 assert_relative_eq!(v, 0.5, epsilon = 1e-6);
             }
+        }
+    }
+
+    #[test]
+    fn non_finite_triangles_and_rays_never_hit() {
+        let rays: Vec<Ray> = [(0.25f32, 0.25f32), (0.0, 0.0), (0.5, 0.5), (0.1, 0.8), (2.0, 2.0), (-1.0, 0.5)]
+            .iter()
+            .flat_map(|&(x, y)| {
+                [Vec3::Z, Vec3::new(0.3, -0.2, 1.0), Vec3::new(1.0, 1.0, 0.01)]
+                    .map(|d| Ray::new(Vec3::new(x, y, 0.0) - 2.0 * d, d, 0.0, f32::INFINITY))
+            })
+            .collect();
+        assert!(rays.iter().any(|r| both(TRI, r).iter().all(Option::is_some)), "the finite triangle is hit");
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            for corner in 0..3 {
+                for axis in 0..3 {
+                    let mut tri = TRI;
+                    tri[corner][axis] = bad;
+                    for ray in &rays {
+                        assert_eq!(both(tri, ray), [None, None], "{tri:?} {ray:?}");
+                    }
+                }
+            }
+        }
+        for ray in [
+            Ray::new(Vec3::new(0.25, f32::NAN, -1.0), Vec3::Z, 0.0, f32::INFINITY),
+            Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::new(0.0, f32::NAN, 1.0), 0.0, f32::INFINITY),
+            Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z, f32::NAN, f32::INFINITY),
+            Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z, 0.0, f32::NAN),
+            Ray::new(Vec3::new(0.25, 0.25, f32::NEG_INFINITY), Vec3::Z, 0.0, f32::INFINITY),
+        ] {
+            assert_eq!(both(TRI, &ray), [None, None], "{ray:?}");
         }
     }
 

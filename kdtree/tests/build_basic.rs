@@ -192,3 +192,54 @@ fn depth_limit_is_respected() {
     let tree = build_with(&tris, &BuildConfig { max_depth: Some(1000), c_trav: 0.0, ..BuildConfig::default() });
     assert!(tree.stats().depth <= kdtree::MAX_DEPTH as usize);
 }
+
+/// NaN and infinite input is an error naming where it is, never a panic.
+#[test]
+fn non_finite_input_is_an_error_naming_it() {
+    use kdtree::{Aabb, BuildError};
+    let positions = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(1.0, 1.0, 0.0)];
+    let triangles = [[0, 1, 2], [1, 3, 2]];
+    let config = BuildConfig::default();
+    assert!(KdTree::build(&positions, &triangles, &config).is_ok());
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let mut p = positions;
+        p[3].z = bad;
+        let e = KdTree::build(&p, &triangles, &config).unwrap_err();
+        assert!(matches!(e, BuildError::NonFiniteVertex { index: 3, .. }), "{e:?}");
+        assert!(e.to_string().starts_with("vertex 3 is not finite"), "{e}");
+        // Soups number vertices 3 * triangle + corner.
+        let soup = [[p[0], p[1], p[2]], [p[1], p[3], p[2]]];
+        let e = KdTree::build_soup(&soup, &config).unwrap_err();
+        assert!(matches!(e, BuildError::NonFiniteVertex { index: 4, .. }), "{e:?}");
+        // Configuration values.
+        for (config, field) in [
+            (BuildConfig { c_trav: bad, ..BuildConfig::default() }, "c_trav"),
+            (BuildConfig { c_isect: bad, ..BuildConfig::default() }, "c_isect"),
+            (BuildConfig { empty_bonus: bad, ..BuildConfig::default() }, "empty_bonus"),
+        ] {
+            let e = KdTree::build(&positions, &triangles, &config).unwrap_err();
+            assert!(matches!(e, BuildError::BadConfig(_)) && e.to_string().contains(field), "{field} = {bad}: {e}");
+        }
+    }
+
+    // Trees made elsewhere: vertices, bounds and split planes are checked.
+    let tris = [[positions[0], positions[1], positions[2]], [positions[1], positions[3], positions[2]]];
+    let bounds = Aabb::from_points(&positions);
+    let nodes = vec![KdNode::inner(0, 0.5, 1), KdNode::leaf(0, 2), KdNode::leaf(0, 2)];
+    let from = |tris: &[[Vec3; 3]], nodes: &[KdNode], bounds: Aabb| {
+        KdTree::from_parts(tris.to_vec(), nodes.to_vec(), vec![0, 1], bounds, &config)
+    };
+    from(&tris, &nodes, bounds).unwrap().validate().unwrap();
+    let empty = KdTree::from_parts(Vec::new(), vec![KdNode::leaf(0, 0)], Vec::new(), Aabb::EMPTY, &config);
+    assert!(empty.is_ok(), "the empty box is allowed");
+    for bad in [f32::NAN, f32::INFINITY] {
+        let mut t = tris;
+        t[1][2].y = bad;
+        let e = from(&t, &nodes, bounds).unwrap_err();
+        assert!(e.contains("triangle 1") && e.contains("not finite"), "{e}");
+        let e = from(&tris, &[KdNode::inner(0, bad, 1), nodes[1], nodes[2]], bounds).unwrap_err();
+        assert!(e.contains("node 0") && e.contains("split plane"), "{e}");
+    }
+    let e = from(&tris, &nodes, Aabb { max: v(1.0, f32::NAN, 0.0), ..bounds }).unwrap_err();
+    assert!(e.contains("bounds") && e.contains("NaN"), "{e}");
+}

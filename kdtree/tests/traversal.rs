@@ -6,7 +6,7 @@ mod common;
 
 use common::{check_rays, median_tree, rays_for, triangle, vertex};
 use glam::Vec3;
-use kdtree::{BuildConfig, Intersector, KdTree, Ray};
+use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
 use proptest::prelude::*;
 
 fn configs() -> [BuildConfig; 2] {
@@ -188,16 +188,41 @@ fn origins_on_surfaces_and_split_planes() {
 #[test]
 fn nan_rays_return_no_hit_and_never_panic() {
     let tris = planar_grid(2);
-    let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
-    for (o, d) in [
-        (Vec3::new(f32::NAN, 0.0, 1.0), Vec3::NEG_Z),
-        (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.0, f32::NAN, -1.0)),
-        (Vec3::new(0.5, 0.5, 1.0), Vec3::ZERO),
-        (Vec3::new(0.5, 0.5, f32::INFINITY), Vec3::NEG_Z),
-    ] {
-        let ray = Ray::new(o, d, 0.0, f32::INFINITY);
-        assert!(tree.intersect(&ray).is_none(), "{ray:?}");
-        assert!(!tree.occluded(&ray));
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        for (o, d) in [
+            (Vec3::new(nan, 0.0, 1.0), Vec3::NEG_Z),
+            (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.0, nan, -1.0)),
+            (Vec3::new(0.5, 0.5, 1.0), Vec3::ZERO),
+            (Vec3::new(0.5, 0.5, inf), Vec3::NEG_Z),
+            (Vec3::new(-inf, 0.5, 0.0), Vec3::X),
+            (Vec3::new(0.5, 0.5, -inf), Vec3::new(0.1, 0.1, 1.0)),
+            // An infinite direction: the triangle test would report a hit at t = 0.
+            (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.0, 0.0, -inf)),
+            (Vec3::new(0.5, 0.5, 1.0), Vec3::new(inf, 0.0, -1.0)),
+            // NaN on an axis the ray is parallel to: the box clip cannot see it, the triangle
+            // test does.
+            (Vec3::new(0.5, nan, 1.0), Vec3::NEG_Z),
+        ] {
+            for (t_min, t_max) in [(0.0, inf), (-inf, inf), (0.0, 10.0)] {
+                let ray = Ray::new(o, d, t_min, t_max);
+                assert!(tree.intersect(&ray).is_none(), "{intersector:?} {ray:?}");
+                assert!(!tree.occluded(&ray), "{intersector:?} {ray:?}");
+                assert!(oracle.intersect(&ray).is_none(), "{intersector:?} {ray:?}");
+            }
+        }
+        // A good ray with a NaN interval end.
+        let (o, d) = (Vec3::new(0.5, 0.5, 1.0), Vec3::NEG_Z);
+        assert!(tree.intersect(&Ray::new(o, d, 0.0, inf)).is_some());
+        for (t_min, t_max) in [(nan, inf), (0.0, nan), (nan, nan)] {
+            let ray = Ray::new(o, d, t_min, t_max);
+            assert!(tree.intersect(&ray).is_none(), "{ray:?}");
+            assert!(!tree.occluded(&ray), "{ray:?}");
+            let mut c = kdtree::TraversalCounts::default();
+            assert!(tree.intersect_counted(&ray, &mut c).is_none() && !tree.occluded_counted(&ray, &mut c));
+        }
     }
 }
 

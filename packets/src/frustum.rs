@@ -67,6 +67,19 @@ pub struct FrustumBound {
     pub hit_scale: f32,
 }
 
+impl FrustumBound {
+    /// Whether a field is NaN: such a bound holds no ray, and
+    /// [`crate::TileTracer::trace_frusta`] traces with the rays' pyramid instead.
+    /// (Infinite fields are meaningful: a factor of `±inf` for a zero direction extreme,
+    /// `near = +inf` when no ray is left.)
+    pub fn has_nan(&self) -> bool {
+        self.k0.iter().chain(&self.k1).any(|k| k.is_nan())
+            || self.near.is_nan()
+            || self.far.is_nan()
+            || self.hit_scale.is_nan()
+    }
+}
+
 /// Bound on the absolute rounding error of a ray parameter `t` computed in `f32` that
 /// underflowed below `f32::MIN_POSITIVE`: the spacing of the subnormals, `2^-149` (the
 /// smallest positive `f32`; the error of one rounding is half of it). The relative widening

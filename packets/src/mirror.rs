@@ -31,7 +31,8 @@ pub struct Mirror {
 }
 
 impl Mirror {
-    /// The plane of triangle `tri` (`None` for a degenerate triangle).
+    /// The plane of triangle `tri` (`None` for a degenerate triangle, or one with a NaN or
+    /// infinite vertex).
     pub fn of_triangle(tri: &[Vec3; 3]) -> Option<Mirror> {
         let [a, b, c] = tri.map(|p| p.as_dvec3());
         let normal = (b - a).cross(c - a).try_normalize()?;
@@ -64,7 +65,9 @@ impl Mirror {
 /// The reflected rays of the `lanes` of a primary packet from `eye` (the rays `dirs`, hits
 /// `hits`) whose hit triangle `is_mirror` accepts, grouped into omni-directional packets by
 /// virtual eye: at most four packets, each with the lanes of one virtual eye (others
-/// invalid). Lane `l` of every returned packet is lane `l` of the primary packet.
+/// invalid). Lane `l` of every returned packet is lane `l` of the primary packet. A lane
+/// whose reflected ray is not finite (a NaN or infinite `eye`, direction or hit) is left out,
+/// like a lane that hit no mirror.
 pub fn reflections(
     tree: &KdTree,
     eye: Vec3,
@@ -76,7 +79,7 @@ pub fn reflections(
         let hit = hits[lane].filter(|h| is_mirror(h.prim))?;
         let tri = tree.triangle(hit.prim);
         let mirror = Mirror::of_triangle(&tri)?;
-        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit))
+        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit)).filter(|r| r.origin.is_finite() && r.dir.is_finite())
     });
     let mut out = Vec::new();
     let mut taken = [false; 4];
@@ -117,6 +120,28 @@ mod tests {
         let ray = m.reflected_ray(eye, dir, &tri, &hit);
         assert!((ray.origin + t * ray.dir - p).length() < 1e-5);
         assert!(ray.dir.y > 0.0 && ray.t_min > t);
+    }
+
+    #[test]
+    fn non_finite_input_gives_no_mirror_and_no_reflected_lane() {
+        let tri = [Vec3::ZERO, Vec3::Z, Vec3::X];
+        for bad in [f32::NAN, f32::INFINITY] {
+            let mut t = tri;
+            t[1].y = bad;
+            assert_eq!(Mirror::of_triangle(&t), None);
+        }
+        let tree = KdTree::build_soup(&[tri], &BuildConfig::default()).unwrap();
+        let eye = Vec3::new(0.3, 2.0, 0.3);
+        let down = Vec3::new(0.0, -1.0, 0.1);
+        let hit = tree.intersect(&Ray::new(eye, down, 0.0, f32::INFINITY));
+        assert!(hit.is_some());
+        let nan = Vec3::new(0.0, f32::NAN, 0.0);
+        let packets = reflections(&tree, eye, &[down, nan, down, down], &[hit, hit, None, hit], |_| true);
+        assert_eq!(packets.len(), 1);
+        assert_eq!(packets[0].rays.valid.bitmask(), 0b1001, "the NaN and the missing lane are left out");
+        for eye in [Vec3::new(f32::NAN, 2.0, 0.3), Vec3::new(0.3, f32::INFINITY, 0.3)] {
+            assert!(reflections(&tree, eye, &[down; 4], &[hit; 4], |_| true).is_empty(), "{eye}");
+        }
     }
 
     /// Reflections off the atrium's floor tiles, traced as omni-directional packets, give the

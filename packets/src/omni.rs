@@ -46,7 +46,8 @@ impl Default for Entry {
     }
 }
 
-/// The closest hits of the packet's rays.
+/// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
+/// infinite components, see [`crate::RayPacket::new`]) get no hit.
 #[inline]
 pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
     match tree.intersector() {
@@ -57,6 +58,7 @@ pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters
 
 /// Which of the packet's rays are blocked (any hit: the shadow query). The returned hit's
 /// `found` lanes are the blocked rays; their `t` is the first blocker found, not the closest.
+/// Invalid lanes are never blocked.
 #[inline]
 pub fn occluded<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
     match tree.intersector() {

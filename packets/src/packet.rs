@@ -35,9 +35,10 @@ pub struct RayPacket {
 impl RayPacket {
     /// A packet of up to four rays; lanes past `rays.len()` are invalid.
     ///
-    /// Rays with a NaN or infinite origin or direction, or a NaN interval, are kept in their
-    /// lane but marked invalid: like [`kdtree::KdTree::intersect`], the packet reports no hit
-    /// for them.
+    /// Rays with a NaN or infinite origin or direction, a zero direction, or a NaN or empty
+    /// interval are marked invalid, like missing ones: like [`kdtree::KdTree::intersect`],
+    /// every method reports no hit for them. Invalid lanes hold a copy of the first usable
+    /// ray (or a finite filler), never the rejected one.
     pub fn new(rays: &[Ray]) -> RayPacket {
         let mut lanes = [None; 4];
         for (slot, ray) in lanes.iter_mut().zip(rays) {
@@ -46,18 +47,20 @@ impl RayPacket {
         RayPacket::from_lanes(lanes)
     }
 
-    /// A packet from four optional rays (`None` lanes are invalid).
+    /// A packet from four optional rays (`None` lanes, and rays [`RayPacket::new`] rejects,
+    /// are invalid).
     pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
-        let fill = lanes.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
+        let usable = lanes.map(|ray| {
+            ray.filter(|r| r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.t_min <= r.t_max)
+        });
+        let fill = usable.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
         let mut o = [[0.0f32; 4]; 4];
         let mut d = [[0.0f32; 4]; 4];
         let mut inv = [[0.0f32; 4]; 4];
         let mut t_min = [f32::INFINITY; 4];
         let mut t_max = [f32::NEG_INFINITY; 4];
         let mut valid = [false; 4];
-        for (lane, ray) in lanes.iter().enumerate() {
-            let usable =
-                ray.filter(|r| r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.t_min <= r.t_max);
+        for (lane, usable) in usable.iter().enumerate() {
             let r = usable.unwrap_or(fill);
             for axis in 0..3 {
                 o[axis][lane] = r.origin[axis];
@@ -139,7 +142,9 @@ pub struct OmniPacket {
 impl OmniPacket {
     /// The packet, if its valid lanes share one origin and none has a negative `t_min` (the
     /// omni-directional rule "a plane behind the origin is never crossed" assumes rays start
-    /// at their origin). A packet with no valid lane qualifies (its origin is the filler's).
+    /// at their origin). A packet with no valid lane qualifies (its origin is the filler's,
+    /// finite). Lanes with NaN or infinite rays are invalid ([`RayPacket::new`]), so they
+    /// neither decide the origin nor get a hit.
     pub fn new(rays: RayPacket) -> Option<OmniPacket> {
         let origin = match rays.common_origin() {
             Some(o) => o,
@@ -260,6 +265,36 @@ mod tests {
         assert_eq!((p.t_min[3], p.t_max[3]), (f32::INFINITY, f32::NEG_INFINITY));
         let bad = Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 1.0);
         assert_eq!(RayPacket::new(&[bad, r[0]]).valid.bitmask(), 0b0010);
+    }
+
+    #[test]
+    fn non_finite_rays_are_invalid_lanes_filled_with_a_usable_ray() {
+        let r = rays();
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        let bad = [
+            Ray::new(Vec3::new(nan, 0.0, 0.0), Vec3::X, 0.0, 1.0),
+            Ray::new(Vec3::new(0.0, -inf, 0.0), Vec3::X, 0.0, 1.0),
+            Ray::new(Vec3::ZERO, Vec3::new(0.0, nan, 1.0), 0.0, 1.0),
+            Ray::new(Vec3::ZERO, Vec3::new(inf, 0.0, 1.0), 0.0, 1.0),
+            Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0),
+            Ray::new(Vec3::ZERO, Vec3::X, nan, 1.0),
+            Ray::new(Vec3::ZERO, Vec3::X, 0.0, nan),
+            Ray::new(Vec3::ZERO, Vec3::X, 2.0, 1.0),
+        ];
+        for b in bad {
+            // In front of a good ray: invalid, and its lane holds the good ray, not NaN.
+            let p = RayPacket::new(&[b, r[1]]);
+            assert_eq!(p.valid.bitmask(), 0b0010, "{b:?}");
+            assert_eq!(p.ray(0).origin, r[1].origin);
+            assert!((0..3).all(|a| p.o[a].is_finite() && p.d[a].is_finite()), "{b:?}");
+            assert_eq!(p.common_origin(), Some(r[1].origin));
+            let omni = OmniPacket::new(p).unwrap();
+            assert_eq!(omni.origin[..3], r[1].origin.to_array());
+            // Alone: no valid lane and a finite origin.
+            let alone = OmniPacket::new(RayPacket::new(&[b, b])).unwrap();
+            assert!(!alone.rays.valid.any() && alone.origin.iter().all(|v| v.is_finite()), "{b:?}");
+            assert_eq!(PacketHit::new(&alone.rays).hits(), [None; 4]);
+        }
     }
 
     #[test]

@@ -25,7 +25,9 @@ use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
 use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
 
-/// The closest hits of the packet's rays, splitting it by direction signs.
+/// The closest hits of the packet's rays, splitting it by direction signs. Invalid lanes
+/// (rays with NaN or infinite components among them, see [`crate::RayPacket::new`]) get no
+/// hit.
 #[inline]
 pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
     let mut hit = PacketHit::new(packet);

@@ -58,6 +58,10 @@ pub enum TileError {
     /// The tile is larger than the tile size, or lies outside the camera's image.
     #[error("tile {0:?} does not fit a {1} x {1} tile of the image")]
     BadTile(Tile, u32),
+    /// The camera has a NaN or infinite field (only a hand-made one can:
+    /// `Camera::look_at` refuses non-finite input).
+    #[error("the camera's {0} is not finite")]
+    NonFiniteCamera(&'static str),
 }
 
 /// The largest tile side.
@@ -152,10 +156,22 @@ impl TileTracer {
 
     /// Loads the primary rays of `tile` (at most `size x size`, inside `camera`'s image):
     /// pixel `(x, y)` gets exactly the single-ray camera ray, `Camera::pixel_ray` over
-    /// `[0, +inf]`.
+    /// `[0, +inf]`. A camera with a NaN or infinite field is [`TileError::NonFiniteCamera`]
+    /// naming it.
     pub fn load_primary(&mut self, camera: &Camera, tile: &Tile) -> Result<(), TileError> {
         if tile.width() > self.size || tile.height() > self.size || tile.x1 > camera.width || tile.y1 > camera.height {
             return Err(TileError::BadTile(*tile, self.size));
+        }
+        for (name, finite) in [
+            ("eye", camera.eye.is_finite()),
+            ("forward vector", camera.forward.is_finite()),
+            ("right vector", camera.right.is_finite()),
+            ("up vector", camera.up.is_finite()),
+            ("field of view", camera.tan_half_fovy.is_finite()),
+        ] {
+            if !finite {
+                return Err(TileError::NonFiniteCamera(name));
+            }
         }
         self.tile = *tile;
         self.packets.clear();
@@ -224,9 +240,11 @@ impl TileTracer {
     /// seen from the mirrored eye, or a run of a ray file) as one "tile", its four quarters
     /// (by packet order) being the MFT frusta. The frustum methods bound rays by their
     /// per-axis direction extremes, so any set of directions works. Returns `None` if the
-    /// packets do not share one origin.
+    /// packets do not share one origin. Only valid lanes count: a packet with none (e.g. of
+    /// rays with NaN or infinite components, see [`RayPacket::new`]) may have any origin and
+    /// gets no hit.
     pub fn load_packets(&mut self, packets: &[OmniPacket]) -> Option<()> {
-        let origin = packets.first().map_or([0.0; 4], |p| p.origin);
+        let origin = packets.iter().find(|p| p.rays.valid.any()).map_or([0.0; 4], |p| p.origin);
         if packets.iter().any(|p| p.rays.valid.any() && p.origin != origin) {
             return None;
         }
@@ -313,9 +331,22 @@ impl TileTracer {
 
     /// Traces the tile [`TileTracer::prepare`]d with `frusta`, which must bound its rays
     /// (every ray of the frustum, or of quadrant `q` for frustum `q`, inside the frustum).
+    ///
+    /// A bound with a NaN field bounds nothing: it is replaced by the pyramid of its rays
+    /// ([`TileTracer::pyramid`], or [`frustum::bound`] of the whole tile for
+    /// [`Frusta::One`]), so the hits are still exactly the single rays'.
     pub fn trace_frusta<C: PacketCounters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
         match frusta {
+            Frusta::One(f) if f.has_nan() => {
+                let f = frustum::bound(tree, self, 0..self.packets.len());
+                frustum::intersect(tree, self, &f, counters)
+            }
             Frusta::One(f) => frustum::intersect(tree, self, f, counters),
+            Frusta::Four(bounds) if bounds.iter().any(FrustumBound::has_nan) => {
+                let bounds: [FrustumBound; 4] =
+                    std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
+                mft::intersect(tree, self, &bounds, counters)
+            }
             Frusta::Four(bounds) => mft::intersect(tree, self, bounds, counters),
         }
     }

@@ -212,3 +212,138 @@ fn omni_packets_any_direction_and_any_hit() {
         }
     }
 }
+
+/// A hand-made camera with a NaN or infinite field is refused, naming the field.
+#[test]
+fn non_finite_cameras_are_refused_by_load_primary() {
+    use packets::tile::TileError;
+    let good = Camera::look_at(Vec3::new(0.0, 1.0, 5.0), Vec3::ZERO, 60.0, 16, 16).unwrap();
+    let tile = tiles(16, 16, 8)[0];
+    let mut tracer = TileTracer::new(8).unwrap();
+    tracer.load_primary(&good, &tile).unwrap();
+    let nan = Vec3::new(0.0, f32::NAN, 0.0);
+    for (camera, field) in [
+        (Camera { eye: nan, ..good }, "eye"),
+        (Camera { eye: Vec3::INFINITY, ..good }, "eye"),
+        (Camera { forward: nan, ..good }, "forward"),
+        (Camera { right: Vec3::NEG_INFINITY, ..good }, "right"),
+        (Camera { up: nan, ..good }, "up"),
+        (Camera { tan_half_fovy: f32::NAN, ..good }, "field of view"),
+        (Camera { tan_half_fovy: f32::INFINITY, ..good }, "field of view"),
+    ] {
+        let e = tracer.load_primary(&camera, &tile).unwrap_err();
+        assert!(matches!(e, TileError::NonFiniteCamera(_)) && e.to_string().contains(field), "{field}: {e}");
+    }
+}
+
+/// Rays with NaN or infinite components in loaded packets (even filling the first packet)
+/// get no hit from every method, and the others still get the single rays' hits.
+#[test]
+fn non_finite_lanes_get_no_hit_and_the_others_match_single_rays() {
+    use packets::{OmniPacket, RayPacket, omni, samesign};
+    let scene = scenes::load_scene("arena").unwrap();
+    let origin = scene.default_view().eye;
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    let bad = [
+        Ray::new(Vec3::new(nan, origin.y, origin.z), Vec3::X, 0.0, inf),
+        Ray::new(origin, Vec3::new(0.3, nan, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::new(inf, 0.0, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::NEG_Z, 0.0, nan),
+        Ray::new(origin, Vec3::NEG_Z, nan, inf),
+    ];
+    let mut rays: Vec<Ray> = (0..64)
+        .map(|i| {
+            let (a, b) = (i as f32 * 0.37, i as f32 * 0.11);
+            Ray::new(origin, Vec3::new(a.sin(), 0.4 * b.cos() - 0.2, -1.0), 0.0, inf)
+        })
+        .collect();
+    // The whole first packet, and one lane in every third packet after it.
+    for (i, slot) in rays.iter_mut().enumerate() {
+        if i < 4 || i % 12 == 5 {
+            *slot = bad[i % bad.len()];
+        }
+    }
+    let is_bad = |i: usize| i < 4 || i % 12 == 5;
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = build(&scene, intersector);
+        let packets: Vec<OmniPacket> = rays.chunks(4).map(|c| OmniPacket::new(RayPacket::new(c)).unwrap()).collect();
+        let check = |what: &str, i: usize, got: Option<Hit>, any_hit: bool| {
+            let ray = &rays[i];
+            if is_bad(i) {
+                assert_eq!(got, None, "{what}: ray {i} {ray:?}");
+            } else if any_hit {
+                assert_eq!(got.is_some(), tree.occluded(ray), "{what}: ray {i}");
+            } else {
+                assert!(same_hit(&tree, ray, got, tree.intersect(ray)), "{what}: ray {i}: {got:?}");
+            }
+        };
+        for (p, packet) in packets.iter().enumerate() {
+            let (closest, same, blocked) = (
+                omni::intersect(&tree, packet, &mut NoCounters),
+                samesign::intersect(&tree, &packet.rays, &mut NoCounters),
+                omni::occluded(&tree, packet, &mut NoCounters),
+            );
+            for lane in 0..4 {
+                check("omni", 4 * p + lane, closest.get(lane), false);
+                check("samesign", 4 * p + lane, same.get(lane), false);
+                check("omni any-hit", 4 * p + lane, blocked.get(lane), true);
+            }
+        }
+        let mut tracer = TileTracer::new(16).unwrap();
+        for any_hit in [false, true] {
+            tracer.set_any_hit(any_hit);
+            for method in METHODS {
+                tracer.load_packets(&packets).expect("the valid lanes share one origin");
+                tracer.trace(&tree, method, &mut NoCounters);
+                let any = any_hit && matches!(method, TileMethod::Frustum | TileMethod::Mft);
+                for (p, hit) in tracer.packet_hits().iter().enumerate() {
+                    for lane in 0..4 {
+                        check(method.name(), 4 * p + lane, hit.get(lane), any);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A frustum bound with a NaN field bounds nothing: `trace_frusta` traces with the pyramid
+/// instead, and the hits are the single rays'.
+#[test]
+fn nan_frustum_bounds_fall_back_to_the_pyramid() {
+    use packets::{Frusta, FrustumBound};
+    let scene = scenes::load_scene("atrium").unwrap();
+    let tree = build(&scene, Intersector::Wald);
+    let camera = scene.default_view().camera(48, 32).unwrap();
+    let nan = FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near: f32::NAN, far: f32::INFINITY, hit_scale: 1.0 };
+    let bounds = [
+        nan,
+        FrustumBound { near: 0.0, far: f32::NAN, ..nan },
+        FrustumBound { near: 0.0, k0: [f32::NAN; 4], ..nan },
+        FrustumBound { near: 0.0, hit_scale: f32::NAN, ..nan },
+    ];
+    assert!(bounds.iter().all(FrustumBound::has_nan));
+    let mut tracer = TileTracer::new(16).unwrap();
+    let mut checked = 0;
+    for tile in tiles(camera.width, camera.height, 16) {
+        let mut want = vec![None; tile.pixel_count()];
+        tracer.load_primary(&camera, &tile).unwrap();
+        tracer.trace(&tree, TileMethod::Frustum, &mut NoCounters);
+        tracer.write_hits(&mut want);
+        for case in 0..4 {
+            let pyramids = tracer.prepare(&tree);
+            let frusta = match case {
+                0 => Frusta::One(bounds[0]),
+                1 => Frusta::One(bounds[3]),
+                2 => Frusta::Four(bounds),
+                _ => Frusta::Four([pyramids[0], bounds[1], pyramids[2], bounds[2]]),
+            };
+            let mut got = vec![None; tile.pixel_count()];
+            tracer.trace_frusta(&tree, &frusta, &mut NoCounters);
+            tracer.write_hits(&mut got);
+            let differ = got.iter().zip(&want).filter(|(g, w)| g != w).count();
+            assert_eq!(differ, 0, "tile {tile:?}, case {case}: {differ} pixels differ");
+            checked += got.iter().filter(|h| h.is_some()).count();
+        }
+    }
+    assert!(checked > 1000, "{checked} hits compared");
+}

@@ -49,7 +49,8 @@ impl Camera {
     }
 
     /// The normalised direction of the ray through image position `(px, py)`, in pixels
-    /// from the top-left corner of the image (pixel centres are at `x + 0.5`).
+    /// from the top-left corner of the image (pixel centres are at `x + 0.5`). A NaN or
+    /// infinite position gives a NaN direction (never a panic).
     #[inline]
     pub fn direction(&self, px: f32, py: f32) -> Vec3 {
         let aspect = self.width as f32 / self.height as f32;
@@ -94,7 +95,26 @@ mod tests {
     fn degenerate_frames_are_rejected() {
         assert!(Camera::look_at(Vec3::ZERO, Vec3::ZERO, 60.0, 4, 4).is_none());
         assert!(Camera::look_at(Vec3::ZERO, Vec3::Y, 60.0, 4, 4).is_none());
-        assert!(Camera::look_at(Vec3::ZERO, Vec3::X, f32::NAN, 4, 4).is_none());
         assert!(Camera::look_at(Vec3::ZERO, Vec3::X, 60.0, 0, 4).is_none());
+    }
+
+    #[test]
+    fn non_finite_input_gives_no_camera() {
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        for (eye, target, fovy) in [
+            (Vec3::new(nan, 0.0, 0.0), Vec3::X, 60.0),
+            (Vec3::new(0.0, 0.0, -inf), Vec3::X, 60.0),
+            (Vec3::ZERO, Vec3::new(1.0, nan, 0.0), 60.0),
+            (Vec3::ZERO, Vec3::new(inf, 0.0, 0.0), 60.0),
+            (Vec3::ZERO, Vec3::X, nan),
+            (Vec3::ZERO, Vec3::X, inf),
+            (Vec3::ZERO, Vec3::X, -inf),
+            // Finite, but so far apart that the view vector overflows.
+            (Vec3::new(-3e38, 0.0, 0.0), Vec3::new(3e38, 0.0, 0.0), 60.0),
+        ] {
+            assert!(Camera::look_at(eye, target, fovy, 4, 4).is_none(), "{eye} {target} {fovy}");
+        }
+        let cam = Camera::look_at(Vec3::ZERO, Vec3::X, 60.0, 4, 4).unwrap();
+        assert!(cam.direction(nan, 1.0).is_nan() && cam.direction(1.0, inf).is_nan());
     }
 }

@@ -49,8 +49,8 @@ impl Image {
         self.pixels[i] = value;
     }
 
-    /// Writes an 8-bit sRGB-style PNG: each channel clamped to [0, 1] (NaN as 0) and encoded
-    /// with gamma 2.2.
+    /// Writes an 8-bit sRGB-style PNG: each channel clamped to [0, 1] (NaN as 0, `+inf` as
+    /// 1, `-inf` as 0) and encoded with gamma 2.2.
     pub fn save_png(&self, path: &Path) -> Result<(), SceneError> {
         let bytes: Vec<u8> = self.pixels.iter().flat_map(|p| p.to_array()).map(encode_gamma).collect();
         write_png(path, self.width, self.height, &bytes)
@@ -63,7 +63,8 @@ impl Image {
         write_pfm(path, "PF", self.width, self.height, 3, &data)
     }
 
-    /// Reads a colour PFM (`PF`, either byte order).
+    /// Reads a colour PFM (`PF`, either byte order). A NaN, infinite or zero scale in the
+    /// header is an error naming the file; NaN and infinite samples are kept as they are.
     pub fn load_pfm(path: &Path) -> Result<Image, SceneError> {
         let (width, height, data) = read_pfm(path, 3)?;
         let pixels = data.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
@@ -122,7 +123,8 @@ impl ScalarImage {
         write_pfm(path, "Pf", self.width, self.height, 1, &self.values)
     }
 
-    /// Reads a greyscale PFM (`Pf`, either byte order).
+    /// Reads a greyscale PFM (`Pf`, either byte order), with the checks of
+    /// [`Image::load_pfm`].
     pub fn load_pfm(path: &Path) -> Result<ScalarImage, SceneError> {
         let (width, height, values) = read_pfm(path, 1)?;
         Ok(ScalarImage { width, height, values })
@@ -290,6 +292,15 @@ mod tests {
         assert!(Image::load_pfm(&path).is_err());
         std::fs::write(&path, b"Pf\n99999999 99999999\n-1.0\n").unwrap();
         assert!(ScalarImage::load_pfm(&path).is_err());
+        for scale in ["nan", "inf", "-inf", "0"] {
+            std::fs::write(
+                &path,
+                format!("PF\n1 1\n{scale}\n").into_bytes().into_iter().chain([0; 12]).collect::<Vec<u8>>(),
+            )
+            .unwrap();
+            let err = Image::load_pfm(&path).unwrap_err().to_string();
+            assert!(err.contains("bad.pfm") && err.contains("bad PFM scale"), "{scale}: {err}");
+        }
         let missing = temp_path("missing.pfm");
         assert!(matches!(Image::load_pfm(&missing), Err(SceneError::Io { .. })));
     }
@@ -298,11 +309,13 @@ mod tests {
     fn png_files_are_written() {
         let mut img = Image::new(4, 3);
         img.set(1, 1, Vec3::new(2.0, 0.5, f32::NAN));
+        img.set(2, 1, Vec3::new(f32::INFINITY, f32::NEG_INFINITY, 0.0));
         let path = temp_path("rgb.png");
         img.save_png(&path).unwrap();
         let png = image::open(&path).unwrap().to_rgb8();
         assert_eq!(png.dimensions(), (4, 3));
         assert_eq!(png.get_pixel(1, 1).0, [255, encode_gamma(0.5), 0]);
+        assert_eq!(png.get_pixel(2, 1).0, [255, 0, 0]);
         assert_eq!(encode_gamma(0.5), 186);
 
         let mut s = ScalarImage::new(3, 1);

@@ -1,4 +1,9 @@
 //! Light sources: a point light (hard shadows) and two area lights (soft shadows).
+//!
+//! Plain data, not checked here: the methods compute with whatever they hold (NaN in, NaN
+//! out, never a panic), and the tracers that sample lights say what a non-finite light gets
+//! (`cones::shadows::light_samples`: no samples; `edgewidth::sampling`: its samples count as
+//! blocked).
 
 use glam::Vec3;
 

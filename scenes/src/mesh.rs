@@ -23,7 +23,8 @@ impl Default for Material {
 /// Invariants (checked by [`Mesh::check`]): every index is below `positions.len()`, every
 /// position is finite, `material_ids` and `prim_ids` have one entry per triangle, every
 /// material id is below `materials.len()`, and `normals`, when present, has one entry per
-/// position.
+/// position. The other methods assume them: on a mesh with a NaN or infinite position they
+/// return non-finite values (bounds, normals) but never panic.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     /// Vertex positions.
@@ -64,7 +65,8 @@ impl Mesh {
         Some(it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p))))
     }
 
-    /// Checks the invariants listed on [`Mesh`], naming the first violation.
+    /// Checks the invariants listed on [`Mesh`], naming the first violation: a NaN or
+    /// infinite position is an error naming the vertex (`vertex 7 is not finite: ...`).
     pub fn check(&self) -> Result<(), String> {
         let n = self.triangles.len();
         if self.material_ids.len() != n || self.prim_ids.len() != n {
@@ -95,7 +97,7 @@ impl Mesh {
     }
 
     /// The unit geometric normal of triangle `i` (`(b - a) x (c - a)`, normalised), or zero
-    /// for a degenerate triangle.
+    /// for a degenerate triangle or one with a NaN or infinite vertex.
     pub fn geometric_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.triangle(i);
         (b - a).cross(c - a).normalize_or_zero()
@@ -183,6 +185,21 @@ mod tests {
             assert_eq!(split.geometric_normal(2 * t), mesh.geometric_normal(t));
         }
         assert_eq!(split.normals.as_ref().map(Vec::len), Some(5));
+    }
+
+    #[test]
+    fn check_names_non_finite_vertices() {
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let mut mesh = two_triangles();
+            mesh.positions[3].y = bad;
+            let e = mesh.check().unwrap_err();
+            assert!(e.contains("vertex 3 is not finite"), "{e}");
+            // Other methods do not panic; the normal of a non-finite triangle is zero.
+            assert_eq!(mesh.geometric_normal(1), Vec3::ZERO);
+            assert_eq!(mesh.geometric_normal(0), Vec3::Z);
+            assert!(mesh.bounds().is_some());
+            assert_eq!(mesh.split_longest_edges().triangle_count(), 4);
+        }
     }
 
     #[test]

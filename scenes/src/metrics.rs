@@ -59,20 +59,22 @@ fn mse<T: Samples + ?Sized>(a: &T, b: &T) -> Result<f64, SceneError> {
 
 /// Root-mean-square difference over every channel of every pixel.
 ///
-/// NaN samples make the result NaN. Errors if the sizes differ.
+/// A NaN sample makes the result NaN, an infinite difference `+inf` (two infinities of the
+/// same sign differ by NaN). Errors if the sizes differ.
 pub fn rmse<T: Samples + ?Sized>(a: &T, b: &T) -> Result<f64, SceneError> {
     Ok(mse(a, b)?.sqrt())
 }
 
 /// Peak signal-to-noise ratio in dB with peak 1.0: `10 log10(1 / mse)`; `+inf` for identical
-/// images. Errors if the sizes differ.
+/// images. A NaN sample makes it NaN, an infinite difference `-inf`. Errors if the sizes
+/// differ.
 pub fn psnr<T: Samples + ?Sized>(a: &T, b: &T) -> Result<f64, SceneError> {
     let mse = mse(a, b)?;
     Ok(if mse == 0.0 { f64::INFINITY } else { -10.0 * mse.log10() })
 }
 
 /// The largest absolute difference of any sample (0 for empty images; NaN if any difference
-/// is NaN). Errors if the sizes differ.
+/// is NaN, `+inf` if one is infinite and none NaN). Errors if the sizes differ.
 pub fn max_abs<T: Samples + ?Sized>(a: &T, b: &T) -> Result<f64, SceneError> {
     let nan_aware_max = |m: f64, d: f64| if m.is_nan() || d.is_nan() { f64::NAN } else { m.max(d) };
     Ok(pairs(a, b)?.map(|(x, y)| (x - y).abs()).fold(0.0, nan_aware_max))
@@ -125,6 +127,20 @@ mod tests {
         a.set(1, 1, f32::NAN);
         assert!(rmse(&a, &b).unwrap().is_nan());
         assert!(max_abs(&a, &b).unwrap().is_nan());
+        assert!(psnr(&a, &b).unwrap().is_nan());
+    }
+
+    #[test]
+    fn infinite_samples() {
+        let a = [0.0f32, f32::INFINITY, 0.5];
+        let b = [0.0f32, 1.0, 0.5];
+        assert_eq!(rmse(&a[..], &b[..]).unwrap(), f64::INFINITY);
+        assert_eq!(max_abs(&a[..], &b[..]).unwrap(), f64::INFINITY);
+        assert_eq!(psnr(&a[..], &b[..]).unwrap(), f64::NEG_INFINITY);
+        // The same infinity in both differs by NaN, not 0.
+        assert!(rmse(&a[..], &a[..]).unwrap().is_nan());
+        assert!(max_abs(&a[..], &a[..]).unwrap().is_nan());
+        assert!(psnr(&a[..], &a[..]).unwrap().is_nan());
     }
 
     #[test]

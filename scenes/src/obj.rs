@@ -50,7 +50,9 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 /// Polygons are triangulated as fans from their first corner, `prim_ids` number the triangles
 /// in file order counting the dropped degenerate ones, and each `usemtl` name becomes a
 /// [`Material`] with the default diffuse colour (faces before any `usemtl` use a material
-/// named `default`). Errors name the file and, for malformed content, the line.
+/// named `default`). Errors name the file and, for malformed content, the line. A vertex
+/// coordinate that is NaN or infinite (`nan`, `inf`, or a number beyond `f32`, such as
+/// `1e39`) is such an error, naming the line and the vertex.
 pub fn load_obj(path: &Path) -> Result<(Mesh, LoadReport), SceneError> {
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     if bytes.starts_with(&GZIP_MAGIC) {
@@ -292,8 +294,10 @@ mod tests {
             e.contains("test.obj") && e.contains("line 2") && e.contains("vertex 2") && e.contains("non-finite"),
             "{e}"
         );
-        let e = error_text("v 0 0 0\nv 1 0 inf\n");
-        assert!(e.contains("vertex 2"), "{e}");
+        for coordinate in ["inf", "-inf", "1e39", "NaN", "-nan", "infinity"] {
+            let e = error_text(&format!("v 0 0 0\nv 1 0 {coordinate}\n"));
+            assert!(e.contains("line 2") && e.contains("vertex 2") && e.contains("non-finite"), "{coordinate}: {e}");
+        }
         let e = error_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n");
         assert!(e.contains("face 2") && e.contains("vertex 9") && e.contains("line 5"), "{e}");
         let e = error_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -7\n");

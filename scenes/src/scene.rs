@@ -20,7 +20,8 @@ pub struct View {
 }
 
 impl View {
-    /// The camera of this view for a `width` x `height` image (`None` for a degenerate view).
+    /// The camera of this view for a `width` x `height` image (`None` for a degenerate view,
+    /// including a NaN or infinite eye, target or field of view: see [`Camera::look_at`]).
     pub fn camera(&self, width: u32, height: u32) -> Option<Camera> {
         Camera::look_at(self.eye, self.target, self.fovy_deg, width, height)
     }
@@ -61,6 +62,9 @@ impl Scene {
     /// For the recognised shared scenes (file names starting with `sponza`, `kitchen`,
     /// `sibenik` or `conference`) the first view, `default`, is the scene's known benchmark
     /// or check viewpoint (see `SOURCES.md`) and the bounds-derived one is called `overview`.
+    ///
+    /// The mesh should pass [`Mesh::check`] (the OBJ loader's meshes do); a mesh with an
+    /// infinite position gets views whose [`View::camera`] is `None`, never a panic.
     pub fn from_mesh(name: &str, mesh: Mesh) -> Scene {
         let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
         let center = 0.5 * (lo + hi);
@@ -176,6 +180,26 @@ mod tests {
         assert_eq!(sponza.views[1].name, "overview");
         let kitchen = load_scene(dir.join("kitchen-test.obj").to_str().unwrap()).unwrap();
         assert_eq!(kitchen.default_view().fovy_deg, 60.0);
+    }
+
+    #[test]
+    fn non_finite_meshes_and_views_give_no_camera() {
+        let mut mesh = load_scene("triangle").unwrap().mesh;
+        mesh.positions[1].x = f32::INFINITY;
+        let scene = Scene::from_mesh("broken", mesh.clone());
+        assert!(scene.views.iter().all(|v| v.camera(8, 8).is_none()));
+        // NaN: no panic, whatever views result.
+        mesh.positions[1].x = f32::NAN;
+        let _ = Scene::from_mesh("broken", mesh).default_view().camera(8, 8);
+        let good = View { name: "v".into(), eye: Vec3::Z, target: Vec3::ZERO, fovy_deg: 45.0 };
+        assert!(good.camera(8, 8).is_some());
+        for bad in [
+            View { eye: Vec3::new(0.0, f32::NAN, 1.0), ..good.clone() },
+            View { target: Vec3::new(0.0, 0.0, f32::NEG_INFINITY), ..good.clone() },
+            View { fovy_deg: f32::NAN, ..good.clone() },
+        ] {
+            assert!(bad.camera(8, 8).is_none(), "{bad:?}");
+        }
     }
 
     #[test]

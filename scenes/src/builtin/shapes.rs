@@ -5,6 +5,10 @@
 //! The edge-width soft shadows of the later chapters need such closed meshes (silhouette edges
 //! are found from the two triangles beside each edge). Parts are added to a [`MeshBuilder`]
 //! with their own vertices, so a whole built-in scene passes the same edge check.
+//!
+//! The constructors do not check their numbers (the built-in scenes pass constants): a NaN or
+//! infinite parameter gives non-finite positions, never a panic, and [`Mesh::check`] and
+//! `KdTree::build` reject the mesh naming the vertex.
 
 use std::collections::HashMap;
 
@@ -433,6 +437,33 @@ mod tests {
         }
         let v = Part::icosphere(1.0, 4).signed_volume();
         assert!((v - 4.0 / 3.0 * std::f32::consts::PI).abs() < 0.03, "{v}");
+    }
+
+    #[test]
+    fn non_finite_parameters_give_meshes_that_check_rejects() {
+        let (nan, inf) = (f32::NAN, f32::INFINITY);
+        let parts = [
+            Part::cuboid(Vec3::new(nan, 0.0, 0.0), Vec3::ONE),
+            Part::cuboid(Vec3::ZERO, Vec3::new(1.0, inf, 1.0)),
+            Part::prism(nan, 1.0, 0.0, 1.0, 8, 2),
+            Part::prism(1.0, 1.0, 0.0, inf, 8, 2),
+            Part::wedge(1.0, nan, 0.0, 1.0),
+            Part::icosphere(nan, 2),
+            Part::icosphere(inf, 1),
+            Part::close_downwards(
+                &Part { positions: vec![Vec3::ZERO, Vec3::Z, Vec3::X], triangles: vec![[0, 1, 2]] },
+                nan,
+            ),
+            Part::cuboid(Vec3::ZERO, Vec3::ONE).translated(Vec3::new(0.0, 0.0, inf)),
+        ];
+        for (i, part) in parts.iter().enumerate() {
+            let mut builder = MeshBuilder::new();
+            let m = builder.material("m", Vec3::ONE);
+            builder.add_box(Vec3::ZERO, Vec3::ONE, m);
+            builder.add(part, m);
+            let e = builder.finish().check().unwrap_err();
+            assert!(e.contains("is not finite"), "part {i}: {e}");
+        }
     }
 
     #[test]
