@@ -350,7 +350,13 @@ fn camera_for(scene: &Scene, args: &RenderArgs) -> Result<(Camera, String), Erro
         })?;
         return Ok((camera, "custom".into()));
     }
-    let view = match &args.view {
+    view_camera(scene, args.view.as_deref(), w, h)
+}
+
+/// The camera of the scene's view `name` (its default view when `None`) at `w x h`, and the
+/// view's name; a degenerate view is a usage error naming it.
+pub(crate) fn view_camera(scene: &Scene, name: Option<&str>, w: u32, h: u32) -> Result<(Camera, String), Error> {
+    let view = match name {
         Some(name) => scene.view(name)?,
         None => scene.default_view(),
     };

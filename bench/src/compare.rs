@@ -461,14 +461,7 @@ pub fn compare_command(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Er
     let show = progress::enabled(global.json);
     let scene = scenes::load_scene(&args.scene)?;
     let (w, h) = args.size;
-    let view = match &args.view {
-        Some(name) => scene.view(name)?,
-        None => scene.default_view(),
-    };
-    let camera = view
-        .camera(w, h)
-        .ok_or_else(|| Error::Usage(format!("view '{}' of scene '{}' is degenerate", view.name, scene.name)))?;
-    let view_name = view.name.clone();
+    let (camera, view_name) = crate::cli::view_camera(&scene, args.view.as_deref(), w, h)?;
 
     // Builds, interleaved: ours, then each baseline's structures, `build_rounds` times.
     let bar = Progress::bar(u64::from(args.build_rounds), &format!("builds: {}", scene.name), show);

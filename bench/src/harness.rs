@@ -53,13 +53,7 @@ impl Workload {
     /// `width` x `height`.
     pub fn new(spec: &str, view: Option<&str>, width: u32, height: u32) -> Result<Workload, Error> {
         let (scene, tree, _) = load_and_build(spec, &BuildConfig::default())?;
-        let view = match view {
-            Some(name) => scene.view(name)?,
-            None => scene.default_view(),
-        };
-        let camera = view
-            .camera(width, height)
-            .ok_or_else(|| Error::Usage(format!("view '{}' gives a degenerate camera", view.name)))?;
+        let (camera, _) = crate::cli::view_camera(&scene, view, width, height)?;
         Ok(Self::with_camera(scene, tree, camera))
     }
 

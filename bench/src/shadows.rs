@@ -599,13 +599,7 @@ pub fn shadows_command(global: &GlobalArgs, args: &ShadowsArgs) -> Result<(), Er
         };
         let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
-        let view = match &args.view {
-            Some(name) => scene.view(name)?,
-            None => scene.default_view(),
-        };
-        let camera = view
-            .camera(args.size.0, args.size.1)
-            .ok_or_else(|| Error::Usage(format!("view '{}' gives a degenerate camera", view.name)))?;
+        let (camera, _) = crate::cli::view_camera(&scene, args.view.as_deref(), args.size.0, args.size.1)?;
         let thickness = thickness_scales(&scene, &args.thickness)?;
         let setup = ShadowSetup::new(&scene, &tree, camera, light).with_edge_options(
             args.edge_scale,

@@ -171,10 +171,7 @@ fn scene_list(args: &TablesArgs) -> Vec<String> {
 /// Measures every configuration on one scene.
 fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<Row>, Error> {
     let (w, h) = args.size;
-    let camera = scene
-        .default_view()
-        .camera(w, h)
-        .ok_or_else(|| Error::Usage(format!("the default view of '{}' is degenerate", scene.name)))?;
+    let (camera, _) = crate::cli::view_camera(scene, None, w, h)?;
     let bar = Progress::bar(CONFIGS.len() as u64, &format!("tables: {}", scene.name), show);
     let mut rows = Vec::new();
     let mut shade_secs = f64::INFINITY;
@@ -225,10 +222,7 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
 /// [`ShadowMethod`], and checks that they agree.
 fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<SoftRow>, Error> {
     let (w, h) = args.size;
-    let camera = scene
-        .default_view()
-        .camera(w, h)
-        .ok_or_else(|| Error::Usage(format!("the default view of '{}' is degenerate", scene.name)))?;
+    let (camera, _) = crate::cli::view_camera(scene, None, w, h)?;
     let hits = soft::primary_hits(scene, tree, &camera);
     let diag = (tree.bounds().max - tree.bounds().min).length();
     let frames = args.frames.min(3);

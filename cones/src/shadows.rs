@@ -237,18 +237,24 @@ mod tests {
         }
     }
 
-    /// Rays that break `occluded`'s rules: NaN or infinite lanes are not occluded and the
-    /// others get the single rays' answers, whatever the method; rays from two origins are
-    /// traced one by one. Never a panic.
-    #[test]
-    fn bad_rays_never_panic_and_match_single_rays() {
+    /// A quad at y = 2 covering x < 1.0 between the floor point `p` and a sphere light above
+    /// it: half the light is blocked.
+    fn half_wall() -> (KdTree, SphereLight, Vec3) {
         let tris = [
             [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0)],
             [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0), Vec3::new(-5.0, 2.0, 5.0)],
         ];
         let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
         let light = SphereLight { center: Vec3::new(1.0, 4.0, 0.0), radius: 0.8, intensity: Vec3::ONE };
-        let p = Vec3::new(1.0, 0.0, 0.0);
+        (tree, light, Vec3::new(1.0, 0.0, 0.0))
+    }
+
+    /// Rays that break `occluded`'s rules: NaN or infinite lanes are not occluded and the
+    /// others get the single rays' answers, whatever the method; rays from two origins are
+    /// traced one by one. Never a panic.
+    #[test]
+    fn bad_rays_never_panic_and_match_single_rays() {
+        let (tree, light, p) = half_wall();
         let good = shadow_rays(p, &light_samples(p, &light).unwrap());
         let cone = sample_cone(p, &light).unwrap();
         let (nan, inf) = (f32::NAN, f32::INFINITY);
@@ -291,14 +297,7 @@ mod tests {
     /// blocked and some not.
     #[test]
     fn methods_agree_on_a_half_blocked_light() {
-        // A quad at y = 2 covering x < 1.0 between the floor point and the light.
-        let tris = [
-            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0)],
-            [Vec3::new(-5.0, 2.0, -5.0), Vec3::new(1.0, 2.0, 5.0), Vec3::new(-5.0, 2.0, 5.0)],
-        ];
-        let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
-        let light = SphereLight { center: Vec3::new(1.0, 4.0, 0.0), radius: 0.8, intensity: Vec3::ONE };
-        let p = Vec3::new(1.0, 0.0, 0.0);
+        let (tree, light, p) = half_wall();
         let rays = shadow_rays(p, &light_samples(p, &light).unwrap());
         let cone = sample_cone(p, &light).unwrap();
         let mut t = SoftShadowTracer::new();

@@ -5,7 +5,7 @@
 use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, NoCounters, Ray};
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer};
+use packets::{OmniPacket, PacketHit, RayPacket, TileMethod, TileTracer};
 
 /// A ray along -x whose interval is the single point `t = 0` (its origin, x = 1.5e-39),
 /// beside triangle 1, whose x range ends at 1.076e-42. The single-ray kernel's plane distance
@@ -41,29 +41,39 @@ fn cone_culls_exactly_where_the_single_ray_underflows_into_an_artefact() {
     assert!(oracle.unreachable(&ray, 1));
     oracle.check(&ray, single, tree.occluded(&ray)).unwrap();
 
-    let packets = [OmniPacket::new(RayPacket::new(&[ray])).unwrap()];
-    let mut tracer = TileTracer::new(4).unwrap();
-    tracer.load_packets(&packets).unwrap();
-    for any_hit in [false, true] {
-        tracer.set_any_hit(any_hit);
-        for method in [ConeMethod::Cone, ConeMethod::MftCone] {
-            cones::traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
-            let hits = tracer.packet_hits()[0];
-            let got = hits.get(0);
-            if any_hit {
-                let found = hits.found.bitmask() & 1 != 0;
-                assert!(oracle.equivalent_occlusion(&ray, found, tree.occluded(&ray)), "{method:?} any hit");
-            } else {
-                assert!(oracle.equivalent_hits(&ray, got, single), "{method:?}: {got:?}, single ray {single:?}");
-            }
-        }
-        // The pyramid methods agree as well.
-        for method in [TileMethod::Frustum, TileMethod::Mft] {
-            tracer.trace(&tree, method, &mut NoCounters);
-            let got = tracer.packet_hits()[0].get(0);
+    for (method, any_hit, hits) in cone_answers(&tree, &[ray]) {
+        let got = hits.get(0);
+        if any_hit {
+            let found = hits.found.bitmask() & 1 != 0;
+            assert!(oracle.equivalent_occlusion(&ray, found, tree.occluded(&ray)), "{method:?} any hit");
+        } else {
             assert!(oracle.equivalent_hits(&ray, got, single), "{method:?}: {got:?}, single ray {single:?}");
         }
     }
+    // The pyramid methods agree as well.
+    let mut tracer = TileTracer::new(4).unwrap();
+    tracer.load_packets(&[OmniPacket::new(RayPacket::new(&[ray])).unwrap()]).unwrap();
+    for method in [TileMethod::Frustum, TileMethod::Mft] {
+        tracer.trace(&tree, method, &mut NoCounters);
+        let got = tracer.packet_hits()[0].get(0);
+        assert!(oracle.equivalent_hits(&ray, got, single), "{method:?}: {got:?}, single ray {single:?}");
+    }
+}
+
+/// The answers of both cone methods, closest hit and any hit, for `rays` (one packet with a
+/// shared origin): `(method, any_hit, the packet's hits)`.
+fn cone_answers(tree: &KdTree, rays: &[Ray]) -> Vec<(ConeMethod, bool, PacketHit)> {
+    let mut tracer = TileTracer::new(4).unwrap();
+    tracer.load_packets(&[OmniPacket::new(RayPacket::new(rays)).unwrap()]).unwrap();
+    let mut answers = Vec::new();
+    for any_hit in [false, true] {
+        tracer.set_any_hit(any_hit);
+        for method in [ConeMethod::Cone, ConeMethod::MftCone] {
+            cones::traverse::trace(tree, &mut tracer, method, &mut NoCounters);
+            answers.push((method, any_hit, tracer.packet_hits()[0]));
+        }
+    }
+    answers
 }
 
 /// A ray from y = 2.9e-14 with `d.y = -1.66e32` leaves the root box (y >= -7.7e-37) at
@@ -100,22 +110,14 @@ fn cone_far_end_covers_an_exit_parameter_that_underflowed() {
     let single = tree.intersect(&rays[0]);
     assert_eq!(single.map(|h| (h.t, h.prim)), Some((0.0, 1)));
     assert!(!oracle.unreachable(&rays[0], 1), "a real hit");
-    let packets = [OmniPacket::new(RayPacket::new(&rays)).unwrap()];
-    let mut tracer = TileTracer::new(4).unwrap();
-    tracer.load_packets(&packets).unwrap();
-    for any_hit in [false, true] {
-        tracer.set_any_hit(any_hit);
-        for method in [ConeMethod::Cone, ConeMethod::MftCone] {
-            cones::traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
-            let hits = tracer.packet_hits()[0];
-            for (lane, ray) in rays.iter().enumerate() {
-                let (got, want) = (hits.get(lane), tree.intersect(ray));
-                if any_hit {
-                    let found = hits.found.bitmask() >> lane & 1 != 0;
-                    assert_eq!(found, tree.occluded(ray), "{method:?} any hit, lane {lane}");
-                } else {
-                    assert!(oracle.equivalent_hits(ray, got, want), "{method:?} lane {lane}: {got:?}, single {want:?}");
-                }
+    for (method, any_hit, hits) in cone_answers(&tree, &rays) {
+        for (lane, ray) in rays.iter().enumerate() {
+            let (got, want) = (hits.get(lane), tree.intersect(ray));
+            if any_hit {
+                let found = hits.found.bitmask() >> lane & 1 != 0;
+                assert_eq!(found, tree.occluded(ray), "{method:?} any hit, lane {lane}");
+            } else {
+                assert!(oracle.equivalent_hits(ray, got, want), "{method:?} lane {lane}: {got:?}, single {want:?}");
             }
         }
     }

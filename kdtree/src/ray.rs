@@ -76,6 +76,21 @@ impl Ray {
     /// Like [`Ray::new`], but rejects non-finite origins, zero or non-finite directions and
     /// NaN or empty intervals (`t_max = +inf` is allowed).
     pub fn try_new(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Result<Ray, RayError> {
+        Ray::validate(origin, dir, t_min, t_max)?;
+        Ok(Ray::new(origin, dir, t_min, t_max))
+    }
+
+    /// Whether this ray passes [`Ray::try_new`]'s checks: a finite origin, a finite non-zero
+    /// direction, and an interval that is neither NaN nor empty. Packets make the rays that
+    /// fail them invalid lanes.
+    #[inline]
+    pub fn is_valid(&self) -> bool {
+        Ray::validate(self.origin, self.dir, self.t_min, self.t_max).is_ok()
+    }
+
+    /// The one rule behind [`Ray::try_new`] and [`Ray::is_valid`].
+    #[inline]
+    fn validate(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Result<(), RayError> {
         if !origin.is_finite() {
             return Err(RayError::NonFiniteOrigin(origin));
         }
@@ -85,7 +100,7 @@ impl Ray {
         if t_min.is_nan() || t_max.is_nan() || t_min > t_max || t_min == f32::INFINITY || t_max == f32::NEG_INFINITY {
             return Err(RayError::BadInterval(t_min, t_max));
         }
-        Ok(Ray::new(origin, dir, t_min, t_max))
+        Ok(())
     }
 
     /// The point at distance `t`.

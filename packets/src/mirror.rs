@@ -79,7 +79,7 @@ pub fn reflections(
         let hit = hits[lane].filter(|h| is_mirror(h.prim))?;
         let tri = tree.triangle(hit.prim);
         let mirror = Mirror::of_triangle(&tri)?;
-        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit)).filter(|r| r.origin.is_finite() && r.dir.is_finite())
+        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit)).filter(Ray::is_valid)
     });
     let mut out = Vec::new();
     let mut taken = [false; 4];

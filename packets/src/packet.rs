@@ -50,9 +50,7 @@ impl RayPacket {
     /// A packet from four optional rays (`None` lanes, and rays [`RayPacket::new`] rejects,
     /// are invalid).
     pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
-        let usable = lanes.map(|ray| {
-            ray.filter(|r| r.origin.is_finite() && r.dir.is_finite() && r.dir != Vec3::ZERO && r.t_min <= r.t_max)
-        });
+        let usable = lanes.map(|ray| ray.filter(Ray::is_valid));
         let fill = usable.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
         let mut o = [[0.0f32; 4]; 4];
         let mut d = [[0.0f32; 4]; 4];
