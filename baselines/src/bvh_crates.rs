@@ -11,7 +11,7 @@
 //!
 //! Their hits carry the triangle and distance only: `u` and `v` are 0.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use bvh::aabb::{Aabb, Bounded};
 use bvh::bounding_hierarchy::{BHShape, BoundingHierarchy};
@@ -23,9 +23,36 @@ use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
 use obvhs::triangle::Triangle;
 use scenes::Scene;
+use trace::frame::Driven;
+use trace::registry::{Entry, StructureEntry};
+use trace::{Registry, SingleRays, TileCounters, Tracer};
 
-use super::{SingleRays, Tracer};
-use crate::compare::{Frame, Passes, block_passes, median};
+/// Registers the two crates' structures and their single-ray methods `bvh` and `obvhs`.
+pub fn register(r: &mut Registry) {
+    r.add_structure(StructureEntry { name: "bvh", build: |scene| Ok(Box::new(BvhCrate::build(scene))) });
+    r.add_structure(StructureEntry { name: "obvhs", build: |scene| Ok(Box::new(Obvhs::build(scene))) });
+    r.add(entry("bvh", "the bvh crate (0.13): binary SAH BVH, single rays", |s, _| {
+        Ok(Box::new(Driven(SingleRays(s.get::<BvhCrate>("bvh")?))))
+    }));
+    r.add(entry("obvhs", "the obvhs crate (0.4): CWBVH, single rays", |s, _| {
+        Ok(Box::new(Driven(SingleRays(s.get::<Obvhs>("obvhs")?))))
+    }));
+}
+
+/// A crate's entry, on its own structure of the same name.
+fn entry(name: &'static str, summary: &'static str, bind: trace::registry::Bind) -> Entry {
+    Entry {
+        name,
+        family: name,
+        summary,
+        tiled: false,
+        packets: false,
+        structure: name,
+        shadow_kernel: name,
+        soft_kernel: name,
+        bind,
+    }
+}
 
 /// One triangle as a `bvh` shape: its box, our index and its node in the hierarchy.
 #[derive(Clone, Copy, Debug)]
@@ -95,7 +122,7 @@ impl BvhCrate {
 }
 
 impl Tracer for BvhCrate {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> Option<Hit> {
         let query = Self::ray(ray);
         let data = WaldTriangle::prepare(ray);
         let mut best = None;
@@ -111,7 +138,7 @@ impl Tracer for BvhCrate {
         best
     }
 
-    fn occluded(&self, ray: &Ray) -> bool {
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> bool {
         let query = Self::ray(ray);
         let data = WaldTriangle::prepare(ray);
         self.bvh
@@ -160,7 +187,7 @@ impl Obvhs {
 }
 
 impl Tracer for Obvhs {
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> Option<Hit> {
         let mut hit = obvhs::ray::RayHit::none();
         let indices = &self.bvh.primitive_indices;
         let found =
@@ -168,88 +195,9 @@ impl Tracer for Obvhs {
         found.then(|| Hit { t: hit.t, u: 0.0, v: 0.0, prim: indices[hit.primitive_id as usize] })
     }
 
-    fn occluded(&self, ray: &Ray) -> bool {
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> bool {
         let indices = &self.bvh.primitive_indices;
         !self.bvh.ray_traverse_miss(Self::ray(ray), |r, id| self.tris[indices[id] as usize].intersect(r))
-    }
-}
-
-/// The crates' builds for `rttest compare`, timed.
-#[derive(Debug, Default)]
-pub struct Builds {
-    bvh: Option<(Option<BvhCrate>, Vec<f64>)>,
-    obvhs: Option<(Option<Obvhs>, Vec<f64>)>,
-}
-
-/// One built crate, for `rttest compare`.
-#[derive(Debug)]
-pub enum CrateTracer<'a> {
-    /// The `bvh` crate, with its median build time in ms.
-    Bvh(&'a BvhCrate, f64),
-    /// The `obvhs` crate, with its median build time in ms.
-    Obvhs(&'a Obvhs, f64),
-}
-
-impl Builds {
-    /// Builds for the wanted crates.
-    pub fn new(bvh: bool, obvhs: bool) -> Builds {
-        Builds { bvh: bvh.then(|| (None, Vec::new())), obvhs: obvhs.then(|| (None, Vec::new())) }
-    }
-
-    /// Builds (and times) each wanted structure once more.
-    pub fn build(&mut self, scene: &Scene) {
-        if let Some((slot, times)) = &mut self.bvh {
-            *slot = None;
-            let start = Instant::now();
-            *slot = Some(BvhCrate::build(scene));
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-        if let Some((slot, times)) = &mut self.obvhs {
-            *slot = None;
-            let start = Instant::now();
-            *slot = Some(Obvhs::build(scene));
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-
-    /// The built crates.
-    pub fn tracers(&self) -> Vec<CrateTracer<'_>> {
-        let mut out = Vec::new();
-        if let Some((Some(b), times)) = &self.bvh {
-            out.push(CrateTracer::Bvh(b, median(times)));
-        }
-        if let Some((Some(o), times)) = &self.obvhs {
-            out.push(CrateTracer::Obvhs(o, median(times)));
-        }
-        out
-    }
-}
-
-impl<'a> CrateTracer<'a> {
-    /// `bvh` or `obvhs`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            CrateTracer::Bvh(..) => "bvh",
-            CrateTracer::Obvhs(..) => "obvhs",
-        }
-    }
-
-    /// Median build milliseconds.
-    pub fn build_ms(&self) -> f64 {
-        match self {
-            CrateTracer::Bvh(_, ms) | CrateTracer::Obvhs(_, ms) => *ms,
-        }
-    }
-
-    /// The single-ray passes on `frame`.
-    pub(crate) fn passes<'f>(&self, frame: &'f Frame<'f>) -> Passes<'f>
-    where
-        'a: 'f,
-    {
-        match *self {
-            CrateTracer::Bvh(b, _) => block_passes(SingleRays(b), frame),
-            CrateTracer::Obvhs(o, _) => block_passes(SingleRays(o), frame),
-        }
     }
 }
 
@@ -265,13 +213,13 @@ mod tests {
         let scene = scenes::load_scene("atrium").unwrap();
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(48, 32).unwrap();
-        let rays = crate::harness::primary_rays(&camera);
-        let shadows = crate::harness::shadow_rays(&scene, &tree, &rays);
+        let rays = trace::setup::primary_rays(&camera);
+        let shadows = trace::setup::shadow_rays(&scene, &tree, &rays);
         let b = BvhCrate::build(&scene);
         let o = Obvhs::build(&scene);
-        for (name, t) in [("bvh", &b as &dyn Tracer), ("obvhs", &o as &dyn Tracer)] {
+        fn agree<T: Tracer>(name: &str, t: &T, tree: &KdTree, rays: &[Ray], shadows: &[Ray]) {
             let (mut same, mut occl_same) = (0, 0);
-            for ray in &rays {
+            for ray in rays {
                 let (want, got) = (tree.intersect(ray), t.intersect(ray));
                 match (want, got) {
                     (None, None) => same += 1,
@@ -279,11 +227,13 @@ mod tests {
                     _ => {}
                 }
             }
-            for ray in &shadows {
+            for ray in shadows {
                 occl_same += usize::from(tree.occluded(ray) == t.occluded(ray));
             }
             assert!(same * 1000 >= rays.len() * 999, "{name}: {same} of {}", rays.len());
             assert!(occl_same * 1000 >= shadows.len() * 999, "{name}: {occl_same} of {}", shadows.len());
         }
+        agree("bvh", &b, &tree, &rays, &shadows);
+        agree("obvhs", &o, &tree, &rays, &shadows);
     }
 }

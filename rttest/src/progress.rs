@@ -1,8 +1,8 @@
 //! Progress bars on stderr that only appear for work taking more than a second.
 //!
-//! A [`Progress`] starts hidden. A watcher thread waits one second; if the work is still
+//! A [`Bar`] starts hidden. A watcher thread waits one second; if the work is still
 //! running then (and progress display is enabled: stderr is a terminal and `--json` is off)
-//! the bar is drawn until [`Progress::finish`] clears it. Quick work therefore never flickers
+//! the bar is drawn until [`Bar::finish`] clears it. Quick work therefore never flickers
 //! a bar. A spinner ticks on its own (a long single call such as a big build still moves); a
 //! bar is redrawn only when it advances, so no drawing thread competes with timed work.
 
@@ -23,15 +23,15 @@ pub fn enabled(json: bool) -> bool {
 
 /// A progress bar or spinner that appears after [`SHOW_AFTER`]; see the module docs.
 #[derive(Debug)]
-pub struct Progress {
+pub struct Bar {
     bar: ProgressBar,
     done: Option<Sender<()>>,
     watcher: Option<JoinHandle<()>>,
 }
 
-impl Progress {
+impl Bar {
     /// A spinner with `message`, for work without measurable steps (loading, building).
-    pub fn spinner(message: &str, enabled: bool) -> Progress {
+    pub fn spinner(message: &str, enabled: bool) -> Bar {
         let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
         bar.set_style(
             ProgressStyle::with_template("{spinner} {msg} {elapsed}")
@@ -41,7 +41,7 @@ impl Progress {
     }
 
     /// A bar of `len` steps with `message` (frames, for example).
-    pub fn bar(len: u64, message: &str, enabled: bool) -> Progress {
+    pub fn bar(len: u64, message: &str, enabled: bool) -> Bar {
         let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
         bar.set_style(
             ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
@@ -50,10 +50,10 @@ impl Progress {
         Self::start(bar, message, enabled, false)
     }
 
-    fn start(bar: ProgressBar, message: &str, enabled: bool, ticking: bool) -> Progress {
+    fn start(bar: ProgressBar, message: &str, enabled: bool, ticking: bool) -> Bar {
         bar.set_message(message.to_string());
         if !enabled {
-            return Progress { bar, done: None, watcher: None };
+            return Bar { bar, done: None, watcher: None };
         }
         let (done, rx) = mpsc::channel::<()>();
         let shown = bar.clone();
@@ -67,7 +67,7 @@ impl Progress {
                 }
             }
         });
-        Progress { bar, done: Some(done), watcher: Some(watcher) }
+        Bar { bar, done: Some(done), watcher: Some(watcher) }
     }
 
     /// One step done.
@@ -91,8 +91,35 @@ impl Progress {
     }
 }
 
-impl Drop for Progress {
+impl Drop for Bar {
     fn drop(&mut self) {
         self.stop();
+    }
+}
+
+impl trace::progress::Task for Bar {
+    fn inc(&self) {
+        Bar::inc(self);
+    }
+
+    fn finish(self: Box<Self>) {
+        Bar::finish(*self);
+    }
+}
+
+/// The command line's [`trace::progress::Progress`]: bars on stderr when `enabled` (stderr is a
+/// terminal and the output is not JSON; see [`enabled`]), nothing otherwise.
+#[derive(Clone, Copy, Debug)]
+pub struct Bars {
+    /// Whether bars may be drawn.
+    pub enabled: bool,
+}
+
+impl trace::progress::Progress for Bars {
+    fn task(&self, message: &str, len: Option<u64>) -> Box<dyn trace::progress::Task> {
+        Box::new(match len {
+            Some(len) => Bar::bar(len, message, self.enabled),
+            None => Bar::spinner(message, self.enabled),
+        })
     }
 }

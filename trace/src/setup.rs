@@ -1,4 +1,5 @@
-//! Scene, tree and ray setup shared by the criterion benches (and usable from tests).
+//! Scene, tree, camera and ray setup shared by the experiments, the command line, the tests
+//! and the criterion benches.
 //!
 //! Everything here runs *outside* the timed loops: a bench loads a [`Workload`] once, then
 //! times only [`trace_closest`] or [`trace_any`] over its precomputed rays.
@@ -10,7 +11,7 @@ use kdtree::{BuildConfig, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
 
-use crate::{Error, render, shade};
+use crate::{Error, method, shade};
 
 /// The Sponza file in the shared scenes folder, if it is there.
 pub fn sponza_path() -> Option<PathBuf> {
@@ -21,6 +22,41 @@ pub fn sponza_path() -> Option<PathBuf> {
 pub fn shared_scene(file: &str) -> Option<PathBuf> {
     let path = scenes::shared_scenes_dir()?.join(file);
     path.is_file().then_some(path)
+}
+
+/// The camera of the scene's view `name` (its default view when `None`) at `w x h`, and the
+/// view's name; a degenerate view is a usage error naming it.
+pub fn view_camera(scene: &Scene, name: Option<&str>, w: u32, h: u32) -> Result<(Camera, String), Error> {
+    let view = match name {
+        Some(name) => scene.view(name)?,
+        None => scene.default_view(),
+    };
+    let camera = view
+        .camera(w, h)
+        .ok_or_else(|| Error::Usage(format!("view '{}' of scene '{}' is degenerate", view.name, scene.name)))?;
+    Ok((camera, view.name.clone()))
+}
+
+/// The scenes of the experiments when none is named: the four built-in stand-ins of the
+/// thesis's scenes and every `.obj` / `.obj.gz` in the shared scenes folder, sorted.
+pub fn default_scenes() -> Vec<String> {
+    let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove"].map(String::from).to_vec();
+    if let Some(dir) = scenes::shared_scenes_dir()
+        && let Ok(entries) = std::fs::read_dir(dir)
+    {
+        let mut files: Vec<String> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+                name.ends_with(".obj") || name.ends_with(".obj.gz")
+            })
+            .map(|p| p.display().to_string())
+            .collect();
+        files.sort();
+        list.extend(files);
+    }
+    list
 }
 
 /// Loads `spec` (a built-in name or a path) and builds its tree with `config`.
@@ -53,7 +89,7 @@ impl Workload {
     /// `width` x `height`.
     pub fn new(spec: &str, view: Option<&str>, width: u32, height: u32) -> Result<Workload, Error> {
         let (scene, tree, _) = load_and_build(spec, &BuildConfig::default())?;
-        let (camera, _) = crate::cli::view_camera(&scene, view, width, height)?;
+        let (camera, _) = view_camera(&scene, view, width, height)?;
         Ok(Self::with_camera(scene, tree, camera))
     }
 
@@ -67,7 +103,7 @@ impl Workload {
 
 /// The primary rays of every pixel of `camera`, row-major.
 pub fn primary_rays(camera: &Camera) -> Vec<Ray> {
-    (0..camera.height).flat_map(|y| (0..camera.width).map(move |x| render::primary_ray(camera, x, y))).collect()
+    (0..camera.height).flat_map(|y| (0..camera.width).map(move |x| method::primary_ray(camera, x, y))).collect()
 }
 
 /// The shadow rays of the hits of `primary` towards the scene's point light (one per hit

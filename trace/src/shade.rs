@@ -44,9 +44,11 @@ pub fn shadow_ray(mesh: &Mesh, light: &PointLight, _origin: Vec3, dir: Vec3, hit
 
 /// The colour of the primary hit `hit` of the ray `origin + t * dir`.
 ///
-/// `occluded` says whether the shadow ray found a blocker (always `false` without shadows);
-/// a surface facing away from the light gets only the ambient term either way.
-pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit, occluded: bool) -> Vec3 {
+/// `visible` is the fraction of the light the point sees: 1 lit, 0 blocked (hard shadows:
+/// whether the shadow ray found a blocker; always 1 without shadows), the fraction of
+/// unblocked sample rays for soft shadows. A surface facing away from the light gets only the
+/// ambient term either way.
+pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit, visible: f32) -> Vec3 {
     let prim = hit.prim as usize;
     let diffuse = mesh
         .material_ids
@@ -54,7 +56,7 @@ pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit
         .and_then(|&m| mesh.materials.get(m as usize))
         .map_or(Vec3::splat(0.75), |m| m.diffuse);
     let mut color = AMBIENT * diffuse;
-    if occluded {
+    if visible <= 0.0 {
         return color;
     }
     let geometric = facing_normal(mesh, hit, dir);
@@ -67,7 +69,7 @@ pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit
     let normal = shading_normal(mesh, hit).map_or(geometric, |n| if n.dot(geometric) < 0.0 { -n } else { n });
     let cos = normal.dot(to_light) / dist2.sqrt();
     if cos > 0.0 {
-        color += diffuse * light.intensity * (cos / dist2);
+        color += diffuse * light.intensity * (cos / dist2) * visible;
     }
     color
 }
@@ -118,11 +120,11 @@ mod tests {
         let near = PointLight { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE };
         let far = PointLight { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::ONE };
         let o = Vec3::new(0.0, 1.0, 0.0);
-        let lit = shade(&mesh, &near, o, -Vec3::Y, &hit, false);
-        let dark = shade(&mesh, &near, o, -Vec3::Y, &hit, true);
+        let lit = shade(&mesh, &near, o, -Vec3::Y, &hit, 1.0);
+        let dark = shade(&mesh, &near, o, -Vec3::Y, &hit, 0.0);
         assert!(lit.x > dark.x);
         assert!((dark.x - AMBIENT).abs() < 1e-6);
-        let lit_far = shade(&mesh, &far, o, -Vec3::Y, &hit, false);
+        let lit_far = shade(&mesh, &far, o, -Vec3::Y, &hit, 1.0);
         assert!(((lit.x - AMBIENT) / (lit_far.x - AMBIENT) - 4.0).abs() < 1e-3);
     }
 }

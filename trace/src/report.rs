@@ -254,10 +254,6 @@ impl TraversalReport {
     }
 }
 
-/// Millions of rays per second, 0 when nothing was timed.
-pub fn mrays_per_s(rays: u64, secs: f64) -> f64 {
-    if secs > 0.0 { rays as f64 / secs / 1e6 } else { 0.0 }
-}
 
 /// Bytes in a human unit.
 fn human_bytes(bytes: u64) -> String {

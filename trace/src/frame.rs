@@ -1,0 +1,367 @@
+//! The one frame driver: a [`Method`] run over whole frames, tile by tile, with rayon.
+//!
+//! A frame is an image split into square tiles ([`TileLayout`]); every per-pixel buffer is
+//! kept in *tile order* (tile after tile, row-major inside each), so a tile's pixels are one
+//! contiguous chunk that one rayon task owns: no locking, no allocation per ray. Three passes
+//! run over the tiles, the same for our methods and for every baseline:
+//! 1. [`primary_pass`]: each pixel's camera ray and its closest hit;
+//! 2. [`shadow_pass`]: from each hit facing the point light, whether anything blocks the
+//!    segment to the light (hard shadows);
+//! 3. [`soft_pass`]: from each such hit, the 16 rays to a spherical light (thesis Table 4.6),
+//!    the visible fraction per pixel.
+//!
+//! The method is generic here, so every pass is one monomorphic loop; [`FrameTracer`] is the
+//! same passes behind a `dyn` (one virtual call per pass, never per ray), which is how the
+//! registry hands methods out ([`crate::registry`]).
+
+use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use kdtree::{Hit, NoCounters, Ray};
+use packets::PacketCounts;
+use rayon::prelude::*;
+use scenes::{Camera, Scene, SphereLight, Tile};
+
+use crate::method::{Method, TileCounters};
+use crate::soft;
+
+/// An image split into tiles, with each tile's offset into tile-ordered per-pixel buffers.
+#[derive(Clone, Debug)]
+pub struct TileLayout {
+    width: u32,
+    height: u32,
+    tiles: Vec<Tile>,
+    /// `offsets[i]..offsets[i + 1]` is tile `i`'s chunk; one more entry than tiles.
+    offsets: Vec<usize>,
+}
+
+impl TileLayout {
+    /// The layout of a `width` x `height` image in `tile_size` tiles.
+    pub fn new(width: u32, height: u32, tile_size: u32) -> TileLayout {
+        let tiles = scenes::tiles(width, height, tile_size);
+        let mut offsets = Vec::with_capacity(tiles.len() + 1);
+        offsets.push(0);
+        for t in &tiles {
+            offsets.push(offsets.last().copied().unwrap_or(0) + t.pixel_count());
+        }
+        TileLayout { width, height, tiles, offsets }
+    }
+
+    /// Image width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Image height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.offsets.last().copied().unwrap_or(0)
+    }
+
+    /// The tiles, in buffer order.
+    pub fn tiles(&self) -> &[Tile] {
+        &self.tiles
+    }
+
+    /// Number of 2x2 packets over all tiles, `ceil(w/2) * ceil(h/2)` per tile: the
+    /// denominator of the thesis's N and I for packet methods.
+    pub fn packet_count(&self) -> u64 {
+        self.tiles.iter().map(|t| u64::from(t.width().div_ceil(2)) * u64::from(t.height().div_ceil(2))).sum()
+    }
+
+    /// `buf` (one entry per pixel, tile order) cut into one chunk per tile.
+    ///
+    /// Panics if `buf` is shorter than [`TileLayout::pixel_count`] (a programming error).
+    pub fn chunks<'a, T>(&self, buf: &'a [T]) -> Vec<&'a [T]> {
+        self.offsets.windows(2).map(|w| &buf[w[0]..w[1]]).collect()
+    }
+
+    /// `buf` (one entry per pixel, tile order) cut into one disjoint mutable chunk per tile,
+    /// so that each tile's task can write its own pixels without locking. Panics like
+    /// [`TileLayout::chunks`].
+    pub fn chunks_mut<'a, T>(&self, mut buf: &'a mut [T]) -> Vec<&'a mut [T]> {
+        let mut out = Vec::with_capacity(self.tiles.len());
+        for t in &self.tiles {
+            let (head, tail) = std::mem::take(&mut buf).split_at_mut(t.pixel_count());
+            out.push(head);
+            buf = tail;
+        }
+        out
+    }
+
+    /// A row-major image (`width * height` values) from a tile-ordered buffer.
+    pub fn to_row_major<T: Copy + Default>(&self, buf: &[T]) -> Vec<T> {
+        let mut out = vec![T::default(); self.width as usize * self.height as usize];
+        for (tile, chunk) in self.tiles.iter().zip(self.chunks(buf)) {
+            for ((x, y), &v) in tile.pixels().zip(chunk) {
+                out[y as usize * self.width as usize + x as usize] = v;
+            }
+        }
+        out
+    }
+}
+
+/// What a soft-shadow pass traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SoftStats {
+    /// Points that traced shadow rays (hits facing the light, outside it).
+    pub points: u64,
+    /// Shadow rays traced (16 per point).
+    pub rays: u64,
+    /// Shadow rays blocked.
+    pub blocked: u64,
+}
+
+/// Pass 1: the closest hit of every pixel's primary ray into `out` (tile order of `layout`).
+/// Returns the number of hits and the summed counters.
+pub fn primary_pass<M: Method, C: TileCounters>(
+    method: &M,
+    layout: &TileLayout,
+    camera: &Camera,
+    out: &mut [Option<Hit>],
+) -> (u64, C) {
+    let chunks = layout.chunks_mut(out);
+    layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map_init(
+            || method.scratch(),
+            |scratch, (tile, out)| {
+                let mut counts = C::default();
+                method.primary_tile(scratch, camera, tile, out, &mut counts);
+                (out.iter().filter(|h| h.is_some()).count() as u64, counts)
+            },
+        )
+        .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1)))
+}
+
+/// Pass 2: the hard shadow ray of every hit of `hits` (tile order of `layout`) into
+/// `occluded`. Returns (rays traced, rays blocked) and the summed counters.
+pub fn shadow_pass<M: Method, C: TileCounters>(
+    method: &M,
+    layout: &TileLayout,
+    scene: &Scene,
+    camera: &Camera,
+    hits: &[Option<Hit>],
+    occluded: &mut [bool],
+) -> (u64, u64, C) {
+    let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(occluded)).collect();
+    layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map_init(
+            || method.scratch(),
+            |scratch, (tile, (hits, out))| {
+                let mut counts = C::default();
+                let (rays, blocked) = method.shadow_tile(scratch, scene, camera, tile, hits, out, &mut counts);
+                (rays, blocked, counts)
+            },
+        )
+        .reduce(|| (0, 0, C::default()), |a, b| (a.0 + b.0, a.1 + b.1, a.2.merge(b.2)))
+}
+
+/// Pass 3: the 16 shadow rays of every hit of `hits` (tile order of `layout`) to `light`
+/// ([`soft::shadow_start`], `cones::shadows::light_samples`), the visible fraction of the
+/// light per pixel into `visible` (0 for pixels without a lit hit).
+pub fn soft_pass<M: Method, C: TileCounters>(
+    method: &M,
+    layout: &TileLayout,
+    scene: &Scene,
+    camera: &Camera,
+    hits: &[Option<Hit>],
+    light: &SphereLight,
+    visible: &mut [f32],
+) -> (SoftStats, C) {
+    let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(visible)).collect();
+    layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map_init(
+            || method.scratch(),
+            |scratch, (tile, (hits, out))| {
+                let mut counts = C::default();
+                let mut stats = SoftStats::default();
+                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+                    *slot = 0.0;
+                    let Some(hit) = hit else { continue };
+                    let dir = camera.pixel_ray(x, y).1;
+                    let Some((start, cone)) = soft::shadow_start(scene, light, hit, dir) else { continue };
+                    let Some(samples) = light_samples(start, light) else { continue };
+                    let mask = method.soft_point(scratch, &shadow_rays(start, &samples), &cone, &mut counts);
+                    let n = u64::from(mask.count_ones());
+                    stats.points += 1;
+                    stats.blocked += n;
+                    *slot = 1.0 - n as f32 / SAMPLES as f32;
+                }
+                stats.rays = stats.points * SAMPLES as u64;
+                (stats, counts)
+            },
+        )
+        .reduce(
+            || (SoftStats::default(), C::default()),
+            |a, b| {
+                let stats =
+                    SoftStats { points: a.0.points + b.0.points, rays: a.0.rays + b.0.rays, blocked: a.0.blocked + b.0.blocked };
+                (stats, a.1.merge(b.1))
+            },
+        )
+}
+
+/// Rays per parallel chunk of a ray stream.
+pub const STREAM_CHUNK: usize = 4096;
+
+/// The closest hits of an arbitrary list of rays, in order, in parallel over chunks of
+/// [`STREAM_CHUNK`] rays.
+pub fn stream_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [Option<Hit>]) {
+    out.par_chunks_mut(STREAM_CHUNK)
+        .zip(rays.par_chunks(STREAM_CHUNK))
+        .for_each_init(|| method.scratch(), |s, (out, rays)| method.stream(s, rays, out, &mut NoCounters));
+}
+
+/// Whether each ray of an arbitrary list is blocked, in order, in parallel like
+/// [`stream_pass`].
+pub fn stream_occluded_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [bool]) {
+    out.par_chunks_mut(STREAM_CHUNK)
+        .zip(rays.par_chunks(STREAM_CHUNK))
+        .for_each_init(|| method.scratch(), |s, (out, rays)| method.stream_occluded(s, rays, out, &mut NoCounters));
+}
+
+/// The passes of one method behind a `dyn`: what the registry hands out. One virtual call per
+/// pass; inside, the generic passes above run monomorphic.
+pub trait FrameTracer: Sync {
+    /// [`primary_pass`] uncounted.
+    fn primary(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> u64;
+    /// [`primary_pass`] counted.
+    fn primary_counted(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, PacketCounts);
+    /// [`shadow_pass`] uncounted: (rays, blocked).
+    fn shadow(&self, layout: &TileLayout, scene: &Scene, camera: &Camera, hits: &[Option<Hit>], out: &mut [bool])
+    -> (u64, u64);
+    /// [`shadow_pass`] counted.
+    fn shadow_counted(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+    ) -> (u64, u64, PacketCounts);
+    /// [`soft_pass`] uncounted.
+    #[allow(clippy::too_many_arguments)]
+    fn soft(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        light: &SphereLight,
+        visible: &mut [f32],
+    ) -> SoftStats;
+    /// [`soft_pass`] counted.
+    #[allow(clippy::too_many_arguments)]
+    fn soft_counted(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        light: &SphereLight,
+        visible: &mut [f32],
+    ) -> (SoftStats, PacketCounts);
+    /// [`stream_pass`].
+    fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    /// [`stream_occluded_pass`].
+    fn stream_occluded(&self, rays: &[Ray], out: &mut [bool]);
+}
+
+/// A [`Method`] as a [`FrameTracer`].
+#[derive(Debug)]
+pub struct Driven<M>(pub M);
+
+impl<M: Method> FrameTracer for Driven<M> {
+    fn primary(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> u64 {
+        primary_pass::<M, NoCounters>(&self.0, layout, camera, out).0
+    }
+
+    fn primary_counted(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, PacketCounts) {
+        primary_pass(&self.0, layout, camera, out)
+    }
+
+    fn shadow(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+    ) -> (u64, u64) {
+        let (rays, blocked, NoCounters) = shadow_pass(&self.0, layout, scene, camera, hits, out);
+        (rays, blocked)
+    }
+
+    fn shadow_counted(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+    ) -> (u64, u64, PacketCounts) {
+        shadow_pass(&self.0, layout, scene, camera, hits, out)
+    }
+
+    fn soft(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        light: &SphereLight,
+        visible: &mut [f32],
+    ) -> SoftStats {
+        soft_pass::<M, NoCounters>(&self.0, layout, scene, camera, hits, light, visible).0
+    }
+
+    fn soft_counted(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        light: &SphereLight,
+        visible: &mut [f32],
+    ) -> (SoftStats, PacketCounts) {
+        soft_pass(&self.0, layout, scene, camera, hits, light, visible)
+    }
+
+    fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        stream_pass(&self.0, rays, out);
+    }
+
+    fn stream_occluded(&self, rays: &[Ray], out: &mut [bool]) {
+        stream_occluded_pass(&self.0, rays, out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_layout_round_trips_row_major() {
+        let layout = TileLayout::new(37, 21, 16);
+        assert_eq!(layout.pixel_count(), 37 * 21);
+        let mut buf = vec![0u32; layout.pixel_count()];
+        for (tile, chunk) in layout.tiles().iter().zip(layout.chunks_mut(&mut buf)) {
+            for ((x, y), v) in tile.pixels().zip(chunk) {
+                *v = y * 37 + x;
+            }
+        }
+        let image = layout.to_row_major(&buf);
+        assert!(image.iter().enumerate().all(|(i, &v)| v as usize == i));
+    }
+}

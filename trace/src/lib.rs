@@ -1,0 +1,41 @@
+//! The tracing interface of the workspace: one [`Method`] trait for every traversal method,
+//! one method [`Registry`], and one frame driver.
+//!
+//! - [`method`]: the queries. [`Tracer`] is the single-ray query (closest hit, any hit), the
+//!   scalar twin; [`Method`] the group queries (a tile of primary rays, a tile's shadow rays,
+//!   a point's 16 soft-shadow rays, a stream of arbitrary rays).
+//! - [`ours`]: our kd-tree methods (single rays, packets, frusta, MFT, cones; thesis 2.2.1,
+//!   4.1.2-4.1.9) as `Method`s.
+//! - [`registry`]: names to methods (`mono`, `mft-16`, `embree-8`, ...), the structures they
+//!   trace, and the name list for `--help`.
+//! - [`frame`]: the frame driver: primary, hard-shadow and soft-shadow passes over tiles with
+//!   rayon, the same for every method, and ray streams.
+//! - [`render`]: one view rendered with one method: timed tracing, then shading or AOVs.
+//! - [`shade`]: hard shadow rays and the thesis's diffuse point-light shading; [`soft`]: the
+//!   rays of 16-sample soft shadows.
+//! - [`setup`]: scene, tree, camera and ray setup; [`report`]: tree, build and render
+//!   reports; [`timing`]: timed calls, interleaved rounds, medians; [`progress`]: progress
+//!   reporting without drawing; [`error`]: the one error type.
+//!
+//! Adding a method: implement [`Method`] in its own module and add one [`registry::Entry`]
+//! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
+//! against the brute-force oracle and single rays, and every command takes it by name.
+
+pub mod error;
+pub mod frame;
+pub mod method;
+pub mod ours;
+pub mod progress;
+pub mod registry;
+pub mod render;
+pub mod report;
+pub mod setup;
+pub mod shade;
+pub mod soft;
+pub mod timing;
+
+pub use error::Error;
+pub use frame::{FrameTracer, TileLayout};
+pub use method::{Method, SingleRays, TileCounters, Tracer};
+pub use registry::{Bound, Options, Registry, Structures};
+pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

@@ -1,0 +1,232 @@
+//! The tracing interface: the queries every traversal method answers.
+//!
+//! The model is pbrt-v4's `Intersect` / `IntersectP` pair (`primitive.h`), asked of groups of
+//! rays as well as single ones:
+//! - [`Tracer`] is the single-ray query, closest hit and any hit: the scalar twin every group
+//!   method must agree with (our kd-tree, Embree's `rtcIntersect1`, a BVH crate);
+//! - [`Method`] is the group query: a tile of primary rays, the hard shadow rays of a tile's
+//!   hits, the 16 soft-shadow rays of one point and an arbitrary stream of rays. Our single
+//!   rays, 2x2 packets, frusta, MFT and cones implement it ([`crate::ours`]), and so do the
+//!   baselines (crate `baselines`).
+//!
+//! A method's per-thread scratch space (packet buffers, Embree ray packets) is made once per
+//! rayon task by [`Method::scratch`], so no query allocates. Every query takes a counters
+//! argument `C: TileCounters`: with [`kdtree::NoCounters`] the counting compiles away, with
+//! [`packets::PacketCounts`] it gives the thesis's N and I; baselines count nothing.
+//!
+//! The frame driver ([`crate::frame`]) runs a `Method` over whole frames; the registry
+//! ([`crate::registry`]) makes one from a name.
+
+use cones::Cone;
+use cones::shadows::SAMPLES;
+use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
+use packets::{PacketCounters, PacketCounts};
+use scenes::{Camera, Scene, Tile};
+
+use crate::shade;
+
+/// Traversal counters that can be summed over tiles: [`NoCounters`] for timed frames
+/// (counting compiles away), [`PacketCounts`] for `--counters` and the thesis's tables.
+pub trait TileCounters: Counters + PacketCounters + Default + Send {
+    /// The sum of two tiles' counts.
+    fn merge(self, other: Self) -> Self;
+}
+
+impl TileCounters for NoCounters {
+    #[inline]
+    fn merge(self, _other: Self) -> Self {
+        self
+    }
+}
+
+impl TileCounters for PacketCounts {
+    #[inline]
+    fn merge(mut self, other: Self) -> Self {
+        self += other;
+        self
+    }
+}
+
+/// A single-ray tracer: the two queries every acceleration structure answers (thesis 2.2.1).
+pub trait Tracer: Sync {
+    /// The closest hit of `ray` in `[t_min, t_max]`, `prim` being our triangle index,
+    /// counting traversal steps and tests into `counters` where the tracer can.
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit>;
+    /// Whether anything is hit in `[t_min, t_max]`, counting like
+    /// [`Tracer::intersect_counted`].
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> bool;
+
+    /// The closest hit of `ray`, uncounted.
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect_counted(ray, &mut NoCounters)
+    }
+
+    /// Whether anything blocks `ray`, uncounted.
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded_counted(ray, &mut NoCounters)
+    }
+}
+
+impl<T: Tracer> Tracer for &T {
+    #[inline]
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        (**self).intersect_counted(ray, counters)
+    }
+
+    #[inline]
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        (**self).occluded_counted(ray, counters)
+    }
+}
+
+impl Tracer for KdTree {
+    #[inline]
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        KdTree::intersect_counted(self, ray, counters)
+    }
+
+    #[inline]
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        KdTree::occluded_counted(self, ray, counters)
+    }
+}
+
+/// The group queries of one traversal method: what the frame driver asks per tile, per
+/// soft-shadow point and per chunk of a ray stream.
+///
+/// Every answer equals the single-ray answer of the method's structure under the oracle's
+/// equivalence rules (`kdtree::BruteForce::equivalent_hits`); `trace/tests/conformance.rs`
+/// checks it for every registered method.
+pub trait Method: Sync {
+    /// Per-thread scratch space (packets, frusta), made once per rayon task.
+    type Scratch: Send;
+
+    /// Fresh scratch.
+    fn scratch(&self) -> Self::Scratch;
+
+    /// The closest hits of the primary rays of `tile`'s pixels ([`primary_ray`]) into `out`,
+    /// row-major inside the tile.
+    fn primary_tile<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        camera: &Camera,
+        tile: &Tile,
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    );
+
+    /// The hard shadow rays of the hits `hits` (row-major inside `tile`; rays from
+    /// [`hard_shadow_ray`]) into `out`: `true` where blocked, `false` where lit or where no
+    /// ray is cast. Returns (rays traced, rays blocked).
+    #[allow(clippy::too_many_arguments)]
+    fn shadow_tile<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        scene: &Scene,
+        camera: &Camera,
+        tile: &Tile,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+        counters: &mut C,
+    ) -> (u64, u64);
+
+    /// Which of the 16 soft-shadow `rays` of one point are blocked, bit `i` for ray `i`;
+    /// `cone` holds all of them (thesis 4.1.9, Table 4.6).
+    fn soft_point<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        rays: &[Ray; SAMPLES],
+        cone: &Cone,
+        counters: &mut C,
+    ) -> u16;
+
+    /// The closest hits of an arbitrary run of rays (a chunk of a ray file), in order.
+    fn stream<C: TileCounters>(&self, scratch: &mut Self::Scratch, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C);
+
+    /// Whether each ray of an arbitrary run is blocked, in order.
+    fn stream_occluded<C: TileCounters>(&self, scratch: &mut Self::Scratch, rays: &[Ray], out: &mut [bool], counters: &mut C);
+}
+
+/// A [`Tracer`] traced one ray at a time: every group query as a loop of single rays.
+#[derive(Debug)]
+pub struct SingleRays<T>(pub T);
+
+impl<T: Tracer> Method for SingleRays<T> {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    fn primary_tile<C: TileCounters>(
+        &self,
+        _: &mut (),
+        camera: &Camera,
+        tile: &Tile,
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        for ((x, y), slot) in tile.pixels().zip(out) {
+            *slot = self.0.intersect_counted(&primary_ray(camera, x, y), counters);
+        }
+    }
+
+    fn shadow_tile<C: TileCounters>(
+        &self,
+        _: &mut (),
+        scene: &Scene,
+        camera: &Camera,
+        tile: &Tile,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+        counters: &mut C,
+    ) -> (u64, u64) {
+        let (mut rays, mut blocked) = (0, 0);
+        for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+            *slot = false;
+            let Some(ray) = hard_shadow_ray(scene, camera, x, y, hit) else { continue };
+            rays += 1;
+            *slot = self.0.occluded_counted(&ray, counters);
+            blocked += u64::from(*slot);
+        }
+        (rays, blocked)
+    }
+
+    fn soft_point<C: TileCounters>(&self, _: &mut (), rays: &[Ray; SAMPLES], _cone: &Cone, counters: &mut C) -> u16 {
+        let mut mask = 0u16;
+        for (i, ray) in rays.iter().enumerate() {
+            mask |= u16::from(self.0.occluded_counted(ray, counters)) << i;
+        }
+        mask
+    }
+
+    fn stream<C: TileCounters>(&self, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
+        for (ray, slot) in rays.iter().zip(out) {
+            *slot = self.0.intersect_counted(ray, counters);
+        }
+    }
+
+    fn stream_occluded<C: TileCounters>(&self, _: &mut (), rays: &[Ray], out: &mut [bool], counters: &mut C) {
+        for (ray, slot) in rays.iter().zip(out) {
+            *slot = self.0.occluded_counted(ray, counters);
+        }
+    }
+}
+
+/// The primary ray of pixel `(x, y)`: from the eye, unbounded (the camera convention of
+/// `scenes::Camera::pixel_ray`).
+#[inline]
+pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
+    let (origin, dir) = camera.pixel_ray(x, y);
+    Ray::new(origin, dir, 0.0, f32::INFINITY)
+}
+
+/// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit`
+/// ([`shade::shadow_ray`]); `None` for misses and surfaces facing away from the light. Every
+/// method traces exactly these rays.
+#[inline]
+pub fn hard_shadow_ray(scene: &Scene, camera: &Camera, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
+    let hit = hit.as_ref()?;
+    let (origin, dir) = camera.pixel_ray(x, y);
+    shade::shadow_ray(&scene.mesh, &scene.point_light, origin, dir, hit)
+}

@@ -1,0 +1,327 @@
+//! The renderer: one view of a scene traced with one registered method, then shaded.
+//!
+//! A frame is the frame driver's passes ([`crate::frame`]) over preallocated per-pixel
+//! buffers in tile order: the primary pass, then with `Shadows::Hard` one shadow ray per hit
+//! facing the point light, or with `Shadows::Soft16` 16 rays per hit to a spherical light at
+//! the point light (thesis Table 4.6). Tracing is the timed part (ray generation, traversal
+//! and intersection); shading into an image ([`Renderer::color`]) or taking the depth or
+//! primitive id comes after and is timed apart.
+//!
+//! The method's tile ([`Options::tile`](crate::registry::Options)) is the work unit of a
+//! thread and, for the frustum and cone methods, the frustum.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use kdtree::Hit;
+use packets::PacketCounts;
+use rayon::prelude::*;
+use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
+
+use crate::frame::{SoftStats, TileLayout};
+use crate::registry::Bound;
+use crate::shade;
+
+/// Which shadow rays a frame traces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Shadows {
+    /// No shadow rays: every surface facing the light is lit.
+    None,
+    /// One shadow ray per hit towards the point light.
+    #[default]
+    Hard,
+    /// 16 rays per hit to a spherical light at the point light (thesis Table 4.6), traced
+    /// with the method's soft-shadow kernel.
+    Soft16,
+}
+
+impl Shadows {
+    /// The name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Shadows::None => "none",
+            Shadows::Hard => "hard",
+            Shadows::Soft16 => "soft16",
+        }
+    }
+}
+
+/// The per-pixel results of tracing one frame, in tile order (see [`TileLayout`]).
+#[derive(Clone, Debug)]
+pub struct FrameBuffers {
+    /// The closest hit of each pixel's primary ray.
+    pub hits: Vec<Option<Hit>>,
+    /// Whether each hit's hard shadow ray found a blocker (`false` without hard shadows, for
+    /// misses and for surfaces facing away from the light).
+    pub occluded: Vec<bool>,
+    /// With soft shadows, the visible fraction of the light per pixel (0 for pixels without
+    /// a lit hit); empty otherwise.
+    pub visible: Vec<f32>,
+}
+
+impl FrameBuffers {
+    /// Buffers for `pixels` pixels.
+    pub fn new(pixels: usize) -> FrameBuffers {
+        FrameBuffers { hits: vec![None; pixels], occluded: vec![false; pixels], visible: Vec::new() }
+    }
+}
+
+/// What tracing one frame did and how long it took.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Primary rays traced (one per pixel).
+    pub primary_rays: u64,
+    /// Shadow rays traced (one per hit facing the light with hard shadows, 16 with soft).
+    pub shadow_rays: u64,
+    /// Primary rays that hit a triangle.
+    pub hits: u64,
+    /// Shadow rays that found a blocker.
+    pub occluded: u64,
+    /// Seconds for the primary pass.
+    pub primary_secs: f64,
+    /// Seconds for the shadow pass (0 without shadows).
+    pub shadow_secs: f64,
+}
+
+impl FrameStats {
+    /// All rays traced.
+    pub fn rays(&self) -> u64 {
+        self.primary_rays + self.shadow_rays
+    }
+
+    /// Seconds spent tracing (both passes).
+    pub fn trace_secs(&self) -> f64 {
+        self.primary_secs + self.shadow_secs
+    }
+}
+
+/// Renders one scene through one camera with one bound method: the fixed part of a frame.
+#[derive(Debug)]
+pub struct Renderer<'a> {
+    scene: &'a Scene,
+    method: &'a Bound<'a>,
+    camera: Camera,
+    layout: TileLayout,
+    shadows: Shadows,
+    light: Option<SphereLight>,
+}
+
+impl<'a> Renderer<'a> {
+    /// A renderer of `scene` seen by `camera` with `method`, in the method's tiles. Soft
+    /// shadows need [`Renderer::with_light`] (without it they are traced as hard ones).
+    pub fn new(scene: &'a Scene, method: &'a Bound<'a>, camera: Camera, shadows: Shadows) -> Self {
+        let layout = TileLayout::new(camera.width, camera.height, method.options.tile.max(1));
+        Renderer { scene, method, camera, layout, shadows, light: None }
+    }
+
+    /// The same renderer with the spherical light of soft shadows.
+    pub fn with_light(mut self, light: SphereLight) -> Self {
+        self.light = Some(light);
+        self
+    }
+
+    /// The tile layout of the per-pixel buffers.
+    pub fn layout(&self) -> &TileLayout {
+        &self.layout
+    }
+
+    /// The camera.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// The method.
+    pub fn method(&self) -> &Bound<'a> {
+        self.method
+    }
+
+    /// Buffers of the right size for [`Renderer::trace`].
+    pub fn buffers(&self) -> FrameBuffers {
+        FrameBuffers::new(self.layout.pixel_count())
+    }
+
+    /// Number of 2x2 packets the primary pass of a packet method traces (the denominator of
+    /// the thesis's N and I).
+    pub fn packet_count(&self) -> u64 {
+        self.layout.packet_count()
+    }
+
+    /// Traces one frame into `buf`: the primary pass, then the shadow pass if shadows are on.
+    /// Runs on the current rayon pool.
+    pub fn trace(&self, buf: &mut FrameBuffers) -> FrameStats {
+        self.trace_with(buf, false).0
+    }
+
+    /// [`Renderer::trace`] counting traversal steps, leaves and intersection tests, for the
+    /// primary and the shadow pass apart. Slower: not for timing.
+    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, PacketCounts, PacketCounts) {
+        self.trace_with(buf, true)
+    }
+
+    fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, PacketCounts, PacketCounts) {
+        let tracer = &self.method.tracer;
+        let (scene, camera, layout) = (self.scene, &self.camera, &self.layout);
+        let start = Instant::now();
+        let (hits, primary_counts) = if counted {
+            tracer.primary_counted(layout, camera, &mut buf.hits)
+        } else {
+            (tracer.primary(layout, camera, &mut buf.hits), PacketCounts::default())
+        };
+        let primary_secs = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let (shadow_rays, occluded, shadow_counts) = match (self.shadows, self.light) {
+            (Shadows::None, _) => {
+                buf.occluded.fill(false);
+                (0, 0, PacketCounts::default())
+            }
+            (Shadows::Soft16, Some(light)) => {
+                buf.occluded.fill(false);
+                buf.visible.resize(layout.pixel_count(), 0.0);
+                let (stats, counts) = if counted {
+                    tracer.soft_counted(layout, scene, camera, &buf.hits, &light, &mut buf.visible)
+                } else {
+                    (tracer.soft(layout, scene, camera, &buf.hits, &light, &mut buf.visible), PacketCounts::default())
+                };
+                let SoftStats { rays, blocked, .. } = stats;
+                (rays, blocked, counts)
+            }
+            (Shadows::Hard | Shadows::Soft16, _) => {
+                buf.visible.clear();
+                if counted {
+                    tracer.shadow_counted(layout, scene, camera, &buf.hits, &mut buf.occluded)
+                } else {
+                    let (rays, blocked) = tracer.shadow(layout, scene, camera, &buf.hits, &mut buf.occluded);
+                    (rays, blocked, PacketCounts::default())
+                }
+            }
+        };
+        let shadow_secs = if self.shadows == Shadows::None { 0.0 } else { start.elapsed().as_secs_f64() };
+        let stats = FrameStats {
+            primary_rays: layout.pixel_count() as u64,
+            shadow_rays,
+            hits,
+            occluded,
+            primary_secs,
+            shadow_secs,
+        };
+        (stats, primary_counts, shadow_counts)
+    }
+
+    /// The shaded image (`--aov color`): diffuse shading with the point light, dimmed by the
+    /// hard shadow or by the visible fraction of the soft-shadow light.
+    pub fn color(&self, buf: &FrameBuffers) -> Image {
+        let light = &self.scene.point_light;
+        let mesh = &self.scene.mesh;
+        let mut colors = vec![Vec3::ZERO; self.layout.pixel_count()];
+        let chunks = self.layout.chunks_mut(&mut colors);
+        let visible = if buf.visible.len() == buf.hits.len() { Some(self.layout.chunks(&buf.visible)) } else { None };
+        let inputs: Vec<_> = self.layout.chunks(&buf.hits).into_iter().zip(self.layout.chunks(&buf.occluded)).collect();
+        self.layout.tiles().par_iter().zip(chunks).zip(inputs).enumerate().for_each(
+            |(i, ((tile, out), (hits, occluded)))| {
+                let soft = visible.as_ref().map(|v| v[i]);
+                for (j, (((x, y), slot), hit)) in tile.pixels().zip(out).zip(hits).enumerate() {
+                    let (origin, dir) = self.camera.pixel_ray(x, y);
+                    let seen = match soft {
+                        Some(v) => v[j],
+                        None if occluded[j] => 0.0,
+                        None => 1.0,
+                    };
+                    *slot = match hit {
+                        Some(hit) => shade::shade(mesh, light, origin, dir, hit, seen),
+                        None => shade::BACKGROUND,
+                    };
+                }
+            },
+        );
+        Image { width: self.camera.width, height: self.camera.height, pixels: self.layout.to_row_major(&colors) }
+    }
+
+    /// The distance of each primary hit (`--aov depth`, `+inf` for misses).
+    pub fn depth(&self, buf: &FrameBuffers) -> ScalarImage {
+        let values: Vec<f32> = buf.hits.iter().map(|h| h.map_or(f32::INFINITY, |h| h.t)).collect();
+        ScalarImage { width: self.camera.width, height: self.camera.height, values: self.layout.to_row_major(&values) }
+    }
+
+    /// The hit triangle's primitive id in the source file's numbering (`Mesh::prim_ids`) as
+    /// f32, `-1` for misses (`--aov prim`).
+    pub fn prim(&self, buf: &FrameBuffers) -> ScalarImage {
+        let ids = &self.scene.mesh.prim_ids;
+        let values: Vec<f32> = buf
+            .hits
+            .iter()
+            .map(|h| h.map_or(-1.0, |h| ids.get(h.prim as usize).map_or(-1.0, |&id| id as f32)))
+            .collect();
+        ScalarImage { width: self.camera.width, height: self.camera.height, values: self.layout.to_row_major(&values) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::method::{Tracer, primary_ray};
+    use crate::registry::{Options, Registry, Structures};
+    use kdtree::KdTree;
+
+    /// The tiled, parallel passes give every pixel the answer of a plain per-pixel loop.
+    #[test]
+    fn frame_matches_a_per_pixel_loop() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let camera = scene.default_view().camera(37, 29).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let mono = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
+        let renderer = Renderer::new(&scene, &mono, camera, Shadows::Hard);
+        let mut buf = renderer.buffers();
+        let stats = renderer.trace(&mut buf);
+        let depth = renderer.depth(&buf);
+        let prim = renderer.prim(&buf);
+        let (mut hits, mut shadow_rays, mut blocked) = (0, 0, 0);
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let ray = primary_ray(&camera, x, y);
+                let hit = Tracer::intersect(&tree, &ray);
+                let i = (y * camera.width + x) as usize;
+                assert_eq!(depth.values[i], hit.map_or(f32::INFINITY, |h| h.t), "depth of ({x}, {y})");
+                assert_eq!(prim.values[i], hit.map_or(-1.0, |h| scene.mesh.prim_ids[h.prim as usize] as f32));
+                let Some(hit) = hit else { continue };
+                hits += 1;
+                if let Some(shadow) = shade::shadow_ray(&scene.mesh, &scene.point_light, ray.origin, ray.dir, &hit) {
+                    shadow_rays += 1;
+                    blocked += u64::from(Tracer::occluded(&tree, &shadow));
+                }
+            }
+        }
+        assert!(hits > 0 && shadow_rays > 0);
+        assert_eq!((stats.hits, stats.shadow_rays, stats.occluded), (hits, shadow_rays, blocked));
+        assert_eq!(stats.primary_rays, u64::from(camera.width * camera.height));
+    }
+
+    /// Soft shadows: 16 rays per lit point, a penumbra, and the same visibility for every
+    /// soft-shadow kernel (single rays, pyramid, cone).
+    #[test]
+    fn soft_shadows_agree_across_kernels() {
+        let scene = scenes::load_scene("atrium").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let camera = scene.default_view().camera(48, 32).unwrap();
+        let light = crate::soft::scene_light(&scene, &tree, 2.0);
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let mut reference: Option<Vec<f32>> = None;
+        for name in ["mono", "packet", "cone-8", "mft-16"] {
+            let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+            let renderer = Renderer::new(&scene, &m, camera, Shadows::Soft16).with_light(light);
+            let mut buf = renderer.buffers();
+            let (stats, _, counts) = renderer.trace_counted(&mut buf);
+            assert!(stats.shadow_rays > 0 && stats.shadow_rays % 16 == 0, "{name}");
+            assert!(counts.nodes > 0, "{name}");
+            let visible = renderer.layout().to_row_major(&buf.visible);
+            assert!(visible.iter().any(|&v| v > 0.0 && v < 1.0), "{name}: no penumbra");
+            match &reference {
+                None => reference = Some(visible),
+                Some(r) => assert_eq!(r, &visible, "{name}"),
+            }
+        }
+    }
+}
