@@ -84,14 +84,24 @@ pub fn register(r: &mut Registry) {
     r.add_structure(StructureEntry { name: HIGH, build: |scene| build(scene, BuildQuality::High) });
     r.add_structure(StructureEntry { name: MEDIUM, build: |scene| build(scene, BuildQuality::Medium) });
     use Coherence::{Coherent, Incoherent};
-    r.add(entry("embree-1", "Embree rtcIntersect1 / rtcOccluded1, coherent flag", HIGH, |s, _: &Options| bind::<1>(s, HIGH, Coherent)));
+    r.add(entry("embree-1", "Embree rtcIntersect1 / rtcOccluded1, coherent flag", HIGH, |s, _: &Options| {
+        bind::<1>(s, HIGH, Coherent)
+    }));
     r.add(entry("embree-4", "Embree packets of 4 over 2x2 pixel blocks", HIGH, |s, _| bind::<4>(s, HIGH, Coherent)));
     r.add(entry("embree-8", "Embree packets of 8 over 4x2 pixel blocks", HIGH, |s, _| bind::<8>(s, HIGH, Coherent)));
     r.add(entry("embree-16", "Embree packets of 16 over 4x4 pixel blocks", HIGH, |s, _| bind::<16>(s, HIGH, Coherent)));
-    r.add(entry("embree-1-incoherent", "Embree single rays, default (incoherent) flag", HIGH, |s, _| bind::<1>(s, HIGH, Incoherent)));
-    r.add(entry("embree-16-incoherent", "Embree 16-packets, default (incoherent) flag", HIGH, |s, _| bind::<16>(s, HIGH, Incoherent)));
-    r.add(entry("embree-1-medium", "Embree single rays on its medium-quality BVH", MEDIUM, |s, _| bind::<1>(s, MEDIUM, Coherent)));
-    r.add(entry("embree-16-medium", "Embree 16-packets on its medium-quality BVH", MEDIUM, |s, _| bind::<16>(s, MEDIUM, Coherent)));
+    r.add(entry("embree-1-incoherent", "Embree single rays, default (incoherent) flag", HIGH, |s, _| {
+        bind::<1>(s, HIGH, Incoherent)
+    }));
+    r.add(entry("embree-16-incoherent", "Embree 16-packets, default (incoherent) flag", HIGH, |s, _| {
+        bind::<16>(s, HIGH, Incoherent)
+    }));
+    r.add(entry("embree-1-medium", "Embree single rays on its medium-quality BVH", MEDIUM, |s, _| {
+        bind::<1>(s, MEDIUM, Coherent)
+    }));
+    r.add(entry("embree-16-medium", "Embree 16-packets on its medium-quality BVH", MEDIUM, |s, _| {
+        bind::<16>(s, MEDIUM, Coherent)
+    }));
 }
 
 /// The device line of the text report, once a device exists.
@@ -189,7 +199,14 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
         P::default()
     }
 
-    fn primary_tile<C: TileCounters>(&self, packet: &mut P, camera: &Camera, tile: &Tile, out: &mut [Option<Hit>], _: &mut C) {
+    fn primary_tile<C: TileCounters>(
+        &self,
+        packet: &mut P,
+        camera: &Camera,
+        tile: &Tile,
+        out: &mut [Option<Hit>],
+        _: &mut C,
+    ) {
         let shape = block_shape(P::WIDTH);
         for (bx, by) in blocks(tile, shape) {
             packet.clear();
@@ -279,19 +296,20 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kdtree::NoCounters;
     use scenes::SphereLight;
     use trace::TileLayout;
     use trace::frame::{primary_pass, shadow_pass, soft_pass};
     use trace::method::SingleRays;
-    use kdtree::NoCounters;
 
     /// Every packet width gives the single-ray answers on every pixel, shadow ray and
     /// soft-shadow ray (Embree's packet kernels run the same triangle test).
     #[test]
     fn packets_agree_with_single_rays() {
         let scene = scenes::load_scene("atrium").unwrap();
-        let emb = EmbreeScene::build(device().unwrap(), &scene.mesh.positions, &scene.mesh.triangles, BuildQuality::High)
-            .unwrap();
+        let emb =
+            EmbreeScene::build(device().unwrap(), &scene.mesh.positions, &scene.mesh.triangles, BuildQuality::High)
+                .unwrap();
         // 37 x 23: blocks cut by the tile edges.
         let camera = scene.default_view().camera(37, 23).unwrap();
         let layout = TileLayout::new(37, 23, 16);
@@ -309,7 +327,15 @@ mod tests {
         single.stream(&mut (), &all, &mut want_stream, &mut NoCounters);
 
         #[allow(clippy::too_many_arguments, clippy::type_complexity)]
-        fn check<P: Packet>(b: &EmbreeBlocks<'_, P>, scene: &Scene, camera: &Camera, layout: &TileLayout, want: &[Option<Hit>], light: &SphereLight, w: ((u64, u64), &[bool], trace::frame::SoftStats, &[f32], &[Ray], &[Option<Hit>])) {
+        fn check<P: Packet>(
+            b: &EmbreeBlocks<'_, P>,
+            scene: &Scene,
+            camera: &Camera,
+            layout: &TileLayout,
+            want: &[Option<Hit>],
+            light: &SphereLight,
+            w: ((u64, u64), &[bool], trace::frame::SoftStats, &[f32], &[Ray], &[Option<Hit>]),
+        ) {
             let mut got = vec![None; want.len()];
             primary_pass::<_, NoCounters>(b, layout, camera, &mut got);
             for (g, h) in got.iter().zip(want) {

@@ -27,56 +27,55 @@
 //! 16 rays (`packet`, `samesign`, `frustum-N`, `mft-N`) or their cone (`cone-N`, `mft-cone-N`).
 
 use std::fmt::Write as _;
-use std::rc::Rc;
-use std::time::Instant;
 
-use clap::Args;
-use cones::ShadowMethod;
-use kdtree::{BuildConfig, Hit, KdTree, NoCounters};
-use scenes::{Camera, Scene, SphereLight};
+use kdtree::{BuildConfig, Hit, KdTree};
+use scenes::{Camera, Scene};
 use serde::Serialize;
+use trace::progress::Progress;
+use trace::registry::{KDTREE, Selected, TILE_SIZE};
+use trace::setup::view_camera;
+use trace::timing::{median, mrays_per_s, timed};
+use trace::{Bound, Error, Options, Registry, Structures, TileLayout, soft};
 
-use crate::Error;
-use crate::baselines::{self, BlockTracer, SingleRays};
-use crate::cli::{GlobalArgs, parse_size};
-use crate::progress::{self, Progress};
-use crate::render::{Method, Renderer, Shadows, TILE_SIZE, TileLayout};
-use crate::report::mrays_per_s;
-use crate::soft;
-
-/// `rttest compare` options.
-#[derive(Debug, Clone, Args)]
-pub struct CompareArgs {
+/// What `compare` measures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompareConfig {
     /// A built-in scene or a path to an .obj or .obj.gz file.
-    #[arg(long, default_value = "atrium", value_name = "NAME|PATH")]
     pub scene: String,
     /// A named view of the scene (default: its first view).
-    #[arg(long, value_name = "NAME")]
     pub view: Option<String>,
     /// Image size.
-    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Timed rounds; each times every method once, in turn; medians are reported.
-    #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub rounds: u32,
     /// Timed builds of each structure, interleaved; the median is reported.
-    #[arg(long, default_value_t = 3, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100))]
     pub build_rounds: u32,
-    /// Methods, comma-separated: names (`mono`, `mft-16`, `embree-16`, `bvh`, ...) or groups
-    /// (`all`, `ours`, `embree`, `bvh-crates`). `all` takes the baselines this build has.
-    #[arg(long, value_delimiter = ',', default_value = "all", value_name = "LIST")]
+    /// Methods: registry names (`mono`, `mft-16`, `embree-16`, `bvh`, ...) or groups (`all`,
+    /// `ours`, `embree`, `bvh-crates`). `all` takes the baselines this build has.
     pub methods: Vec<String>,
-    /// Tile sizes of our frustum, MFT, cone and MFT-cone methods (multiples of 4, 4 to 64).
-    #[arg(long, value_delimiter = ',', default_value = "8,16", value_name = "LIST",
-          value_parser = clap::value_parser!(u32).range(4..=64))]
+    /// Tile sizes of our tiled methods (frustum, MFT, cone, MFT cone): multiples of 4, 4 to 64.
     pub tiles: Vec<u32>,
     /// Radius of the spherical light of the soft shadows, in Sponza units (scaled by the
     /// scene's diagonal, as Table 4.6): a finite number >= 0.
-    #[arg(long, default_value_t = 1.0, value_name = "R")]
     pub light_radius: f32,
     /// Leave out the 16-sample soft shadows (the slowest column).
-    #[arg(long)]
     pub no_soft: bool,
+}
+
+impl Default for CompareConfig {
+    fn default() -> Self {
+        CompareConfig {
+            scene: "atrium".into(),
+            view: None,
+            size: (512, 512),
+            rounds: 5,
+            build_rounds: 3,
+            methods: vec!["all".into()],
+            tiles: vec![8, 16],
+            light_radius: 1.0,
+            no_soft: false,
+        }
+    }
 }
 
 /// The result of one method (one JSON object per method with `--json`).
@@ -121,67 +120,28 @@ pub struct CompareRow {
     pub rounds: u32,
 }
 
-/// What a method group needs to exist in this build.
-fn feature_hint(name: &str) -> Option<&'static str> {
-    if name.starts_with("embree") {
-        (!cfg!(feature = "embree")).then_some(
-            "Embree baselines need the `embree` feature: `apt-get install -y libembree-dev`, then build with `cargo build --release -p bench --features embree`",
-        )
-    } else if matches!(name, "bvh" | "obvhs" | "bvh-crates") {
-        (!cfg!(feature = "bvh-crates")).then_some(
-            "the bvh and obvhs baselines need the `bvh-crates` feature: build with `cargo build --release -p bench --features bvh-crates`",
-        )
-    } else {
-        None
-    }
-}
-
-/// Every method name this build knows, in table order.
-pub fn all_method_names(tiles: &[u32]) -> Vec<String> {
-    let mut names: Vec<String> = ["mono", "packet", "samesign"].map(String::from).to_vec();
-    for m in ["frustum", "mft", "cone", "mft-cone"] {
-        names.extend(tiles.iter().map(|t| format!("{m}-{t}")));
-    }
-    if cfg!(feature = "embree") {
-        names.extend(
-            [
-                "embree-1",
-                "embree-4",
-                "embree-8",
-                "embree-16",
-                "embree-1-incoherent",
-                "embree-16-incoherent",
-                "embree-1-medium",
-                "embree-16-medium",
-            ]
-            .map(String::from),
-        );
-    }
-    if cfg!(feature = "bvh-crates") {
-        names.extend(["bvh", "obvhs"].map(String::from));
-    }
-    names
-}
-
-/// The methods `--methods` selects, in table order, `mono` always first (the reference).
-pub fn select_methods(args: &CompareArgs) -> Result<Vec<String>, Error> {
-    for &t in &args.tiles {
-        if t % 4 != 0 {
-            return Err(Error::Usage(format!("--tiles: {t} is not a multiple of 4")));
+/// The methods `config.methods` selects from `registry`, in registry order, `mono` always
+/// first (the reference).
+pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec<Selected>, Error> {
+    for &t in &config.tiles {
+        if t % 4 != 0 || !(4..=64).contains(&t) {
+            return Err(Error::Usage(format!("--tiles: {t} is not a multiple of 4 in 4..=64")));
         }
     }
-    let all = all_method_names(&args.tiles);
+    let all = registry.names(&config.tiles);
+    let selected: Vec<Selected> =
+        all.iter().map(|n| registry.select(n, Options::default())).collect::<Result<_, _>>()?;
+    let family = |i: usize| registry.entry(selected[i].entry).family;
     let mut wanted = vec![false; all.len()];
-    for token in &args.methods {
+    for token in &config.methods {
         let token = token.trim();
-        if let Some(hint) = feature_hint(token) {
+        if let Some(hint) = baselines::feature_hint(token) {
             return Err(Error::Usage(format!("--methods {token}: {hint}")));
         }
         let matched: Vec<usize> = match token {
             "all" => (0..all.len()).collect(),
-            "ours" => (0..all.len()).filter(|&i| family(&all[i]) == "ours").collect(),
-            "embree" => (0..all.len()).filter(|&i| family(&all[i]) == "embree").collect(),
-            "bvh-crates" => (0..all.len()).filter(|&i| matches!(family(&all[i]), "bvh" | "obvhs")).collect(),
+            "ours" | "embree" => (0..all.len()).filter(|&i| family(i) == token).collect(),
+            "bvh-crates" => (0..all.len()).filter(|&i| matches!(family(i), "bvh" | "obvhs")).collect(),
             name => all.iter().position(|n| n == name).into_iter().collect(),
         };
         if matched.is_empty() {
@@ -195,69 +155,24 @@ pub fn select_methods(args: &CompareArgs) -> Result<Vec<String>, Error> {
         }
     }
     wanted[0] = true;
-    Ok(all.into_iter().zip(wanted).filter(|(_, w)| *w).map(|(n, _)| n).collect())
-}
-
-/// `ours`, `embree`, `bvh` or `obvhs`.
-fn family(name: &str) -> &'static str {
-    if name.starts_with("embree") {
-        "embree"
-    } else if name == "bvh" {
-        "bvh"
-    } else if name == "obvhs" {
-        "obvhs"
-    } else {
-        "ours"
-    }
-}
-
-/// Our primary method and tile of a name such as `mft-cone-16`.
-fn our_method(name: &str) -> Option<(Method, u32)> {
-    let fixed = match name {
-        "mono" => Some(Method::Mono),
-        "packet" => Some(Method::Packet),
-        "samesign" => Some(Method::Samesign),
-        _ => None,
-    };
-    if let Some(m) = fixed {
-        return Some((m, TILE_SIZE));
-    }
-    let (m, tile) = name.rsplit_once('-')?;
-    let tile: u32 = tile.parse().ok()?;
-    let method = match m {
-        "frustum" => Method::Frustum,
-        "mft" => Method::Mft,
-        "cone" => Method::Cone,
-        "mft-cone" => Method::MftCone,
-        _ => return None,
-    };
-    Some((method, tile))
-}
-
-/// Our soft-shadow kernel behind a primary method.
-fn our_soft_kernel(method: Method) -> ShadowMethod {
-    match method {
-        Method::Mono => ShadowMethod::Single,
-        Method::Packet | Method::Samesign | Method::Frustum | Method::Mft => ShadowMethod::Pyramid,
-        Method::Cone | Method::MftCone => ShadowMethod::Cone,
-    }
+    Ok(selected.into_iter().zip(wanted).filter(|(_, w)| *w).map(|(s, _)| s).collect())
 }
 
 /// The fixed inputs of every pass: the view, our reference hits and the light.
+#[derive(Debug)]
 pub struct Frame<'a> {
     /// The scene.
     pub scene: &'a Scene,
     /// The camera.
     pub camera: Camera,
-    /// The 16 x 16 tiles the baselines' passes run over (as our renderer's).
+    /// The 16 x 16 tiles of the shadow and soft-shadow passes.
     pub layout: TileLayout,
     /// Our single-ray primary hits, tile order of `layout`: the shadow rays start from them.
     pub reference_tiles: Vec<Option<Hit>>,
-    /// The same, row-major: the soft-shadow rays start from them, and mismatches are
-    /// counted against them.
+    /// The same, row-major: mismatches are counted against them.
     pub reference: Vec<Option<Hit>>,
     /// The soft shadows' spherical light.
-    pub light: SphereLight,
+    pub light: scenes::SphereLight,
 }
 
 impl<'a> Frame<'a> {
@@ -266,111 +181,227 @@ impl<'a> Frame<'a> {
     pub fn new(scene: &'a Scene, tree: &KdTree, camera: Camera, radius: f32) -> Frame<'a> {
         let layout = TileLayout::new(camera.width, camera.height, TILE_SIZE);
         let mut reference_tiles = vec![None; layout.pixel_count()];
-        baselines::primary_pass(&SingleRays(tree), &camera, &layout, &mut reference_tiles);
+        let (_, kdtree::NoCounters) =
+            trace::frame::primary_pass(&trace::SingleRays(tree), &layout, &camera, &mut reference_tiles);
         let reference = layout.to_row_major(&reference_tiles);
-        let diag = (tree.bounds().max - tree.bounds().min).length();
-        let light = SphereLight {
-            center: scene.point_light.position,
-            radius: soft::scaled_radius(radius, diag),
-            intensity: scene.point_light.intensity,
-        };
+        let light = soft::scene_light(scene, tree, radius);
         Frame { scene, camera, layout, reference_tiles, reference, light }
     }
 }
 
-/// A timed primary pass: returns its seconds and, when asked, the hits (row-major).
-pub type PrimaryPass<'a> = Box<dyn FnMut(bool) -> (f64, Option<Vec<Option<Hit>>>) + 'a>;
-/// A timed shadow pass: returns its seconds and the rays traced.
-pub type RaysPass<'a> = Box<dyn FnMut() -> (f64, u64) + 'a>;
-
-/// One method under test.
-struct Contender<'a> {
-    name: String,
+/// One method under test and its scratch buffers.
+struct Contender<'s> {
+    method: Bound<'s>,
     build_ms: f64,
-    primary: PrimaryPass<'a>,
+    layout: TileLayout,
+    hits: Vec<Option<Hit>>,
     /// Index into the shadow kernels.
-    shadow: Option<usize>,
+    shadow: usize,
     /// Index into the soft-shadow kernels.
     soft: Option<usize>,
 }
 
-/// The distinct shadow (or soft-shadow) kernels, each timed once per round.
+/// The distinct kernels of a column, each timed once per round by the first method that has
+/// it: (kernel name, contender index).
 #[derive(Default)]
-struct Kernels<'a> {
-    names: Vec<String>,
-    passes: Vec<RaysPass<'a>>,
+struct Kernels {
+    kernels: Vec<(String, usize)>,
 }
 
-impl<'a> Kernels<'a> {
-    /// The index of kernel `name`, adding it with `make` the first time.
-    fn get(&mut self, name: &str, make: impl FnOnce() -> RaysPass<'a>) -> usize {
-        if let Some(i) = self.names.iter().position(|n| n == name) {
+impl Kernels {
+    /// The index of kernel `name`, timed through contender `by` the first time.
+    fn get(&mut self, name: &str, by: usize) -> usize {
+        if let Some(i) = self.kernels.iter().position(|k| k.0 == name) {
             return i;
         }
-        self.names.push(name.to_string());
-        self.passes.push(make());
-        self.names.len() - 1
+        self.kernels.push((name.to_string(), by));
+        self.kernels.len() - 1
     }
 }
 
-/// Seconds of `f`.
-fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
-    let start = Instant::now();
-    let out = f();
-    (start.elapsed().as_secs_f64(), out)
+/// A built structure of the registry, by name.
+type Built = (&'static str, Box<dyn std::any::Any + Send + Sync>);
+
+/// What [`build_all`] built.
+struct Builds {
+    tree: KdTree,
+    others: Vec<Built>,
+    /// Median build milliseconds per structure name ([`KDTREE`] for ours).
+    build_ms: Vec<(&'static str, f64)>,
 }
 
-/// A shadow or soft-shadow pass, made when its kernel is first needed.
-pub type MakePass<'a> = Box<dyn FnOnce() -> RaysPass<'a> + 'a>;
+/// Builds our kd-tree and every other structure `names` need, `rounds` times interleaved
+/// (ours, then each other structure in turn). Returns the tree, the structures and the median
+/// build milliseconds per structure name.
+fn build_all(
+    registry: &Registry,
+    scene: &Scene,
+    needed: &[&'static str],
+    rounds: u32,
+    progress: &dyn Progress,
+) -> Result<Builds, Error> {
+    let bar = progress.task(&format!("builds: {}", scene.name), Some(u64::from(rounds)));
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); needed.len() + 1];
+    let mut tree = None;
+    let mut built: Vec<Option<Box<dyn std::any::Any + Send + Sync>>> = needed.iter().map(|_| None).collect();
+    for _ in 0..rounds.max(1) {
+        let (secs, t) = timed(|| KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()));
+        times[0].push(secs * 1e3);
+        tree = Some(t?);
+        for (i, name) in needed.iter().enumerate() {
+            let entry =
+                registry.structure(name).ok_or_else(|| Error::Usage(format!("no structure '{name}' in this build")))?;
+            built[i] = None;
+            let (secs, b) = timed(|| (entry.build)(scene));
+            built[i] = Some(b?);
+            times[i + 1].push(secs * 1e3);
+        }
+        bar.inc();
+    }
+    bar.finish();
+    let tree = tree.ok_or_else(|| Error::Usage("no build was run".into()))?;
+    let others = needed.iter().zip(built).filter_map(|(n, b)| Some((*n, b?))).collect();
+    let medians = std::iter::once(KDTREE).chain(needed.iter().copied()).zip(times.iter().map(|t| median(t))).collect();
+    Ok(Builds { tree, others, build_ms: medians })
+}
 
-/// The primary, shadow and soft-shadow passes of a baseline.
-pub type Passes<'a> = (PrimaryPass<'a>, MakePass<'a>, MakePass<'a>);
+/// The measured rows and what the text table's heading says.
+#[derive(Clone, Debug)]
+pub struct CompareReport {
+    /// One row per method, `mono` first.
+    pub rows: Vec<CompareRow>,
+    /// The view's name.
+    pub view: String,
+    /// The configuration measured.
+    pub config: CompareConfig,
+    /// Threads of the pool.
+    pub threads: usize,
+    /// The Embree device line (version, packet widths), or why Embree is missing.
+    pub embree_note: Option<String>,
+}
 
-/// The primary, shadow and soft-shadow passes of a baseline [`BlockTracer`] on `frame`.
-pub fn block_passes<'a, B: BlockTracer + 'a>(b: B, frame: &'a Frame<'a>) -> Passes<'a> {
-    let b = Rc::new(b);
-    let mut hits = vec![None; frame.layout.pixel_count()];
-    let pb = Rc::clone(&b);
-    let primary: PrimaryPass<'a> = Box::new(move |want| {
-        let (secs, _) = timed(|| baselines::primary_pass(&*pb, &frame.camera, &frame.layout, &mut hits));
-        (secs, want.then(|| frame.layout.to_row_major(&hits)))
-    });
-    let sb = Rc::clone(&b);
-    let shadow: MakePass<'a> = Box::new(move || -> RaysPass<'a> {
-        let mut occluded = vec![false; frame.layout.pixel_count()];
-        Box::new(move || {
-            let (secs, (rays, _)) = timed(|| {
-                baselines::shadow_pass(
-                    &*sb,
-                    frame.scene,
-                    &frame.camera,
-                    &frame.layout,
-                    &frame.reference_tiles,
-                    &mut occluded,
-                )
+/// `rttest compare`: every method of `config` on the same rays, builds and passes
+/// interleaved (see the module documentation).
+pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareReport, Error> {
+    if !(config.light_radius.is_finite() && config.light_radius >= 0.0) {
+        return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", config.light_radius)));
+    }
+    let registry = baselines::registry();
+    let selected = select_methods(&registry, config)?;
+    let scene = scenes::load_scene(&config.scene)?;
+    let (w, h) = config.size;
+    let (camera, view) = view_camera(&scene, config.view.as_deref(), w, h)?;
+
+    // Builds, interleaved: our kd-tree, then each other structure, `build_rounds` times.
+    let mut needed: Vec<&'static str> = Vec::new();
+    for s in &selected {
+        let structure = registry.entry(s.entry).structure;
+        if structure != KDTREE && !needed.contains(&structure) {
+            needed.push(structure);
+        }
+    }
+    let Builds { tree, others, build_ms } = build_all(&registry, &scene, &needed, config.build_rounds, progress)?;
+    let mut structures = Structures::new(&tree);
+    for (name, built) in others {
+        structures.insert(name, built);
+    }
+    let frame = Frame::new(&scene, &tree, camera, config.light_radius);
+
+    // The contenders and their kernels.
+    let mut contenders = Vec::new();
+    let mut shadows = Kernels::default();
+    let mut softs = Kernels::default();
+    for s in &selected {
+        let method = registry.bind(s, &structures)?;
+        let entry = method.entry;
+        let index = contenders.len();
+        let build = build_ms.iter().find(|b| b.0 == entry.structure).map_or(0.0, |b| b.1);
+        let layout = TileLayout::new(w, h, method.options.tile);
+        let hits = vec![None; layout.pixel_count()];
+        let shadow = shadows.get(entry.shadow_kernel, index);
+        let soft = (!config.no_soft).then(|| softs.get(entry.soft_kernel, index));
+        contenders.push(Contender { method, build_ms: build, layout, hits, shadow, soft });
+    }
+
+    // Warm-up frame: the hits of every method, for the mismatch column.
+    let mut checks = Vec::new();
+    for c in &mut contenders {
+        c.method.tracer.primary(&c.layout, &camera, &mut c.hits);
+        checks.push(mismatches(&scene, &camera, &frame.reference, &c.layout.to_row_major(&c.hits)));
+    }
+
+    // Interleaved rounds: every primary pass, then every distinct shadow kernel, then every
+    // distinct soft-shadow kernel.
+    let steps = u64::from(config.rounds) * (contenders.len() + shadows.kernels.len() + softs.kernels.len()) as u64;
+    let bar = progress.task(&format!("compare: {}", scene.name), Some(steps));
+    let mut primary_secs = vec![Vec::new(); contenders.len()];
+    let mut shadow_secs = vec![Vec::new(); shadows.kernels.len()];
+    let mut soft_secs = vec![Vec::new(); softs.kernels.len()];
+    let mut shadow_rays = vec![0u64; shadows.kernels.len()];
+    let mut soft_rays = vec![0u64; softs.kernels.len()];
+    let mut occluded = vec![false; frame.layout.pixel_count()];
+    let mut visible = vec![0.0f32; frame.layout.pixel_count()];
+    for _ in 0..config.rounds {
+        for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
+            secs.push(timed(|| c.method.tracer.primary(&c.layout, &camera, &mut c.hits)).0);
+            bar.inc();
+        }
+        for (i, &(_, by)) in shadows.kernels.iter().enumerate() {
+            let tracer = &contenders[by].method.tracer;
+            let (secs, (rays, _)) =
+                timed(|| tracer.shadow(&frame.layout, &scene, &camera, &frame.reference_tiles, &mut occluded));
+            shadow_secs[i].push(secs);
+            shadow_rays[i] = rays;
+            bar.inc();
+        }
+        for (i, &(_, by)) in softs.kernels.iter().enumerate() {
+            let tracer = &contenders[by].method.tracer;
+            let (secs, stats) = timed(|| {
+                tracer.soft(&frame.layout, &scene, &camera, &frame.reference_tiles, &frame.light, &mut visible)
             });
-            (secs, rays)
-        })
-    });
-    let soft: MakePass<'a> = Box::new(move || -> RaysPass<'a> {
-        Box::new(move || {
-            let (secs, (_, rays, _)) =
-                timed(|| baselines::soft_pass(&*b, frame.scene, &frame.camera, &frame.reference, &frame.light));
-            (secs, rays)
-        })
-    });
-    (primary, shadow, soft)
-}
-
-/// Median of `v` (0 for an empty list).
-pub fn median(v: &[f64]) -> f64 {
-    let mut v: Vec<f64> = v.iter().copied().filter(|x| !x.is_nan()).collect();
-    if v.is_empty() {
-        return 0.0;
+            soft_secs[i].push(secs);
+            soft_rays[i] = stats.rays;
+            bar.inc();
+        }
     }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    bar.finish();
+
+    let pixels = u64::from(w) * u64::from(h);
+    let threads = rayon::current_num_threads();
+    let rows = contenders
+        .iter()
+        .zip(&primary_secs)
+        .zip(checks)
+        .map(|((c, secs), mismatches)| {
+            let primary = median(secs);
+            let shadow = (median(&shadow_secs[c.shadow]), shadow_rays[c.shadow], shadows.kernels[c.shadow].0.clone());
+            let soft = c.soft.map(|i| (median(&soft_secs[i]), soft_rays[i], softs.kernels[i].0.clone()));
+            CompareRow {
+                scene: scene.name.clone(),
+                method: c.method.name.clone(),
+                family: c.method.entry.family.to_string(),
+                build_ms: c.build_ms,
+                primary_mrays_per_s: mrays_per_s(pixels, primary),
+                shadow_mrays_per_s: Some(mrays_per_s(shadow.1, shadow.0)),
+                soft16_mrays_per_s: soft.as_ref().map(|s| mrays_per_s(s.1, s.0)),
+                mismatches,
+                pixels,
+                primary_ms: primary * 1e3,
+                shadow_ms: Some(shadow.0 * 1e3),
+                soft16_ms: soft.as_ref().map(|s| s.0 * 1e3),
+                shadow_kernel: Some(shadow.2),
+                soft16_kernel: soft.map(|s| s.2),
+                threads,
+                rounds: config.rounds,
+            }
+        })
+        .collect();
+    let embree_note = if cfg!(feature = "embree") {
+        baselines::embree_note()
+    } else {
+        Some("Embree: not in this build (`--features embree`, needs libembree-dev)".to_string())
+    };
+    Ok(CompareReport { rows, view, config: config.clone(), threads, embree_note })
 }
 
 /// How the primary hits of a method differ from ours, pixel by pixel.
@@ -452,214 +483,20 @@ fn is_edge_tie(scene: &Scene, p: glam::Vec3, a: &Hit, b: &Hit) -> bool {
     }
 }
 
-/// `rttest compare`.
-pub fn compare_command(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Error> {
-    if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
-        return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
-    }
-    let names = select_methods(args)?;
-    let show = progress::enabled(global.json);
-    let scene = scenes::load_scene(&args.scene)?;
-    let (w, h) = args.size;
-    let (camera, view_name) = crate::cli::view_camera(&scene, args.view.as_deref(), w, h)?;
-
-    // Builds, interleaved: ours, then each baseline's structures, `build_rounds` times.
-    let bar = Progress::bar(u64::from(args.build_rounds), &format!("builds: {}", scene.name), show);
-    let mut kd_ms = Vec::new();
-    let mut tree = None;
-    #[cfg(feature = "embree")]
-    let mut embree = EmbreeBuilds::new(names.iter().any(|n| family(n) == "embree"))?;
-    #[cfg(feature = "bvh-crates")]
-    let mut crates = baselines::bvh_crates::Builds::new(
-        names.iter().any(|n| family(n) == "bvh"),
-        names.iter().any(|n| family(n) == "obvhs"),
-    );
-    for _ in 0..args.build_rounds {
-        let (secs, t) = timed(|| KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()));
-        kd_ms.push(secs * 1e3);
-        tree = Some(t?);
-        #[cfg(feature = "embree")]
-        embree.build(&scene)?;
-        #[cfg(feature = "bvh-crates")]
-        crates.build(&scene);
-        bar.inc();
-    }
-    bar.finish();
-    let tree = tree.ok_or_else(|| Error::Usage("no build was run".into()))?;
-    let frame = Frame::new(&scene, &tree, camera, args.light_radius);
-    #[cfg(feature = "embree")]
-    let embree_tracers = embree.tracers();
-    #[cfg(feature = "bvh-crates")]
-    let crate_tracers = crates.tracers();
-
-    // The contenders and their kernels.
-    let mut contenders: Vec<Contender<'_>> = Vec::new();
-    let mut shadows = Kernels::default();
-    let mut softs = Kernels::default();
-    let kd_build = median(&kd_ms);
-    for name in &names {
-        let Some((method, tile)) = our_method(name) else { continue };
-        let renderer = Renderer::new(&scene, &tree, camera, method, Shadows::None)
-            .with_tile(tile)
-            .map_err(|e| Error::Usage(format!("{name}: {e}")))?;
-        let mut buf = renderer.buffers();
-        let primary: PrimaryPass<'_> = Box::new(move |want| {
-            let stats = renderer.trace(&mut buf);
-            (stats.primary_secs, want.then(|| renderer.layout().to_row_major(&buf.hits)))
-        });
-        let shadow = shadows.get("kd-single", || {
-            let renderer = Renderer::new(&scene, &tree, camera, Method::Mono, Shadows::Hard);
-            let mut buf = renderer.buffers();
-            Box::new(move || {
-                let stats = renderer.trace(&mut buf);
-                (stats.shadow_secs, stats.shadow_rays)
-            })
-        });
-        let soft_kernel = our_soft_kernel(method);
-        let soft = (!args.no_soft).then(|| {
-            softs.get(&format!("kd-{}", soft_kernel.name()), || {
-                let (frame, tree) = (&frame, &tree);
-                Box::new(move || {
-                    let (secs, pass) = timed(|| {
-                        soft::soft_shadow_pass::<NoCounters>(
-                            frame.scene,
-                            tree,
-                            &frame.camera,
-                            &frame.reference,
-                            &frame.light,
-                            soft_kernel,
-                        )
-                    });
-                    (secs, pass.rays)
-                })
-            })
-        });
-        contenders.push(Contender { name: name.clone(), build_ms: kd_build, primary, shadow: Some(shadow), soft });
-    }
-    #[cfg(feature = "embree")]
-    for t in embree_tracers.iter().filter(|t| names.contains(&t.name)) {
-        let (primary, shadow, soft) = t.passes(&frame);
-        let shadow = shadows.get(&t.name, shadow);
-        let soft = (!args.no_soft).then(|| softs.get(&t.name, soft));
-        contenders.push(Contender { name: t.name.clone(), build_ms: t.build_ms, primary, shadow: Some(shadow), soft });
-    }
-    #[cfg(feature = "bvh-crates")]
-    for t in crate_tracers.iter().filter(|t| names.iter().any(|n| n == t.name())) {
-        let (primary, shadow, soft) = t.passes(&frame);
-        let shadow = shadows.get(t.name(), shadow);
-        let soft = (!args.no_soft).then(|| softs.get(t.name(), soft));
-        contenders.push(Contender {
-            name: t.name().into(),
-            build_ms: t.build_ms(),
-            primary,
-            shadow: Some(shadow),
-            soft,
-        });
-    }
-
-    // Warm-up frame: the hits of every method, for the mismatch column.
-    let mut checks = Vec::new();
-    for c in &mut contenders {
-        let (_, hits) = (c.primary)(true);
-        let hits = hits.unwrap_or_default();
-        checks.push(mismatches(&scene, &camera, &frame.reference, &hits));
-    }
-
-    // Interleaved rounds.
-    let steps = u64::from(args.rounds) * (contenders.len() + shadows.passes.len() + softs.passes.len()) as u64;
-    let bar = Progress::bar(steps, &format!("compare: {}", scene.name), show);
-    let mut primary_secs = vec![Vec::new(); contenders.len()];
-    let mut shadow_secs = vec![Vec::new(); shadows.passes.len()];
-    let mut soft_secs = vec![Vec::new(); softs.passes.len()];
-    let mut shadow_rays = vec![0u64; shadows.passes.len()];
-    let mut soft_rays = vec![0u64; softs.passes.len()];
-    for _ in 0..args.rounds {
-        for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
-            secs.push((c.primary)(false).0);
-            bar.inc();
-        }
-        for (i, pass) in shadows.passes.iter_mut().enumerate() {
-            let (secs, rays) = pass();
-            shadow_secs[i].push(secs);
-            shadow_rays[i] = rays;
-            bar.inc();
-        }
-        for (i, pass) in softs.passes.iter_mut().enumerate() {
-            let (secs, rays) = pass();
-            soft_secs[i].push(secs);
-            soft_rays[i] = rays;
-            bar.inc();
-        }
-    }
-    bar.finish();
-
-    let pixels = u64::from(camera.width) * u64::from(camera.height);
-    let threads = rayon::current_num_threads();
-    let rows: Vec<CompareRow> = contenders
-        .iter()
-        .zip(&primary_secs)
-        .zip(&checks)
-        .map(|((c, secs), &mismatches)| {
-            let primary = median(secs);
-            let shadow = c.shadow.map(|i| (median(&shadow_secs[i]), shadow_rays[i], shadows.names[i].clone()));
-            let soft = c.soft.map(|i| (median(&soft_secs[i]), soft_rays[i], softs.names[i].clone()));
-            CompareRow {
-                scene: scene.name.clone(),
-                method: c.name.clone(),
-                family: family(&c.name).to_string(),
-                build_ms: c.build_ms,
-                primary_mrays_per_s: mrays_per_s(pixels, primary),
-                shadow_mrays_per_s: shadow.as_ref().map(|s| mrays_per_s(s.1, s.0)),
-                soft16_mrays_per_s: soft.as_ref().map(|s| mrays_per_s(s.1, s.0)),
-                mismatches,
-                pixels,
-                primary_ms: primary * 1e3,
-                shadow_ms: shadow.as_ref().map(|s| s.0 * 1e3),
-                soft16_ms: soft.as_ref().map(|s| s.0 * 1e3),
-                shadow_kernel: shadow.map(|s| s.2),
-                soft16_kernel: soft.map(|s| s.2),
-                threads,
-                rounds: args.rounds,
-            }
-        })
-        .collect();
-
-    if global.json {
-        for row in &rows {
-            crate::cli::emit(global, &Json(row))?;
-        }
-        return Ok(());
-    }
-    #[cfg(feature = "embree")]
-    let embree_note = embree.note();
-    #[cfg(not(feature = "embree"))]
-    let embree_note = Some("Embree: not in this build (`--features embree`, needs libembree-dev)".to_string());
-    let header = Header {
-        scene: &scene.name,
-        view: &view_name,
-        size: args.size,
-        threads,
-        rounds: args.rounds,
-        build_rounds: args.build_rounds,
-        light_radius: args.light_radius,
-        embree_note,
-    };
-    print!("{}", table(&header, &rows));
-    Ok(())
-}
-
-/// A row printed as JSON (its `Display` is never used: `--json` only).
-struct Json<'a>(&'a CompareRow);
-
-impl Serialize for Json<'_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.0.serialize(s)
-    }
-}
-
-impl std::fmt::Display for Json<'_> {
+impl std::fmt::Display for CompareReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}", self.0.method)
+        let c = &self.config;
+        let header = Header {
+            scene: self.rows.first().map_or("", |r| r.scene.as_str()),
+            view: &self.view,
+            size: c.size,
+            threads: self.threads,
+            rounds: c.rounds,
+            build_rounds: c.build_rounds,
+            light_radius: c.light_radius,
+            embree_note: self.embree_note.clone(),
+        };
+        write!(f, "{}", table(&header, &self.rows))
     }
 }
 
@@ -754,167 +591,60 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     out
 }
 
-#[cfg(feature = "embree")]
-use embree_setup::EmbreeBuilds;
-
-/// The Embree device, its high- and medium-quality scenes and their build times.
-#[cfg(feature = "embree")]
-mod embree_setup {
-    use super::*;
-    use crate::baselines::embree::{
-        BuildQuality, Coherence, Device, DeviceInfo, EmbreeScene, Packet4, Packet8, Packet16,
-    };
-    use crate::baselines::embree_blocks::{EmbreeBlocks, EmbreeSingle};
-
-    /// Embree's builds for `rttest compare`.
-    pub(super) struct EmbreeBuilds {
-        device: Option<(Device, DeviceInfo)>,
-        high: Option<EmbreeScene>,
-        medium: Option<EmbreeScene>,
-        high_ms: Vec<f64>,
-        medium_ms: Vec<f64>,
-    }
-
-    /// One Embree configuration: a packet width, a context flag, a BVH.
-    pub(super) struct EmbreeTracer<'s> {
-        pub(super) name: String,
-        pub(super) build_ms: f64,
-        width: usize,
-        coherence: Coherence,
-        scene: &'s EmbreeScene,
-    }
-
-    impl<'s> EmbreeTracer<'s> {
-        /// The passes of this configuration on `frame`.
-        pub(super) fn passes<'a>(&self, frame: &'a Frame<'a>) -> Passes<'a>
-        where
-            's: 'a,
-        {
-            let (scene, coherence) = (self.scene, self.coherence);
-            match self.width {
-                4 => block_passes(EmbreeBlocks::<Packet4>::new(scene, coherence), frame),
-                8 => block_passes(EmbreeBlocks::<Packet8>::new(scene, coherence), frame),
-                16 => block_passes(EmbreeBlocks::<Packet16>::new(scene, coherence), frame),
-                _ => block_passes(SingleRays(EmbreeSingle { scene, coherence }), frame),
-            }
-        }
-    }
-
-    impl EmbreeBuilds {
-        /// A device with the pool's threads, when Embree is wanted.
-        pub(super) fn new(wanted: bool) -> Result<Self, Error> {
-            let device = if wanted {
-                let d = Device::new(Some(rayon::current_num_threads()))
-                    .map_err(|e| Error::Usage(format!("Embree: {e}")))?;
-                let info = d.info();
-                Some((d, info))
-            } else {
-                None
-            };
-            Ok(EmbreeBuilds { device, high: None, medium: None, high_ms: Vec::new(), medium_ms: Vec::new() })
-        }
-
-        /// Builds (and times) the high- and medium-quality BVHs once more.
-        pub(super) fn build(&mut self, scene: &Scene) -> Result<(), Error> {
-            let Some((device, _)) = &self.device else { return Ok(()) };
-            let mesh = &scene.mesh;
-            for (quality, slot, times) in [
-                (BuildQuality::High, &mut self.high, &mut self.high_ms),
-                (BuildQuality::Medium, &mut self.medium, &mut self.medium_ms),
-            ] {
-                *slot = None;
-                let (secs, built) = timed(|| EmbreeScene::build(device, &mesh.positions, &mesh.triangles, quality));
-                *slot = Some(built.map_err(|e| Error::Usage(format!("Embree: {e}")))?);
-                times.push(secs * 1e3);
-            }
-            Ok(())
-        }
-
-        /// Every Embree configuration of the compare table.
-        pub(super) fn tracers(&self) -> Vec<EmbreeTracer<'_>> {
-            let mut out = Vec::new();
-            let (Some(high), Some(medium)) = (&self.high, &self.medium) else { return out };
-            let (hm, mm) = (median(&self.high_ms), median(&self.medium_ms));
-            let mut add = |name: &str, width, coherence, scene, build_ms| {
-                out.push(EmbreeTracer { name: name.into(), build_ms, width, coherence, scene });
-            };
-            add("embree-1", 1, Coherence::Coherent, high, hm);
-            add("embree-4", 4, Coherence::Coherent, high, hm);
-            add("embree-8", 8, Coherence::Coherent, high, hm);
-            add("embree-16", 16, Coherence::Coherent, high, hm);
-            add("embree-1-incoherent", 1, Coherence::Incoherent, high, hm);
-            add("embree-16-incoherent", 16, Coherence::Incoherent, high, hm);
-            add("embree-1-medium", 1, Coherence::Coherent, medium, mm);
-            add("embree-16-medium", 16, Coherence::Coherent, medium, mm);
-            out
-        }
-
-        /// The device line of the text report.
-        pub(super) fn note(&self) -> Option<String> {
-            let (_, info) = self.device.as_ref()?;
-            let yes = |b: bool| if b { "native" } else { "emulated" };
-            Some(format!(
-                "Embree {} ({} tasking): packets of 4 {}, of 8 {}, of 16 {}; build qualities high (embree-N) and medium (embree-N-medium); `-incoherent`: Embree's default context flag, the others coherent.",
-                info.version_string(),
-                match info.tasking_system {
-                    0 => "internal",
-                    1 => "TBB",
-                    2 => "PPL",
-                    _ => "unknown",
-                },
-                yes(info.native_ray4),
-                yes(info.native_ray8),
-                yes(info.native_ray16)
-            ))
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn args(methods: &[&str]) -> CompareArgs {
-        CompareArgs {
-            scene: "atrium".into(),
-            view: None,
+    fn config(methods: &[&str]) -> CompareConfig {
+        CompareConfig {
             size: (16, 16),
             rounds: 1,
             build_rounds: 1,
             methods: methods.iter().map(|s| s.to_string()).collect(),
-            tiles: vec![8, 16],
-            light_radius: 1.0,
-            no_soft: false,
+            ..CompareConfig::default()
         }
+    }
+
+    fn names(methods: &[&str]) -> Result<Vec<String>, Error> {
+        let selected = select_methods(&baselines::registry(), &config(methods))?;
+        Ok(selected.into_iter().map(|s| s.name).collect())
     }
 
     #[test]
     fn method_selection() {
-        let all = select_methods(&args(&["ours"])).unwrap();
+        let all = names(&["ours"]).unwrap();
         assert_eq!(all[0], "mono");
         assert!(all.contains(&"mft-cone-16".to_string()) && all.contains(&"frustum-8".to_string()));
-        assert_eq!(select_methods(&args(&["mft-16"])).unwrap(), vec!["mono", "mft-16"]);
-        assert!(select_methods(&args(&["nonsense"])).is_err());
-        let mut bad = args(&["all"]);
+        assert_eq!(names(&["mft-16"]).unwrap(), vec!["mono", "mft-16"]);
+        assert!(names(&["nonsense"]).is_err());
+        let mut bad = config(&["all"]);
         bad.tiles = vec![6];
-        assert!(select_methods(&bad).is_err());
+        assert!(select_methods(&baselines::registry(), &bad).is_err());
         for name in ["embree", "embree-16", "bvh", "obvhs", "bvh-crates"] {
-            match (select_methods(&args(&[name])), feature_hint(name)) {
+            match (names(&[name]), baselines::feature_hint(name)) {
                 (Ok(list), None) => assert!(list.len() > 1, "{name}: {list:?}"),
                 (Err(e), Some(_)) => assert!(e.to_string().contains("--features"), "{name}: {e}"),
                 (r, hint) => panic!("{name}: {r:?} with hint {hint:?}"),
             }
         }
-        assert_eq!(our_method("mft-cone-16"), Some((Method::MftCone, 16)));
-        assert_eq!(our_method("frustum-4"), Some((Method::Frustum, 4)));
-        assert_eq!(our_method("embree-4"), None);
     }
 
+    /// A whole (tiny) run: every method of ours gives the reference hits, and the rows share
+    /// the single-ray shadow kernel and name their soft-shadow kernels.
     #[test]
-    fn medians() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-        assert_eq!(median(&[]), 0.0);
+    fn a_run_of_ours_has_no_mismatch() {
+        let report = run(&config(&["ours"]), &trace::progress::Quiet).unwrap();
+        assert_eq!(report.rows.len(), 3 + 4 * 2);
+        for r in &report.rows {
+            assert_eq!(r.mismatches.prim_mismatch, 0, "{}", r.method);
+            assert_eq!(r.shadow_kernel.as_deref(), Some("kd-single"));
+            assert!(r.primary_mrays_per_s > 0.0);
+        }
+        let soft = |m: &str| report.rows.iter().find(|r| r.method == m).and_then(|r| r.soft16_kernel.clone());
+        assert_eq!(soft("mono").as_deref(), Some("kd-single"));
+        assert_eq!(soft("mft-8").as_deref(), Some("kd-pyramid"));
+        assert_eq!(soft("cone-16").as_deref(), Some("kd-cone"));
+        assert!(report.to_string().contains("| mft-cone-16 |"));
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Watertightness, measured (issue 7): rays shot exactly at the shared edges and shared
-//! vertices of closed meshes, counting the rays that pass through (`rttest leaks`).
+//! vertices of closed meshes, counting the rays that pass through (`rttest leaks`: [`run`]
+//! with a [`LeaksConfig`]).
 //!
 //! ## The rays
 //! A *target* is a point exactly on a shared edge (the `f32` midpoint of its two vertices, or
@@ -50,16 +51,15 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use clap::Args;
 use glam::{DVec3, Quat, Vec3};
 use kdtree::{BuildConfig, Intersector, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::Mesh;
 use scenes::builtin::shapes::{MeshBuilder, Part, Rng};
 use serde::Serialize;
+use trace::progress::Progress;
 
 use crate::Error;
-use crate::cli::{GlobalArgs, emit};
 
 /// The slack past the target, relative to `t_target + M` (see the module docs).
 pub const TOLERANCE: f32 = 1e-5;
@@ -88,16 +88,21 @@ const BATCH: usize = 1 << 20;
 /// The built-in scenes made of closed meshes that the leak test uses.
 pub const BUILTIN: &[&str] = &["cube", "sphere", "touching-boxes", "arena", "atrium", "atrium-rotated", "grove"];
 
-/// `rttest leaks` options.
-#[derive(Debug, Clone, Args)]
-pub struct LeaksArgs {
-    /// Rays per intersector, over all meshes (split evenly between them).
-    #[arg(long, value_name = "N", default_value_t = 10_000_000,
-          value_parser = clap::value_parser!(u64).range(1..=10_000_000_000))]
+/// The options of the leak test (`rttest leaks`); [`Default`] gives the command line's
+/// defaults.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LeaksConfig {
+    /// Rays per intersector, over all meshes (split evenly between them; default ten
+    /// million).
     pub rays: u64,
-    /// Only these meshes (fan, sphere, the built-in closed scenes, bunny); default all.
-    #[arg(long, value_name = "NAME", value_delimiter = ',')]
+    /// Only these meshes (names of [`mesh_names`]); empty: all of them.
     pub meshes: Vec<String>,
+}
+
+impl Default for LeaksConfig {
+    fn default() -> Self {
+        LeaksConfig { rays: 10_000_000, meshes: Vec::new() }
+    }
 }
 
 /// A closed test mesh and its name.
@@ -416,7 +421,7 @@ fn row(mesh: &str, triangles: u64, intersector: &str, rays: u64, secs: f64, leak
         intersector: intersector.to_string(),
         rays,
         trace_secs: secs,
-        mrays_per_s: crate::report::mrays_per_s(rays, secs),
+        mrays_per_s: trace::timing::mrays_per_s(rays, secs),
         leaks,
         leaks_per_million: if rays > 0 { leaks as f64 * 1e6 / rays as f64 } else { 0.0 },
         skipped_targets: skipped,
@@ -461,43 +466,66 @@ impl std::fmt::Display for LeakResult {
     }
 }
 
-/// `rttest leaks`: every mesh (or those of `--meshes`), `--rays` rays per intersector split
-/// evenly between them, a markdown table (or one JSON object per row), the totals last.
-pub fn leaks_command(global: &GlobalArgs, args: &LeaksArgs) -> Result<(), Error> {
-    let names: Vec<String> =
-        if args.meshes.is_empty() { mesh_names().iter().map(|s| s.to_string()).collect() } else { args.meshes.clone() };
-    let mut meshes = Vec::new();
+/// The leak test's report: the rows of every mesh and intersector, their totals and the
+/// notes for the user.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LeaksReport {
+    /// One row per mesh and intersector (`wald`, then `watertight`), meshes in the order
+    /// asked.
+    pub results: Vec<LeakResult>,
+    /// The per-intersector totals of `results` ([`totals`]).
+    pub totals: Vec<LeakResult>,
+    /// Notes for the user, such as a mesh skipped because its file is missing.
+    pub notes: Vec<String>,
+}
+
+impl LeaksReport {
+    /// Every row, the totals last: the rows of the table, or the JSON objects in order.
+    pub fn rows(&self) -> impl Iterator<Item = &LeakResult> {
+        self.results.iter().chain(&self.totals)
+    }
+}
+
+/// The markdown table of every row, the totals last (one line each, ending with a newline).
+impl std::fmt::Display for LeaksReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let rows: Vec<LeakResult> = self.rows().cloned().collect();
+        f.write_str(&markdown_table(&rows))
+    }
+}
+
+/// The leak test: every mesh of `config` (all of [`mesh_names`] when none is named),
+/// `config.rays` rays per intersector split evenly between them, each mesh with its own
+/// seed; on the rayon pool of the caller.
+///
+/// A missing bunny is skipped with a note; an unknown mesh name, or no mesh left to test, is
+/// a usage error.
+pub fn run(config: &LeaksConfig, progress: &dyn Progress) -> Result<LeaksReport, Error> {
+    let names: Vec<String> = if config.meshes.is_empty() {
+        mesh_names().iter().map(|s| s.to_string()).collect()
+    } else {
+        config.meshes.clone()
+    };
+    let (mut meshes, mut notes) = (Vec::new(), Vec::new());
     for name in &names {
         match mesh_by_name(name)? {
             Some(m) => meshes.push(m),
-            None if !global.json => eprintln!("rttest: note: no bunny in the shared scenes folder, skipped"),
-            None => {}
+            None => notes.push("no bunny in the shared scenes folder, skipped".to_string()),
         }
     }
     if meshes.is_empty() {
         return Err(Error::Usage("no mesh to test".into()));
     }
-    let per_mesh = args.rays.div_ceil(meshes.len() as u64);
+    let per_mesh = config.rays.div_ceil(meshes.len() as u64);
+    let task = progress.task("leaks", Some(meshes.len() as u64));
     let mut results = Vec::new();
     for (i, mesh) in meshes.iter().enumerate() {
-        let rows = measure(mesh, per_mesh, 0x5eed_0000 + i as u64)?;
-        if global.json {
-            for r in &rows {
-                emit(global, r)?;
-            }
-        }
-        results.extend(rows);
+        results.extend(measure(mesh, per_mesh, 0x5eed_0000 + i as u64)?);
+        task.inc();
     }
+    task.finish();
     let totals = totals(&results);
-    if global.json {
-        for r in &totals {
-            emit(global, r)?;
-        }
-        return Ok(());
-    }
-    results.extend(totals);
-    print!("{}", markdown_table(&results));
-    Ok(())
+    Ok(LeaksReport { results, totals, notes })
 }
 
 #[cfg(test)]
@@ -544,5 +572,19 @@ mod tests {
         let beside = Ray::new(Vec3::new(0.0, 2.0, -3.0), Vec3::Z, 0.0, 10.0);
         assert_eq!(count_leaks(&tree, &[through]), 0);
         assert_eq!(count_leaks(&tree, &[short, beside, through]), 2);
+    }
+
+    #[test]
+    fn run_splits_the_rays_and_reports_rows_then_totals() {
+        let config = LeaksConfig { rays: 300, meshes: vec!["cube".into(), "touching-boxes".into()] };
+        let report = run(&config, &trace::progress::Quiet).unwrap();
+        assert!(report.notes.is_empty());
+        assert_eq!(report.results.len(), 4);
+        assert!(report.results.iter().all(|r| r.rays == 150));
+        assert_eq!(report.totals.iter().map(|r| (r.mesh.as_str(), r.rays)).collect::<Vec<_>>(), [("all", 300); 2]);
+        let rows: Vec<LeakResult> = report.rows().cloned().collect();
+        assert_eq!(report.to_string(), markdown_table(&rows));
+        let unknown = LeaksConfig { meshes: vec!["teapot".into()], ..LeaksConfig::default() };
+        assert!(run(&unknown, &trace::progress::Quiet).unwrap_err().to_string().contains("teapot"));
     }
 }

@@ -14,12 +14,9 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use kdtree::KdTree;
 use scenes::{Camera, Scene};
-
-use crate::Error;
-use crate::compare::median;
-use crate::render::{Method, Renderer, Shadows};
+use trace::timing::median;
+use trace::{Bound, Error, Renderer, Shadows};
 
 /// One pool size of one scene.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -45,20 +42,17 @@ pub fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
-/// Measures `method` at `tile` on `scene` seen by `camera` with pools of 1 to `max_threads`
-/// threads, `rounds` interleaved rounds (see the module documentation).
+/// Measures `method` (with its tile) on `scene` seen by `camera` with pools of 1 to
+/// `max_threads` threads, `rounds` interleaved rounds (see the module documentation).
 pub fn measure(
     scene: &Scene,
-    tree: &KdTree,
+    method: &Bound<'_>,
     camera: Camera,
-    method: Method,
-    tile: u32,
     max_threads: usize,
     rounds: u32,
 ) -> Result<Vec<ScalingRow>, Error> {
-    let renderer = Renderer::new(scene, tree, camera, method, Shadows::None)
-        .with_tile(tile)
-        .map_err(|e| Error::Usage(e.to_string()))?;
+    let tile = method.options.tile;
+    let renderer = Renderer::new(scene, method, camera, Shadows::None);
     let pools = (1..=max_threads.max(1))
         .map(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build())
         .collect::<Result<Vec<_>, _>>()?;
@@ -89,7 +83,7 @@ pub fn measure(
             let ms = median(t);
             ScalingRow {
                 scene: scene.name.clone(),
-                method: method.name().to_string(),
+                method: method.entry.name.to_string(),
                 tile,
                 threads: i + 1,
                 frame_ms: ms,
@@ -139,14 +133,17 @@ pub fn csv(rows: &[ScalingRow]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kdtree::BuildConfig;
+    use kdtree::{BuildConfig, KdTree};
+    use trace::{Options, Registry, Structures};
 
     #[test]
     fn one_row_per_pool_size_and_unit_speedup_at_one() {
         let scene = scenes::load_scene("touching-boxes").unwrap();
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(32, 32).unwrap();
-        let rows = measure(&scene, &tree, camera, Method::Mft, 8, 2, 2).unwrap();
+        let (registry, structures) = (Registry::ours(), Structures::new(&tree));
+        let mft = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+        let rows = measure(&scene, &mft, camera, 2, 2).unwrap();
         assert_eq!(rows.len(), 2);
         assert_eq!(rows[0].speedup, 1.0);
         assert!(rows.iter().all(|r| r.fps > 0.0 && r.threads >= 1));

@@ -4,7 +4,7 @@
 //! light plotters build has no font rasteriser, so the PNG carries no text; the SVG and the
 //! CSV name the points).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,8 +13,8 @@ use scenes::Image;
 use crate::Error;
 use crate::shadows::ShadowReport;
 
-/// Writes `pareto.svg` and `pareto.png` into `dir`.
-pub fn plot(dir: &Path, reports: &[ShadowReport]) -> Result<(), Error> {
+/// Writes `pareto.svg` and `pareto.png` into `dir`; returns their paths, in that order.
+pub fn plot(dir: &Path, reports: &[ShadowReport]) -> Result<[PathBuf; 2], Error> {
     let svg = dir.join("pareto.svg");
     let fail = |path: &Path, e: String| Error::File { path: path.to_path_buf(), message: e };
     {
@@ -36,7 +36,7 @@ pub fn plot(dir: &Path, reports: &[ShadowReport]) -> Result<(), Error> {
         .map(|c| glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32).map(|v| (v / 255.0).powf(2.2)))
         .collect();
     Image { width: w, height: h, pixels }.save_png(&png)?;
-    Ok(())
+    Ok([svg, png])
 }
 
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, reports: &[ShadowReport], text: bool) -> Result<(), String> {

@@ -1,5 +1,6 @@
 //! `rttest shadows`: Edge Width Soft Shadows (thesis chapter 5) against sampled soft
-//! shadows, with the speed and the error of each method against a cached reference.
+//! shadows, with the speed and the error of each method against a cached reference
+//! ([`run`] with a [`ShadowsConfig`]; [`run_scene`] for one scene).
 //!
 //! Methods (each one frame: primary rays, visibility, shading, timed together):
 //! - `hard`: one shadow ray to the light's centre;
@@ -18,75 +19,130 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use clap::{Args, ValueEnum};
 use edgewidth::analytic::sphere_visible_fraction;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, visible_fraction};
 use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
 use glam::Vec3;
-use kdtree::{BuildConfig, Hit, KdTree, Ray};
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, Ray};
 use packets::RayPacket;
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
+use trace::method::primary_ray;
+use trace::progress::Progress;
+use trace::{TileLayout, shade};
 
 use crate::Error;
-use crate::cli::{GlobalArgs, IntersectorArg, emit, parse_size};
-use crate::render::{TileLayout, primary_ray};
-use crate::shade;
 
-/// `rttest shadows` options.
-#[derive(Debug, Clone, Args)]
-pub struct ShadowsArgs {
-    /// Scenes (built-in names, `analytic`, or OBJ paths; repeatable). Default: atrium, arena,
+/// The options of the soft-shadow comparison (`rttest shadows`); [`Default`] gives the
+/// command line's defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShadowsConfig {
+    /// Scenes (built-in names, `analytic`, or OBJ paths). Empty: atrium, arena,
     /// atrium-rotated, grove, analytic and every .obj / .obj.gz in the shared scenes folder.
-    #[arg(long, value_name = "NAME|PATH")]
-    pub scene: Vec<String>,
-    /// The view (default: each scene's default view).
-    #[arg(long)]
+    pub scenes: Vec<String>,
+    /// The view (`None`: each scene's default view).
     pub view: Option<String>,
-    /// Image size.
-    #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
+    /// Image size, width and height (default 256x256).
     pub size: (u32, u32),
-    /// The area light: the scene's rectangle, or a sphere at its centre with the same area.
-    #[arg(long, value_enum, default_value_t = LightKind::Rect)]
+    /// The area light (default: the scene's rectangle).
     pub light: LightKind,
-    /// Scale of the light about its centre (1 = the scene's light).
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    /// Scale of the light about its centre (1 = the scene's light); a finite number > 0.
     pub light_size: f32,
-    /// Scale of the edge width `R` (Eq. 5.1): `R = scale * light diameter / distance`.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    /// Scale of the edge width `R` (Eq. 5.1): `R = scale * light diameter / distance`; a
+    /// finite number >= 0 (default 1).
     pub edge_scale: f32,
     /// Light-leak remedy: entry/exit pairs count only if their triangles share a vertex.
-    #[arg(long)]
     pub shared_vertex: bool,
-    /// Light-leak remedy: scale edge widths through materials whose name contains NAME
-    /// (repeatable), e.g. `--thickness banner=8`.
-    #[arg(long, value_name = "NAME=SCALE")]
+    /// Light-leak remedy: `NAME=SCALE` specs scaling edge widths through materials whose name
+    /// contains `NAME` (e.g. `banner=8`; see [`thickness_scales`]).
     pub thickness: Vec<String>,
-    /// Samples per pixel of the reference.
-    #[arg(long, value_name = "N", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    /// Samples per pixel of the reference, at least 1 (default 1024).
     pub ref_samples: u32,
-    /// Where references are cached (default: `target/shadow-cache` of the workspace).
-    #[arg(long, value_name = "DIR")]
+    /// Where references are cached (`None`: `target/shadow-cache` of the workspace).
     pub cache_dir: Option<PathBuf>,
-    /// Where images, CSV and plots go (one folder per scene).
-    #[arg(long, value_name = "DIR", default_value = "shadows-out")]
+    /// Where images, CSV and plots go, one folder per scene (default `shadows-out`).
     pub out_dir: PathBuf,
-    /// Frames timed per method, interleaved across methods; the median is reported.
-    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    /// Frames timed per method, interleaved across methods, at least 1; the median is
+    /// reported (default 3).
     pub frames: u32,
-    /// The ray-triangle test.
-    #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
-    pub intersector: IntersectorArg,
+    /// The ray-triangle test the trees are built for (default Wald's).
+    pub intersector: Intersector,
 }
 
-/// `--light` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+impl Default for ShadowsConfig {
+    fn default() -> Self {
+        ShadowsConfig {
+            scenes: Vec::new(),
+            view: None,
+            size: (256, 256),
+            light: LightKind::Rect,
+            light_size: 1.0,
+            edge_scale: 1.0,
+            shared_vertex: false,
+            thickness: Vec::new(),
+            ref_samples: 1024,
+            cache_dir: None,
+            out_dir: PathBuf::from("shadows-out"),
+            frames: 3,
+            intersector: Intersector::Wald,
+        }
+    }
+}
+
+impl ShadowsConfig {
+    /// Checks the options before any scene is loaded or any reference computed: a light size
+    /// or edge scale that is not a finite positive number (NaN included), a bad `thickness`
+    /// spec, or no frame or reference sample is a usage error naming the option.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !(self.light_size.is_finite() && self.light_size > 0.0) {
+            return Err(Error::Usage(format!("--light-size {} must be a finite number > 0", self.light_size)));
+        }
+        if !(self.edge_scale.is_finite() && self.edge_scale >= 0.0) {
+            return Err(Error::Usage(format!("--edge-scale {} must be a finite number >= 0", self.edge_scale)));
+        }
+        for spec in &self.thickness {
+            parse_thickness(spec)?;
+        }
+        if self.frames == 0 {
+            return Err(Error::Usage("--frames must be at least 1".into()));
+        }
+        if self.ref_samples == 0 {
+            return Err(Error::Usage("--ref-samples must be at least 1".into()));
+        }
+        Ok(())
+    }
+
+    /// The scenes measured, in order: `scenes`, or when empty the experiments' default scenes
+    /// ([`trace::setup::default_scenes`]) with `analytic` after the built-in ones.
+    pub fn scene_list(&self) -> Vec<String> {
+        if !self.scenes.is_empty() {
+            return self.scenes.clone();
+        }
+        let mut list = trace::setup::default_scenes();
+        list.insert(BUILTIN_DEFAULT_SCENES.min(list.len()), "analytic".to_string());
+        list
+    }
+
+    /// The folder references are cached in: `cache_dir`, or `target/shadow-cache` of the
+    /// workspace.
+    pub fn cache_dir(&self) -> PathBuf {
+        self.cache_dir.clone().unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/shadow-cache"))
+    }
+}
+
+/// How many built-in scenes start [`trace::setup::default_scenes`] (atrium, arena,
+/// atrium-rotated, grove): `analytic` goes after them.
+const BUILTIN_DEFAULT_SCENES: usize = 4;
+
+/// Which area light lights the scene.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum LightKind {
     /// The scene's rectangular area light.
+    #[default]
     Rect,
     /// A sphere at the rectangle's centre with the rectangle's area as its disc.
     Sphere,
@@ -167,7 +223,7 @@ fn pixel_seed(x: u32, y: u32, salt: u64) -> u64 {
 impl<'a> ShadowSetup<'a> {
     /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`.
     pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Self {
-        let layout = TileLayout::new(camera.width, camera.height, crate::render::TILE_SIZE);
+        let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
         ShadowSetup { scene, tree, camera, light, layout, edge_scale: 1.0, shared_vertex: false, thickness: None }
     }
 
@@ -332,8 +388,8 @@ impl<'a> ShadowSetup<'a> {
         pixels.par_iter_mut().enumerate().for_each(|(i, px)| {
             if let Some(hit) = &hits[i] {
                 let (o, d) = self.camera.pixel_ray(i as u32 % w, i as u32 / w);
-                let dark = shade::shade(&self.scene.mesh, &light, o, d, hit, true);
-                let lit = shade::shade(&self.scene.mesh, &light, o, d, hit, false);
+                let dark = shade::shade(&self.scene.mesh, &light, o, d, hit, 0.0);
+                let lit = shade::shade(&self.scene.mesh, &light, o, d, hit, 1.0);
                 *px = dark + (lit - dark) * vis[i];
             }
         });
@@ -458,23 +514,23 @@ pub fn reference_cache_path(
     (dir.join(format!("{safe}-{hash:016x}.pfm")), key)
 }
 
-/// The reference visibility of `setup`, from the cache when its key matches, else computed
-/// and stored.
-fn cached_reference(setup: &ShadowSetup, dir: &Path, samples: u32) -> Result<(Vec<f32>, bool), Error> {
+/// The reference visibility of `setup`, from the cache when its key matches (then `true`),
+/// else computed and stored; and the cache file.
+fn cached_reference(setup: &ShadowSetup, dir: &Path, samples: u32) -> Result<(Vec<f32>, bool, PathBuf), Error> {
     let (path, key) = reference_cache_path(dir, setup.scene, &setup.camera, &setup.light, samples, setup.tree);
     let key_path = path.with_extension("key");
     if std::fs::read_to_string(&key_path).is_ok_and(|k| k == key)
         && let Ok(img) = scenes::ScalarImage::load_pfm(&path)
         && img.values.len() == setup.layout.pixel_count()
     {
-        return Ok((img.values, true));
+        return Ok((img.values, true, path));
     }
     let values = setup.reference(samples);
     std::fs::create_dir_all(dir).map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
     scenes::ScalarImage { width: setup.camera.width, height: setup.camera.height, values: values.clone() }
         .save_pfm(&path)?;
     std::fs::write(&key_path, &key).map_err(|e| Error::File { path: key_path.clone(), message: e.to_string() })?;
-    Ok((values, false))
+    Ok((values, false, path))
 }
 
 /// The `analytic` scene: a unit sphere (icosphere, 5 subdivisions) 2 above a floor slab,
@@ -497,29 +553,6 @@ pub fn analytic_scene() -> (Scene, AreaLight, (Vec3, f32), u32) {
     let light =
         AreaLight::Sphere(SphereLight { center: Vec3::new(1.2, 8.0, 0.0), radius: 1.0, intensity: Vec3::splat(60.0) });
     (scene, light, sphere, floor)
-}
-
-fn scene_list(args: &ShadowsArgs) -> Vec<String> {
-    if !args.scene.is_empty() {
-        return args.scene.clone();
-    }
-    let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove", "analytic"].map(String::from).to_vec();
-    if let Some(dir) = scenes::shared_scenes_dir()
-        && let Ok(entries) = std::fs::read_dir(dir)
-    {
-        let mut files: Vec<String> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
-                name.ends_with(".obj") || name.ends_with(".obj.gz")
-            })
-            .map(|p| p.display().to_string())
-            .collect();
-        files.sort();
-        list.extend(files);
-    }
-    list
 }
 
 /// Per-triangle thickness scales from `NAME=SCALE` arguments (materials whose name contains
@@ -554,10 +587,10 @@ fn parse_thickness(spec: &str) -> Result<(&str, f32), Error> {
     Ok((name, scale))
 }
 
-/// The light of `--light` and `--light-size` for `scene`.
-fn chosen_light(scene: &Scene, args: &ShadowsArgs) -> AreaLight {
+/// The light of `light` and `light_size` for `scene`.
+fn chosen_light(scene: &Scene, config: &ShadowsConfig) -> AreaLight {
     let rect = AreaLight::Rect(scene.area_light);
-    let base = match args.light {
+    let base = match config.light {
         LightKind::Rect => rect,
         LightKind::Sphere => AreaLight::Sphere(SphereLight {
             center: rect.center(),
@@ -565,103 +598,151 @@ fn chosen_light(scene: &Scene, args: &ShadowsArgs) -> AreaLight {
             intensity: scene.area_light.intensity,
         }),
     };
-    base.scaled(args.light_size)
+    base.scaled(config.light_size)
 }
 
-fn check_args(args: &ShadowsArgs) -> Result<(), Error> {
-    if !(args.light_size.is_finite() && args.light_size > 0.0) {
-        return Err(Error::Usage(format!("--light-size {} must be a finite number > 0", args.light_size)));
-    }
-    if !(args.edge_scale.is_finite() && args.edge_scale >= 0.0) {
-        return Err(Error::Usage(format!("--edge-scale {} must be a finite number >= 0", args.edge_scale)));
-    }
-    // Before any scene is loaded or any reference computed.
-    for spec in &args.thickness {
-        parse_thickness(spec)?;
-    }
-    Ok(())
+/// The comparison's report: every scene's rows and files.
+#[derive(Clone, Debug)]
+pub struct ShadowsReport {
+    /// The scenes, in the order measured.
+    pub scenes: Vec<SceneShadows>,
 }
 
-/// `rttest shadows`.
-pub fn shadows_command(global: &GlobalArgs, args: &ShadowsArgs) -> Result<(), Error> {
-    check_args(args)?;
-    let cache_dir =
-        args.cache_dir.clone().unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/shadow-cache"));
-    for spec in scene_list(args) {
-        let (scene, light, analytic) = if spec == "analytic" {
-            let (scene, light, sphere, floor) = analytic_scene();
-            let light = light.scaled(args.light_size);
-            (scene, light, Some((sphere, floor)))
-        } else {
-            let scene = scenes::load_scene(&spec)?;
-            let light = chosen_light(&scene, args);
-            (scene, light, None)
-        };
-        let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
-        let (camera, _) = crate::cli::view_camera(&scene, args.view.as_deref(), args.size.0, args.size.1)?;
-        let thickness = thickness_scales(&scene, &args.thickness)?;
-        let setup = ShadowSetup::new(&scene, &tree, camera, light).with_edge_options(
-            args.edge_scale,
-            args.shared_vertex,
-            thickness,
-        );
-        let (mut reference, _cached) = cached_reference(&setup, &cache_dir, args.ref_samples)?;
+impl ShadowsReport {
+    /// Every row, scene by scene, each scene's in [`METHODS`] order (the JSON objects of
+    /// `rttest shadows --json`, in order).
+    pub fn rows(&self) -> impl Iterator<Item = &ShadowReport> {
+        self.scenes.iter().flat_map(|s| &s.rows)
+    }
+}
 
-        // Frames, interleaved across methods; the median time of each.
-        let mut times: Vec<Vec<f64>> = vec![Vec::new(); METHODS.len()];
-        let mut frames: Vec<Option<ShadowFrame>> = METHODS.iter().map(|_| None).collect();
-        for _ in 0..args.frames {
-            for (i, &m) in METHODS.iter().enumerate() {
-                let f = setup.frame(m);
-                times[i].push(f.secs);
-                frames[i] = Some(f);
+/// One line per row ([`ShadowReport`]'s text), each ending with a newline.
+impl fmt::Display for ShadowsReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.scenes.iter().try_for_each(|s| write!(f, "{s}"))
+    }
+}
+
+/// One scene of the comparison: its rows and the files written for it.
+#[derive(Clone, Debug)]
+pub struct SceneShadows {
+    /// The scene's name.
+    pub scene: String,
+    /// One row per method, in [`METHODS`] order.
+    pub rows: Vec<ShadowReport>,
+    /// The folder of its images, CSV and plot (`out_dir/<scene name>`).
+    pub dir: PathBuf,
+    /// The files written there: `reference.png`, then per method `<method>.png` and
+    /// `error-<method>.png`, then `strip.png`, `shadows.csv`, `pareto.svg` and `pareto.png`.
+    pub files: Vec<PathBuf>,
+    /// The reference's cache file (see [`reference_cache_path`]).
+    pub reference: PathBuf,
+    /// Whether the reference came from the cache (false: computed and stored there).
+    pub reference_cached: bool,
+}
+
+/// One line per row ([`ShadowReport`]'s text), each ending with a newline.
+impl fmt::Display for SceneShadows {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.rows.iter().try_for_each(|r| writeln!(f, "{r}"))
+    }
+}
+
+/// The soft-shadow comparison: [`ShadowsConfig::validate`], then [`run_scene`] for every
+/// scene of [`ShadowsConfig::scene_list`], on the rayon pool of the caller.
+pub fn run(config: &ShadowsConfig, progress: &dyn Progress) -> Result<ShadowsReport, Error> {
+    config.validate()?;
+    let scenes =
+        config.scene_list().iter().map(|spec| run_scene(config, spec, progress)).collect::<Result<Vec<_>, _>>()?;
+    Ok(ShadowsReport { scenes })
+}
+
+/// One scene of the comparison (`spec`: a built-in name, `analytic` or an OBJ path): builds
+/// its tree, takes the reference from the cache or computes it, times [`METHODS`] over
+/// `config.frames` interleaved frames (the median of each), measures their errors against
+/// the reference, marks the Pareto front and writes the images, error images, strip, CSV
+/// and plot into `out_dir/<scene name>`. Does not call [`ShadowsConfig::validate`]: `run`
+/// does, once, before the first scene.
+pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) -> Result<SceneShadows, Error> {
+    let cache_dir = config.cache_dir();
+    let (scene, light, analytic) = if spec == "analytic" {
+        let (scene, light, sphere, floor) = analytic_scene();
+        let light = light.scaled(config.light_size);
+        (scene, light, Some((sphere, floor)))
+    } else {
+        let scene = scenes::load_scene(spec)?;
+        let light = chosen_light(&scene, config);
+        (scene, light, None)
+    };
+    let build = BuildConfig { intersector: config.intersector, ..BuildConfig::default() };
+    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &build)?;
+    let (camera, _) = trace::setup::view_camera(&scene, config.view.as_deref(), config.size.0, config.size.1)?;
+    let thickness = thickness_scales(&scene, &config.thickness)?;
+    let setup = ShadowSetup::new(&scene, &tree, camera, light).with_edge_options(
+        config.edge_scale,
+        config.shared_vertex,
+        thickness,
+    );
+    let task = progress.task(&format!("shadows: {} reference", scene.name), None);
+    let (mut reference, reference_cached, reference_path) = cached_reference(&setup, &cache_dir, config.ref_samples)?;
+    task.finish();
+
+    // Frames, interleaved across methods; the median time of each.
+    let task =
+        progress.task(&format!("shadows: {}", scene.name), Some(u64::from(config.frames) * METHODS.len() as u64));
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); METHODS.len()];
+    let mut frames: Vec<Option<ShadowFrame>> = METHODS.iter().map(|_| None).collect();
+    for _ in 0..config.frames {
+        for (i, &m) in METHODS.iter().enumerate() {
+            let f = setup.frame(m);
+            times[i].push(f.secs);
+            frames[i] = Some(f);
+            task.inc();
+        }
+    }
+    task.finish();
+    let frames: Vec<ShadowFrame> = frames.into_iter().flatten().collect();
+    let hits = &frames[0].hits;
+    let mut mask: Vec<bool> = hits.iter().map(Option::is_some).collect();
+    if let Some(((center, radius), floor)) = analytic {
+        // The floor's pixels: the closed form, and only those count.
+        for (i, hit) in hits.iter().enumerate() {
+            let on_floor = hit.is_some_and(|h| scene.mesh.material_ids[h.prim as usize] == floor);
+            mask[i] = on_floor;
+            if let (true, Some(h)) = (on_floor, hit) {
+                let p = kdtree::ray::surface_point(&tree.triangle(h.prim), h);
+                reference[i] = sphere_visible_fraction(p, light.center(), light.radius(), center, radius) as f32;
             }
         }
-        let frames: Vec<ShadowFrame> = frames.into_iter().flatten().collect();
-        let hits = &frames[0].hits;
-        let mut mask: Vec<bool> = hits.iter().map(Option::is_some).collect();
-        if let Some(((center, radius), floor)) = analytic {
-            // The floor's pixels: the closed form, and only those count.
-            for (i, hit) in hits.iter().enumerate() {
-                let on_floor = hit.is_some_and(|h| scene.mesh.material_ids[h.prim as usize] == floor);
-                mask[i] = on_floor;
-                if let (true, Some(h)) = (on_floor, hit) {
-                    let p = kdtree::ray::surface_point(&tree.triangle(h.prim), h);
-                    reference[i] = sphere_visible_fraction(p, light.center(), light.radius(), center, radius) as f32;
-                }
-            }
-        }
-        let mut reports: Vec<ShadowReport> = METHODS
-            .iter()
-            .zip(&frames)
-            .zip(&times)
-            .map(|((m, f), t)| {
-                let secs = median(t);
-                let (rmse, max, psnr) = masked_errors(&f.visibility, &reference, &mask);
-                ShadowReport {
-                    scene: scene.name.clone(),
-                    method: m.name(),
-                    ms_per_frame: secs * 1e3,
-                    shadow_rays_per_s: f.shadow_rays as f64 / secs,
-                    visibility_rmse: rmse,
-                    visibility_max_err: max,
-                    psnr,
-                    pareto: false,
-                }
-            })
-            .collect();
-        mark_pareto(&mut reports);
-        let dir = args.out_dir.join(&scene.name);
-        write_outputs(&dir, &setup, &frames, &reference, &mask, &reports)?;
-        for r in &reports {
-            emit(global, r)?;
-        }
     }
-    Ok(())
+    let mut rows: Vec<ShadowReport> = METHODS
+        .iter()
+        .zip(&frames)
+        .zip(&times)
+        .map(|((m, f), t)| {
+            let secs = median(t);
+            let (rmse, max, psnr) = masked_errors(&f.visibility, &reference, &mask);
+            ShadowReport {
+                scene: scene.name.clone(),
+                method: m.name(),
+                ms_per_frame: secs * 1e3,
+                shadow_rays_per_s: f.shadow_rays as f64 / secs,
+                visibility_rmse: rmse,
+                visibility_max_err: max,
+                psnr,
+                pareto: false,
+            }
+        })
+        .collect();
+    mark_pareto(&mut rows);
+    let dir = config.out_dir.join(&scene.name);
+    let files = write_outputs(&dir, &setup, &frames, &reference, &mask, &rows)?;
+    Ok(SceneShadows { scene: scene.name.clone(), rows, dir, files, reference: reference_path, reference_cached })
 }
 
-fn median(v: &[f64]) -> f64 {
+/// The upper median of `v` (the middle element, or the upper of the two middle ones), as
+/// `rttest shadows` and Table 5.1 report it. `v` must not be empty.
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -671,7 +752,7 @@ fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
     move |e| Error::File { path: path.to_path_buf(), message: e.to_string() }
 }
 
-/// Images, strip, error images, CSV and the plot of one scene.
+/// Images, strip, error images, CSV and the plot of one scene; returns the files written.
 fn write_outputs(
     dir: &Path,
     setup: &ShadowSetup,
@@ -679,11 +760,18 @@ fn write_outputs(
     reference: &[f32],
     mask: &[bool],
     reports: &[ShadowReport],
-) -> Result<(), Error> {
+) -> Result<Vec<PathBuf>, Error> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let (w, h) = (setup.camera.width, setup.camera.height);
     let ref_image = setup.shade(&frames[0].hits, reference);
-    ref_image.save_png(&dir.join("reference.png"))?;
+    let mut files = Vec::new();
+    let mut save = |img: &Image, name: String| -> Result<(), Error> {
+        let path = dir.join(name);
+        img.save_png(&path)?;
+        files.push(path);
+        Ok(())
+    };
+    save(&ref_image, "reference.png".into())?;
     // The strip: reference then each method; below, each method's |error| x 4 (red: off the
     // measured pixels).
     let mut strip = Image::new(w * (frames.len() as u32 + 1), 2 * h);
@@ -696,7 +784,7 @@ fn write_outputs(
     };
     put(0, 0, &ref_image);
     for (i, (f, r)) in frames.iter().zip(reports).enumerate() {
-        f.image.save_png(&dir.join(format!("{}.png", r.method)))?;
+        save(&f.image, format!("{}.png", r.method))?;
         let err = Image {
             width: w,
             height: h,
@@ -708,11 +796,11 @@ fn write_outputs(
                 .map(|((a, b), &m)| if m { Vec3::splat(4.0 * (a - b).abs()) } else { Vec3::new(0.15, 0.0, 0.0) })
                 .collect(),
         };
-        err.save_png(&dir.join(format!("error-{}.png", r.method)))?;
+        save(&err, format!("error-{}.png", r.method))?;
         put(i as u32 + 1, 0, &f.image);
         put(i as u32 + 1, 1, &err);
     }
-    strip.save_png(&dir.join("strip.png"))?;
+    save(&strip, "strip.png".into())?;
     let mut csv =
         String::from("scene,method,ms_per_frame,shadow_rays_per_s,visibility_rmse,visibility_max_err,psnr,pareto\n");
     for r in reports {
@@ -730,7 +818,9 @@ fn write_outputs(
     }
     let csv_path = dir.join("shadows.csv");
     std::fs::write(&csv_path, csv).map_err(io(&csv_path))?;
-    crate::shadow_plot::plot(dir, reports)
+    files.push(csv_path);
+    files.extend(crate::shadow_plot::plot(dir, reports)?);
+    Ok(files)
 }
 
 #[cfg(test)]
@@ -766,10 +856,10 @@ mod tests {
         assert_eq!(single.visibility, packet.visibility);
         assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
         let dir = std::env::temp_dir().join(format!("rttest-shadow-cache-{}", std::process::id()));
-        let (a, cached) = cached_reference(&setup, &dir, 4).unwrap();
-        assert!(!cached);
-        let (b, cached) = cached_reference(&setup, &dir, 4).unwrap();
-        assert!(cached && a == b);
+        let (a, cached, path) = cached_reference(&setup, &dir, 4).unwrap();
+        assert!(!cached && path.is_file());
+        let (b, cached, same) = cached_reference(&setup, &dir, 4).unwrap();
+        assert!(cached && a == b && same == path);
         // A different light or sample count is a different entry.
         let other = ShadowSetup::new(&scene, &tree, camera, light.scaled(0.5));
         assert!(!cached_reference(&other, &dir, 4).unwrap().1);
@@ -788,5 +878,28 @@ mod tests {
         assert!(thickness_scales(&scene, &["cube=-1".into()]).is_err());
         let t = thickness_scales(&scene, &["cube=3".into()]).unwrap().unwrap();
         assert!(t.iter().all(|&s| s == 3.0));
+        // The config is checked before any scene is loaded.
+        assert!(ShadowsConfig::default().validate().is_ok());
+        for light_size in [f32::NAN, f32::INFINITY, 0.0, -1.0] {
+            let e = ShadowsConfig { light_size, ..ShadowsConfig::default() }.validate().unwrap_err().to_string();
+            assert!(e.starts_with("--light-size") && e.contains("finite"), "{e}");
+        }
+        for edge_scale in [f32::NAN, f32::NEG_INFINITY, -0.5] {
+            let e = ShadowsConfig { edge_scale, ..ShadowsConfig::default() }.validate().unwrap_err().to_string();
+            assert!(e.starts_with("--edge-scale") && e.contains("finite"), "{e}");
+        }
+        let bad = ShadowsConfig { thickness: vec!["cube=nan".into()], ..ShadowsConfig::default() };
+        assert!(bad.validate().unwrap_err().to_string().contains("cube=nan"));
+    }
+
+    #[test]
+    fn the_default_scenes_are_the_experiments_with_analytic_after_the_built_in_ones() {
+        let list = ShadowsConfig::default().scene_list();
+        let mut expected = trace::setup::default_scenes();
+        expected.insert(4, "analytic".into());
+        assert_eq!(list, expected);
+        assert_eq!(list[..5], ["atrium", "arena", "atrium-rotated", "grove", "analytic"]);
+        let named = ShadowsConfig { scenes: vec!["cube".into()], ..ShadowsConfig::default() };
+        assert_eq!(named.scene_list(), ["cube"]);
     }
 }

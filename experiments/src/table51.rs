@@ -13,7 +13,7 @@ use edgewidth::AreaLight;
 use kdtree::{BuildConfig, KdTree};
 
 use crate::Error;
-use crate::shadows::{ShadowMethod, ShadowSetup};
+use crate::shadows::{ShadowMethod, ShadowSetup, median};
 
 /// The four rows of Table 5.1 with the thesis's Sponza frame rates.
 pub const ROWS: [(ShadowMethod, &str, f64); 4] = [
@@ -25,9 +25,14 @@ pub const ROWS: [(ShadowMethod, &str, f64); 4] = [
 
 /// Measures Table 5.1 on `atrium` and Sponza (if present) at `size`, `frames` frames per row
 /// (median), with the ray-triangle test of `config`. Returns markdown, or CSV rows.
+///
+/// `frames` must be at least 1 (0 is a usage error).
 pub fn table51(size: (u32, u32), frames: u32, config: &BuildConfig, csv: bool) -> Result<String, Error> {
+    if frames == 0 {
+        return Err(Error::Usage("Table 5.1 needs at least one frame".into()));
+    }
     let mut specs = vec!["atrium".to_string()];
-    if let Some(p) = crate::harness::sponza_path() {
+    if let Some(p) = trace::setup::sponza_path() {
         specs.push(p.display().to_string());
     }
     let mut out = String::new();
@@ -54,13 +59,7 @@ pub fn table51(size: (u32, u32), frames: u32, config: &BuildConfig, csv: bool) -
                 times[i].push(setup.frame(*m).secs);
             }
         }
-        let medians: Vec<f64> = times
-            .iter_mut()
-            .map(|t| {
-                t.sort_by(f64::total_cmp);
-                t[t.len() / 2]
-            })
-            .collect();
+        let medians: Vec<f64> = times.iter().map(|t| median(t)).collect();
         let sponza = scene.name.starts_with("sponza");
         if !csv {
             let _ = writeln!(out, "**{}** ({} triangles)\n", scene.name, scene.mesh.triangle_count());

@@ -17,45 +17,46 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use clap::Args;
 use cones::ShadowMethod;
-use kdtree::{BuildConfig, KdTree, NoCounters};
-use packets::PacketCounts;
-use scenes::{Scene, SphereLight};
+use kdtree::{BuildConfig, Intersector, KdTree};
+use scenes::Scene;
+use trace::progress::Progress;
+use trace::setup::view_camera;
+use trace::timing::mrays_per_s;
+use trace::{Error, FrameTracer, Options, Registry, Renderer, Shadows, Structures, TileLayout, soft};
 
-use crate::Error;
-use crate::cli::{GlobalArgs, IntersectorArg, parse_size};
-use crate::progress::{self, Progress};
-use crate::render::{Method, Renderer, Shadows};
-use crate::report::mrays_per_s;
-use crate::soft;
-
-/// `rttest tables` options.
-#[derive(Debug, Clone, Args)]
-pub struct TablesArgs {
-    /// Scenes (built-in names or OBJ paths; repeatable). Default: atrium, arena,
-    /// atrium-rotated, grove and every .obj / .obj.gz in the shared scenes folder.
-    #[arg(long, value_name = "NAME|PATH")]
+/// What `tables` measures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TablesConfig {
+    /// Scenes (built-in names or OBJ paths); empty: [`trace::setup::default_scenes`].
     pub scene: Vec<String>,
     /// Image size.
-    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Frames timed per configuration; the best is kept.
-    #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub frames: u32,
-    /// The ray-triangle test.
-    #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
-    pub intersector: IntersectorArg,
-    /// Print the rows as CSV instead of the markdown tables: one table of the primary-ray
-    /// rows, then (after a blank line) one of the soft-shadow rows of Table 4.6.
-    #[arg(long)]
+    /// The ray-triangle test of the trees.
+    pub intersector: Intersector,
+    /// CSV instead of markdown: one table of the primary-ray rows, then (after a blank line)
+    /// one of the soft-shadow rows of Table 4.6.
     pub csv: bool,
     /// Leave out Table 4.6 (16-sample soft shadows, the slowest part).
-    #[arg(long)]
     pub no_soft_shadows: bool,
     /// Leave out Table 6.2 (frame rate against threads, the best method of each scene).
-    #[arg(long)]
     pub no_scaling: bool,
+}
+
+impl Default for TablesConfig {
+    fn default() -> Self {
+        TablesConfig {
+            scene: Vec::new(),
+            size: (512, 512),
+            frames: 5,
+            intersector: Intersector::Wald,
+            csv: false,
+            no_soft_shadows: false,
+            no_scaling: false,
+        }
+    }
 }
 
 /// One measured soft-shadow configuration of one scene (Table 4.6).
@@ -81,7 +82,8 @@ struct SoftRow {
 #[derive(Clone, Debug)]
 struct Row {
     scene: String,
-    method: Method,
+    /// The registry name of the method (`mono`, `mft`, ...).
+    method: &'static str,
     tile: u32,
     culling: bool,
     trace_ms: f64,
@@ -93,24 +95,24 @@ struct Row {
 }
 
 /// The thesis's Sponza figures: (method, tile, fps, N, I) from Tables 4.1, 4.3 and 4.5.
-const THESIS_SPONZA: &[(Method, u32, f64, f64, f64)] = &[
-    (Method::Packet, 2, 13.60, 33.81, 3.83),
-    (Method::Frustum, 4, 17.50, 11.05, 9.86),
-    (Method::Frustum, 8, 24.00, 4.17, 22.20),
-    (Method::Frustum, 16, 20.60, 2.14, 63.71),
-    (Method::Frustum, 32, 9.90, 1.52, 226.81),
-    (Method::Mft, 4, 18.80, 10.74, 5.74),
-    (Method::Mft, 8, 26.00, 3.92, 9.96),
-    (Method::Mft, 16, 27.50, 1.93, 22.86),
-    (Method::Mft, 32, 19.50, 1.31, 68.98),
-    (Method::Cone, 4, 20.00, 12.10, 13.32),
-    (Method::Cone, 8, 22.20, 5.03, 33.40),
-    (Method::Cone, 16, 15.50, 2.95, 106.08),
-    (Method::Cone, 32, 6.40, 2.30, 382.47),
-    (Method::MftCone, 4, 18.80, 11.23, 6.93),
-    (Method::MftCone, 8, 25.00, 4.28, 13.32),
-    (Method::MftCone, 16, 25.10, 2.27, 33.40),
-    (Method::MftCone, 32, 15.50, 1.62, 106.08),
+const THESIS_SPONZA: &[(&str, u32, f64, f64, f64)] = &[
+    ("packet", 2, 13.60, 33.81, 3.83),
+    ("frustum", 4, 17.50, 11.05, 9.86),
+    ("frustum", 8, 24.00, 4.17, 22.20),
+    ("frustum", 16, 20.60, 2.14, 63.71),
+    ("frustum", 32, 9.90, 1.52, 226.81),
+    ("mft", 4, 18.80, 10.74, 5.74),
+    ("mft", 8, 26.00, 3.92, 9.96),
+    ("mft", 16, 27.50, 1.93, 22.86),
+    ("mft", 32, 19.50, 1.31, 68.98),
+    ("cone", 4, 20.00, 12.10, 13.32),
+    ("cone", 8, 22.20, 5.03, 33.40),
+    ("cone", 16, 15.50, 2.95, 106.08),
+    ("cone", 32, 6.40, 2.30, 382.47),
+    ("mft-cone", 4, 18.80, 11.23, 6.93),
+    ("mft-cone", 8, 25.00, 4.28, 13.32),
+    ("mft-cone", 16, 25.10, 2.27, 33.40),
+    ("mft-cone", 32, 15.50, 1.62, 106.08),
 ];
 
 /// The thesis's Table 4.6 (Sponza, 16-sample soft shadows): (radius, method, fps, N, I).
@@ -122,67 +124,53 @@ const THESIS_SOFT: &[(f32, ShadowMethod, f64, f64, f64)] = &[
 ];
 
 /// The configurations of every scene: (method, tile, culling).
-const CONFIGS: &[(Method, u32, bool)] = &[
-    (Method::Mono, 16, true),
-    (Method::Packet, 16, true),
-    (Method::Frustum, 4, true),
-    (Method::Frustum, 8, true),
-    (Method::Frustum, 16, true),
-    (Method::Frustum, 32, true),
-    (Method::Frustum, 8, false),
-    (Method::Mft, 4, true),
-    (Method::Mft, 8, true),
-    (Method::Mft, 16, true),
-    (Method::Mft, 32, true),
-    (Method::Cone, 4, true),
-    (Method::Cone, 8, true),
-    (Method::Cone, 16, true),
-    (Method::Cone, 32, true),
-    (Method::MftCone, 4, true),
-    (Method::MftCone, 8, true),
-    (Method::MftCone, 16, true),
-    (Method::MftCone, 32, true),
+const CONFIGS: &[(&str, u32, bool)] = &[
+    ("mono", 16, true),
+    ("packet", 16, true),
+    ("frustum", 4, true),
+    ("frustum", 8, true),
+    ("frustum", 16, true),
+    ("frustum", 32, true),
+    ("frustum", 8, false),
+    ("mft", 4, true),
+    ("mft", 8, true),
+    ("mft", 16, true),
+    ("mft", 32, true),
+    ("cone", 4, true),
+    ("cone", 8, true),
+    ("cone", 16, true),
+    ("cone", 32, true),
+    ("mft-cone", 4, true),
+    ("mft-cone", 8, true),
+    ("mft-cone", 16, true),
+    ("mft-cone", 32, true),
 ];
 
-/// The scenes to run: the arguments, or the four built-in stand-ins and the shared OBJs.
-fn scene_list(args: &TablesArgs) -> Vec<String> {
-    if !args.scene.is_empty() {
-        return args.scene.clone();
-    }
-    let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove"].map(String::from).to_vec();
-    if let Some(dir) = scenes::shared_scenes_dir()
-        && let Ok(entries) = std::fs::read_dir(dir)
-    {
-        let mut files: Vec<String> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
-                name.ends_with(".obj") || name.ends_with(".obj.gz")
-            })
-            .map(|p| p.display().to_string())
-            .collect();
-        files.sort();
-        list.extend(files);
-    }
-    list
+/// The scenes to run: the config's, or the default list.
+fn scene_list(config: &TablesConfig) -> Vec<String> {
+    if config.scene.is_empty() { trace::setup::default_scenes() } else { config.scene.clone() }
 }
 
 /// Measures every configuration on one scene.
-fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<Row>, Error> {
-    let (w, h) = args.size;
-    let (camera, _) = crate::cli::view_camera(scene, None, w, h)?;
-    let bar = Progress::bar(CONFIGS.len() as u64, &format!("tables: {}", scene.name), show);
+fn measure(
+    scene: &Scene,
+    structures: &Structures<'_>,
+    config: &TablesConfig,
+    progress: &dyn Progress,
+) -> Result<Vec<Row>, Error> {
+    let registry = Registry::ours();
+    let (w, h) = config.size;
+    let (camera, _) = view_camera(scene, None, w, h)?;
+    let bar = progress.task(&format!("tables: {}", scene.name), Some(CONFIGS.len() as u64));
     let mut rows = Vec::new();
     let mut shade_secs = f64::INFINITY;
     for &(method, tile, culling) in CONFIGS {
-        let renderer = Renderer::new(scene, tree, camera, method, Shadows::None)
-            .with_tile(tile)
-            .map_err(|e| Error::Usage(e.to_string()))?
-            .with_culling(culling);
+        let selected = registry.select(method, Options { tile, culling })?;
+        let bound = registry.bind(&selected, structures)?;
+        let renderer = Renderer::new(scene, &bound, camera, Shadows::None);
         let mut buffers = renderer.buffers();
         let mut best = f64::INFINITY;
-        for _ in 0..args.frames {
+        for _ in 0..config.frames {
             best = best.min(renderer.trace(&mut buffers).primary_secs);
         }
         let start = Instant::now();
@@ -190,14 +178,12 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
         shade_secs = shade_secs.min(start.elapsed().as_secs_f64());
         let (stats, counts, _) = renderer.trace_counted(&mut buffers);
         // Single rays: a 2x2 packet's worth is four rays.
-        let packets = match method {
-            Method::Mono => stats.primary_rays as f64 / 4.0,
-            _ => renderer.packet_count() as f64,
-        };
+        let packets =
+            if bound.entry.packets { renderer.packet_count() as f64 } else { stats.primary_rays as f64 / 4.0 };
         let (n, i) = (counts.nodes as f64 / packets, counts.tests as f64 / packets);
         rows.push(Row {
             scene: scene.name.clone(),
-            method,
+            method: bound.entry.name,
             tile,
             culling,
             trace_ms: best * 1e3,
@@ -217,37 +203,52 @@ fn measure(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Resul
     Ok(rows)
 }
 
+/// The registered method whose soft-shadow kernel is `method`: single rays, the pyramid of
+/// the 16 rays (packets, frusta) or their cone.
+fn soft_method(method: ShadowMethod) -> &'static str {
+    match method {
+        ShadowMethod::Single => "mono",
+        ShadowMethod::Pyramid => "packet",
+        ShadowMethod::Cone => "cone",
+    }
+}
+
 /// Times the 16-sample soft shadows of every hit of the default view to a spherical light at
 /// the scene's point light, radius 1 and 2 in Sponza units scaled to the scene, for each
 /// [`ShadowMethod`], and checks that they agree.
-fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> Result<Vec<SoftRow>, Error> {
-    let (w, h) = args.size;
-    let (camera, _) = crate::cli::view_camera(scene, None, w, h)?;
-    let hits = soft::primary_hits(scene, tree, &camera);
-    let diag = (tree.bounds().max - tree.bounds().min).length();
-    let frames = args.frames.min(3);
-    let bar = Progress::bar(2 * ShadowMethod::ALL.len() as u64, &format!("table 4.6: {}", scene.name), show);
+fn measure_soft(
+    scene: &Scene,
+    structures: &Structures<'_>,
+    config: &TablesConfig,
+    progress: &dyn Progress,
+) -> Result<Vec<SoftRow>, Error> {
+    let registry = Registry::ours();
+    let (w, h) = config.size;
+    let (camera, _) = view_camera(scene, None, w, h)?;
+    let layout = TileLayout::new(w, h, trace::registry::TILE_SIZE);
+    let mono = registry.bind(&registry.select("mono", Options::default())?, structures)?;
+    let mut hits = vec![None; layout.pixel_count()];
+    mono.tracer.primary(&layout, &camera, &mut hits);
+    let frames = config.frames.min(3);
+    let bar = progress.task(&format!("table 4.6: {}", scene.name), Some(2 * ShadowMethod::ALL.len() as u64));
     let mut rows = Vec::new();
+    let mut visible = vec![0.0f32; layout.pixel_count()];
     for radius in [1.0f32, 2.0] {
-        let light = SphereLight {
-            center: scene.point_light.position,
-            radius: soft::scaled_radius(radius, diag),
-            intensity: scene.point_light.intensity,
-        };
+        let light = soft::scene_light(scene, structures.kdtree(), radius);
         let mut reference: Option<Vec<f32>> = None;
         for method in ShadowMethod::ALL {
+            let bound = registry.bind(&registry.select(soft_method(method), Options::default())?, structures)?;
+            let tracer: &dyn FrameTracer = &*bound.tracer;
             let mut best = f64::INFINITY;
-            let mut pass = None;
+            let mut stats = Default::default();
             for _ in 0..frames {
                 let start = Instant::now();
-                let p = soft::soft_shadow_pass::<NoCounters>(scene, tree, &camera, &hits, &light, method);
+                stats = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible);
                 best = best.min(start.elapsed().as_secs_f64());
-                pass = Some(p);
             }
-            let pass = pass.expect("at least one frame");
             match &reference {
-                None => reference = Some(pass.visible.clone()),
-                Some(r) if *r != pass.visible => {
+                None => reference = Some(visible.clone()),
+                Some(r) if *r != visible => {
                     return Err(Error::Usage(format!(
                         "{}: {} soft shadows differ from single rays (a bug: please report it)",
                         scene.name,
@@ -256,22 +257,18 @@ fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> 
                 }
                 Some(_) => {}
             }
-            let counted = soft::soft_shadow_pass::<PacketCounts>(scene, tree, &camera, &hits, &light, method);
+            let (counted, counts) = tracer.soft_counted(&layout, scene, &camera, &hits, &light, &mut visible);
             let points = counted.points.max(1) as f64;
-            let tests = if method == ShadowMethod::Single {
-                counted.counts.tests as f64 / 4.0
-            } else {
-                counted.counts.tests as f64
-            };
+            let tests = if method == ShadowMethod::Single { counts.tests as f64 / 4.0 } else { counts.tests as f64 };
             rows.push(SoftRow {
                 scene: scene.name.clone(),
                 radius,
                 method,
                 ms: best * 1e3,
-                mrays: mrays_per_s(pass.rays, best),
-                n: counted.counts.nodes as f64 / points,
+                mrays: mrays_per_s(stats.rays, best),
+                n: counts.nodes as f64 / points,
                 i: tests / points,
-                visible: pass.visible.iter().map(|&v| f64::from(v)).sum::<f64>() / points,
+                visible: visible.iter().map(|&v| f64::from(v)).sum::<f64>() / points,
             });
             bar.inc();
         }
@@ -280,62 +277,89 @@ fn measure_soft(scene: &Scene, tree: &KdTree, args: &TablesArgs, show: bool) -> 
     Ok(rows)
 }
 
-/// `rttest tables`.
-pub fn tables_command(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Error> {
-    let show = progress::enabled(global.json);
+/// The measured tables, printed by `Display` (markdown, or CSV with `config.csv`).
+#[derive(Clone, Debug)]
+pub struct TablesReport {
+    config: TablesConfig,
+    rows: Vec<Row>,
+    soft_rows: Vec<SoftRow>,
+    scaling_rows: Vec<crate::scaling::ScalingRow>,
+    threads: usize,
+    table51: String,
+}
+
+/// Measures Tables 4.1-4.6, 6.2 and 5.1 (see the module documentation) on the current rayon
+/// pool.
+pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesReport, Error> {
+    let registry = Registry::ours();
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
     let mut scaling_rows = Vec::new();
-    for spec in scene_list(args) {
+    let build = BuildConfig { intersector: config.intersector, ..BuildConfig::default() };
+    for spec in scene_list(config) {
         let scene = scenes::load_scene(&spec)?;
-        let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config)?;
-        let rows = measure(&scene, &tree, args, show)?;
-        if !args.no_scaling
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &build)?;
+        let structures = Structures::new(&tree);
+        let rows = measure(&scene, &structures, config, progress)?;
+        if !config.no_scaling
             && let Some(best) = rows.iter().filter(|r| r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
-            && let Some(camera) = scene.default_view().camera(args.size.0, args.size.1)
+            && let Some(camera) = scene.default_view().camera(config.size.0, config.size.1)
         {
+            let bound = registry
+                .bind(&registry.select(best.method, Options { tile: best.tile, culling: true })?, &structures)?;
             let cores = crate::scaling::cores();
-            let rounds = args.frames.max(5);
-            scaling_rows.extend(crate::scaling::measure(&scene, &tree, camera, best.method, best.tile, cores, rounds)?);
+            let rounds = config.frames.max(5);
+            scaling_rows.extend(crate::scaling::measure(&scene, &bound, camera, cores, rounds)?);
         }
         all.extend(rows);
-        if !args.no_soft_shadows {
-            soft_rows.extend(measure_soft(&scene, &tree, args, show)?);
+        if !config.no_soft_shadows {
+            soft_rows.extend(measure_soft(&scene, &structures, config, progress)?);
         }
     }
-    let text = if args.csv {
-        let mut text = csv(&all);
-        if !soft_rows.is_empty() {
-            text.push('\n');
-            text.push_str(&soft_csv(&soft_rows));
-        }
-        if !scaling_rows.is_empty() {
-            text.push('\n');
-            text.push_str(&crate::scaling::csv(&scaling_rows));
-        }
-        text
-    } else {
-        let mut text = markdown(&all, args);
-        if !soft_rows.is_empty() {
-            text.push_str(&soft_markdown(&soft_rows, args));
-        }
-        if !scaling_rows.is_empty() {
-            text.push_str(&crate::scaling::markdown(&scaling_rows, args.size, args.frames.max(5)));
-        }
-        text
-    };
-    print!("{text}");
-    let config = BuildConfig { intersector: args.intersector.into(), ..BuildConfig::default() };
-    print!("{}", crate::table51::table51(args.size, args.frames, &config, args.csv)?);
-    Ok(())
+    let table51 = crate::table51::table51(config.size, config.frames, &build, config.csv)?;
+    Ok(TablesReport {
+        config: config.clone(),
+        rows: all,
+        soft_rows,
+        scaling_rows,
+        threads: rayon::current_num_threads(),
+        table51,
+    })
+}
+
+impl std::fmt::Display for TablesReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let config = &self.config;
+        let text = if config.csv {
+            let mut text = csv(&self.rows);
+            if !self.soft_rows.is_empty() {
+                text.push('\n');
+                text.push_str(&soft_csv(&self.soft_rows));
+            }
+            if !self.scaling_rows.is_empty() {
+                text.push('\n');
+                text.push_str(&crate::scaling::csv(&self.scaling_rows));
+            }
+            text
+        } else {
+            let mut text = markdown(&self.rows, config, self.threads);
+            if !self.soft_rows.is_empty() {
+                text.push_str(&soft_markdown(&self.soft_rows, config, self.threads));
+            }
+            if !self.scaling_rows.is_empty() {
+                text.push_str(&crate::scaling::markdown(&self.scaling_rows, config.size, config.frames.max(5)));
+            }
+            text
+        };
+        write!(f, "{text}{}", self.table51)
+    }
 }
 
 fn label(r: &Row) -> String {
     match r.method {
-        Method::Mono => "single rays".into(),
-        Method::Packet => "packet 2x2".into(),
-        m => format!("{} {}x{}{}", m.name(), r.tile, r.tile, if r.culling { "" } else { " (no culling)" }),
+        "mono" => "single rays".into(),
+        "packet" => "packet 2x2".into(),
+        m => format!("{} {}x{}{}", m, r.tile, r.tile, if r.culling { "" } else { " (no culling)" }),
     }
 }
 
@@ -345,36 +369,27 @@ fn csv(rows: &[Row]) -> String {
         let _ = writeln!(
             out,
             "{},{},{},{},{:.3},{:.2},{:.3},{:.3},{:.3},{:.2}",
-            r.scene,
-            r.method.name(),
-            r.tile,
-            r.culling,
-            r.trace_ms,
-            r.fps,
-            r.mrays,
-            r.n,
-            r.i,
-            r.culled
+            r.scene, r.method, r.tile, r.culling, r.trace_ms, r.fps, r.mrays, r.n, r.i, r.culled
         );
     }
     out
 }
 
-fn find<'a>(rows: &'a [Row], scene: &str, method: Method, tile: u32, culling: bool) -> Option<&'a Row> {
+fn find<'a>(rows: &'a [Row], scene: &str, method: &str, tile: u32, culling: bool) -> Option<&'a Row> {
     rows.iter().find(|r| {
-        r.scene == scene && r.method == method && (r.tile == tile || method == Method::Packet) && r.culling == culling
+        r.scene == scene && r.method == method && (r.tile == tile || method == "packet") && r.culling == culling
     })
 }
 
-fn thesis(scene: &str, method: Method, tile: u32) -> Option<(f64, f64, f64)> {
+fn thesis(scene: &str, method: &str, tile: u32) -> Option<(f64, f64, f64)> {
     if !scene.to_lowercase().starts_with("sponza") {
         return None;
     }
-    THESIS_SPONZA.iter().find(|t| t.0 == method && (t.1 == tile || method == Method::Packet)).map(|t| (t.2, t.3, t.4))
+    THESIS_SPONZA.iter().find(|t| t.0 == method && (t.1 == tile || method == "packet")).map(|t| (t.2, t.3, t.4))
 }
 
 /// The fastest row of `method` on `scene` (culling on).
-fn best_of<'a>(rows: &'a [Row], scene: &str, method: Method) -> Option<&'a Row> {
+fn best_of<'a>(rows: &'a [Row], scene: &str, method: &str) -> Option<&'a Row> {
     rows.iter().filter(|r| r.scene == scene && r.method == method && r.culling).max_by(|a, b| a.fps.total_cmp(&b.fps))
 }
 
@@ -382,7 +397,7 @@ fn pct(new: f64, old: f64) -> f64 {
     100.0 * (new - old) / old
 }
 
-fn markdown(rows: &[Row], args: &TablesArgs) -> String {
+fn markdown(rows: &[Row], config: &TablesConfig, threads: usize) -> String {
     let mut scenes: Vec<&str> = Vec::new();
     for r in rows {
         if !scenes.contains(&r.scene.as_str()) {
@@ -390,18 +405,17 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
         }
     }
     let mut out = String::new();
-    let (w, h) = args.size;
+    let (w, h) = config.size;
     let _ = writeln!(
         out,
         "Primary rays, default views, {w}x{h}, {} threads, best of {} frames. fps = 1 / (trace + shading); N = traversal steps and I = packet-triangle tests per 2x2 packet (single rays: per ray x 4).\n",
-        rayon::current_num_threads(),
-        args.frames
+        threads, config.frames
     );
 
     let _ = writeln!(out, "### Table 4.1: packets and frusta\n");
     let _ = writeln!(out, "| scene | method | trace ms | fps | Mrays/s | N | I | thesis fps | thesis N | thesis I |");
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for r in rows.iter().filter(|r| matches!(r.method, Method::Mono | Method::Packet | Method::Frustum) && r.culling) {
+    for r in rows.iter().filter(|r| matches!(r.method, "mono" | "packet" | "frustum") && r.culling) {
         let t = thesis(&r.scene, r.method, r.tile);
         let th = |f: fn((f64, f64, f64)) -> f64| t.map_or("".into(), |t| format!("{:.2}", f(t)));
         let _ = writeln!(
@@ -427,9 +441,7 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
     );
     let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
     for s in &scenes {
-        if let (Some(on), Some(off)) =
-            (find(rows, s, Method::Frustum, 8, true), find(rows, s, Method::Frustum, 8, false))
-        {
+        if let (Some(on), Some(off)) = (find(rows, s, "frustum", 8, true), find(rows, s, "frustum", 8, false)) {
             let _ = writeln!(
                 out,
                 "| {s} | {:.1} | {:.1} | {:+.1}% | {:.1}% | {:.2} | {:.2} |",
@@ -449,9 +461,9 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
         "| scene | tile | fps | Mrays/s | N | I | % fps | % N | % I | thesis % fps | thesis % N | thesis % I |"
     );
     let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for r in rows.iter().filter(|r| r.method == Method::Mft) {
-        let Some(f) = find(rows, &r.scene, Method::Frustum, r.tile, true) else { continue };
-        let th = match (thesis(&r.scene, Method::Mft, r.tile), thesis(&r.scene, Method::Frustum, r.tile)) {
+    for r in rows.iter().filter(|r| r.method == "mft") {
+        let Some(f) = find(rows, &r.scene, "frustum", r.tile, true) else { continue };
+        let th = match (thesis(&r.scene, "mft", r.tile), thesis(&r.scene, "frustum", r.tile)) {
             (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
             _ => " | | ".into(),
         };
@@ -475,8 +487,8 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
     let _ = writeln!(out, "| scene | MFT fps | MFT tile | frustum fps | frustum tile | MFT gain | thesis gain |");
     let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
     for s in &scenes {
-        let best = |m: Method| best_of(rows, s, m);
-        if let (Some(m), Some(f)) = (best(Method::Mft), best(Method::Frustum)) {
+        let best = |m: &str| best_of(rows, s, m);
+        if let (Some(m), Some(f)) = (best("mft"), best("frustum")) {
             let th = if s.to_lowercase().starts_with("sponza") {
                 format!("{:+.1}%", pct(27.5, 24.0))
             } else {
@@ -505,9 +517,9 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
         "| scene | method | tile | fps | Mrays/s | N | I | % fps | % N | % I | thesis % fps | thesis % N | thesis % I |"
     );
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for r in rows.iter().filter(|r| matches!(r.method, Method::Cone | Method::MftCone)) {
-        let Some(f) = find(rows, &r.scene, Method::Frustum, r.tile, true) else { continue };
-        let th = match (thesis(&r.scene, r.method, r.tile), thesis(&r.scene, Method::Frustum, r.tile)) {
+    for r in rows.iter().filter(|r| matches!(r.method, "cone" | "mft-cone")) {
+        let Some(f) = find(rows, &r.scene, "frustum", r.tile, true) else { continue };
+        let th = match (thesis(&r.scene, r.method, r.tile), thesis(&r.scene, "frustum", r.tile)) {
             (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
             _ => " | | ".into(),
         };
@@ -515,7 +527,7 @@ fn markdown(rows: &[Row], args: &TablesArgs) -> String {
             out,
             "| {} | {} | {}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
             r.scene,
-            r.method.name(),
+            r.method,
             r.tile,
             r.tile,
             r.fps,
@@ -550,15 +562,15 @@ fn soft_csv(rows: &[SoftRow]) -> String {
     out
 }
 
-fn soft_markdown(rows: &[SoftRow], args: &TablesArgs) -> String {
+fn soft_markdown(rows: &[SoftRow], config: &TablesConfig, threads: usize) -> String {
     let mut out = String::new();
-    let (w, h) = args.size;
+    let (w, h) = config.size;
     let _ = writeln!(out, "\n### Table 4.6: 16-sample soft shadows to a spherical light, cone against pyramid\n");
     let _ = writeln!(
         out,
         "Default views, {w}x{h}, {} threads, best of {} frames of the shadow pass alone (primary hits made once by single rays). Light at the scene's point light, radius 1 and 2 in Sponza units scaled by the scene's diagonal / {:.2}. fps = 1 / shadow pass; N = traversal steps and I = packet-triangle tests (single rays: tests / 4) per shaded point of 16 rays; the three methods agree ray by ray (checked).\n",
-        rayon::current_num_threads(),
-        args.frames.min(3),
+        threads,
+        config.frames.min(3),
         soft::SPONZA_DIAGONAL
     );
     let _ = writeln!(

@@ -6,10 +6,10 @@
 
 use std::time::Duration;
 
-use bench::harness;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use kdtree::{BuildConfig, KdTree};
 use scenes::Mesh;
+use trace::setup as harness;
 
 fn bench_mesh(
     group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,

@@ -4,42 +4,41 @@
 //! of radius 1 and 2 (Sponza units, scaled to the scene) at 256x256, cone vs pyramid vs
 //! single rays (Table 4.6).
 
-use bench::render::Method;
-use bench::soft::{primary_hits, scaled_radius, soft_shadow_pass};
-use cones::ShadowMethod;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use kdtree::NoCounters;
-use scenes::SphereLight;
+use trace::{Options, Registry, Structures, TileLayout};
 
 mod common;
 
 fn primary(c: &mut Criterion) {
-    let mut configs: Vec<(Method, u32)> = Vec::new();
-    for t in [4, 8, 16, 32] {
-        configs.extend([(Method::Frustum, t), (Method::Cone, t), (Method::MftCone, t)]);
-    }
-    common::bench_primary_methods(c, "cones", &configs);
+    let names: Vec<String> =
+        [4, 8, 16, 32].into_iter().flat_map(|t| ["frustum", "cone", "mft-cone"].map(|m| format!("{m}-{t}"))).collect();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    common::bench_primary_methods(c, "cones", &names);
 }
 
 fn soft_shadows(c: &mut Criterion) {
-    for (name, scene, tree, camera) in bench::harness::packet_workloads(256) {
-        let hits = primary_hits(&scene, &tree, &camera);
-        let diag = (tree.bounds().max - tree.bounds().min).length();
+    let registry = Registry::ours();
+    for (name, scene, tree, camera) in trace::setup::packet_workloads(256) {
+        let structures = Structures::new(&tree);
+        let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
+        let bind = |m: &str| registry.bind(&registry.select(m, Options::default()).expect("registered"), &structures);
+        let mono = bind("mono").expect("mono binds");
+        let mut hits = vec![None; layout.pixel_count()];
+        mono.tracer.primary(&layout, &camera, &mut hits);
+        let mut visible = vec![0.0; layout.pixel_count()];
         for r in [1.0, 2.0] {
-            let light = SphereLight {
-                center: scene.point_light.position,
-                radius: scaled_radius(r, diag),
-                intensity: glam::Vec3::ONE,
-            };
+            let light = trace::soft::scene_light(&scene, &tree, r);
             let mut g = c.benchmark_group(format!("cones-soft16/{name}/r{r}"));
             g.sample_size(10)
                 .warm_up_time(std::time::Duration::from_secs(1))
                 .measurement_time(std::time::Duration::from_secs(3));
-            let rays = soft_shadow_pass::<NoCounters>(&scene, &tree, &camera, &hits, &light, ShadowMethod::Single).rays;
+            let rays = mono.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible).rays;
             g.throughput(Throughput::Elements(rays));
-            for m in ShadowMethod::ALL {
-                g.bench_function(m.name(), |b| {
-                    b.iter(|| soft_shadow_pass::<NoCounters>(&scene, &tree, &camera, &hits, &light, m).blocked)
+            // One method per soft-shadow kernel: single rays, the pyramid, the cone.
+            for (kernel, method) in [("single", "mono"), ("pyramid", "packet"), ("cone", "cone")] {
+                let bound = bind(method).expect("registered methods bind");
+                g.bench_function(kernel, |b| {
+                    b.iter(|| bound.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible).blocked)
                 });
             }
             g.finish();

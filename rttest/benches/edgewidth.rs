@@ -3,14 +3,14 @@
 //! tree and camera are made outside the timed loop; each iteration renders one whole frame
 //! (primary rays, visibility, shading), as Table 5.1 counts it.
 
-use bench::shadows::{ShadowMethod, ShadowSetup};
 use criterion::{Criterion, criterion_group, criterion_main};
 use edgewidth::AreaLight;
+use experiments::shadows::{ShadowMethod, ShadowSetup};
 use kdtree::{BuildConfig, KdTree};
 
 fn frames(c: &mut Criterion) {
     let mut specs = vec!["atrium".to_string()];
-    if let Some(p) = bench::harness::sponza_path() {
+    if let Some(p) = trace::setup::sponza_path() {
         specs.push(p.display().to_string());
     }
     for spec in specs {

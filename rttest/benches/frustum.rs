@@ -2,13 +2,12 @@
 //! rays at 1024x1024 per tile size (4 to 32, and 8x8 without culling), beside single rays,
 //! on the atrium and Sponza.
 
-use bench::render::Method;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 mod common;
 
 fn frustum(c: &mut Criterion) {
-    let configs: Vec<(Method, u32)> = [4, 8, 16, 32].map(|t| (Method::Frustum, t)).to_vec();
+    let configs = ["frustum-4", "frustum-8", "frustum-16", "frustum-32"];
     common::bench_primary_methods(c, "frustum", &configs);
 }
 

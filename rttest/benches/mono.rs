@@ -2,16 +2,16 @@
 //! rays/s at 1024x1024, on the atrium and, when the shared scenes are present, on Sponza from
 //! its benchmark view (eye (-10, 3, 0), target (0, 4, 0), fovy 70).
 //!
-//! Scenes, trees and rays are made outside the timed loop ([`bench::harness::Workload`]); the
+//! Scenes, trees and rays are made outside the timed loop ([`trace::setup::Workload`]); the
 //! loop times only the queries, on all cores.
 
 use std::time::Duration;
 
-use bench::harness::{self, Workload};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
 use kdtree::BuildConfig;
 use scenes::Camera;
+use trace::setup::{self as harness, Workload};
 
 const SIZE: u32 = 1024;
 

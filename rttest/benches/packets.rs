@@ -9,7 +9,6 @@
 
 use std::time::Duration;
 
-use bench::render::Method;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kdtree::{BuildConfig, KdTree, NoCounters, Ray};
 use packets::{mirror, omni, samesign};
@@ -17,7 +16,7 @@ use packets::{mirror, omni, samesign};
 mod common;
 
 fn packets(c: &mut Criterion) {
-    common::bench_primary_methods(c, "packets", &[(Method::Packet, 16), (Method::Samesign, 16)]);
+    common::bench_primary_methods(c, "packets", &["packet", "samesign"]);
     reflections(c);
 }
 

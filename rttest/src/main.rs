@@ -2,9 +2,9 @@
 
 use std::process::ExitCode;
 
-use bench::cli::{Cli, run};
 use clap::Parser;
 use clap::error::ErrorKind;
+use rttest::cli::{Cli, run};
 
 fn main() -> ExitCode {
     // Nothing should panic on user input; if something does anyway, say so in one line.

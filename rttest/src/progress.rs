@@ -41,7 +41,7 @@ impl Bar {
     }
 
     /// A bar of `len` steps with `message` (frames, for example).
-    pub fn bar(len: u64, message: &str, enabled: bool) -> Bar {
+    pub fn steps(len: u64, message: &str, enabled: bool) -> Bar {
         let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
         bar.set_style(
             ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
@@ -118,7 +118,7 @@ pub struct Bars {
 impl trace::progress::Progress for Bars {
     fn task(&self, message: &str, len: Option<u64>) -> Box<dyn trace::progress::Task> {
         Box::new(match len {
-            Some(len) => Bar::bar(len, message, self.enabled),
+            Some(len) => Bar::steps(len, message, self.enabled),
             None => Bar::spinner(message, self.enabled),
         })
     }

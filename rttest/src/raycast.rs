@@ -47,13 +47,12 @@
 //!
 //! ## How
 //! Input is read in blocks of a few MiB and each block parsed in parallel; the rays are kept
-//! (44 bytes each) and traced in one timed pass, in parallel over chunks of
-//! [`CHUNK`] rays, each chunk writing its own slice of a preallocated result buffer, so the
-//! output is in input order. The traversal [`Method`] is matched once per chunk, as in
-//! [`crate::render`]. Packet methods group consecutive rays of a chunk: 4 to a packet, and
-//! for the frusta runs of up to 64 rays that share an origin (see `packet_closest_chunk`);
-//! every method must give the single-ray answers, which makes a ray file a test of all of
-//! them on arbitrary rays.
+//! (44 bytes each) and traced in one timed pass, the stream query of the registered method
+//! ([`trace::Method::stream`]) in parallel over chunks of rays, each chunk writing its own
+//! slice of a preallocated result buffer, so the output is in input order. Packet methods
+//! group consecutive rays: 4 to a packet, and for the frusta runs of up to 64 rays that share
+//! an origin; every method must give the single-ray answers (the conformance test checks it
+//! on ray lists of this kind), which makes a ray file a test of all of them on arbitrary rays.
 //! Results are formatted in parallel and written through one buffered writer.
 
 use std::fs::File;
@@ -63,14 +62,13 @@ use std::time::Instant;
 
 use clap::{Args, ValueEnum};
 use glam::Vec3;
-use kdtree::{Hit, KdTree, NoCounters, Ray};
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
+use kdtree::{Hit, Ray};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::Error;
 use crate::cli::SceneArgs;
-use crate::render::{Method, TileKernel};
+use trace::FrameTracer;
 
 /// Rays per parallel task when tracing (and per formatting task when writing).
 pub const CHUNK: usize = 4096;
@@ -115,10 +113,11 @@ pub struct RaycastArgs {
     /// Format of the results (default: binary for an --out file ending in .bin or .f32, else text).
     #[arg(long, value_enum, value_name = "FORMAT")]
     pub out_format: Option<Format>,
-    /// How rays traverse the tree: one by one, or grouped (4 consecutive rays to a packet;
-    /// runs of up to 64 rays sharing an origin to a frustum or cone).
-    #[arg(long, value_enum, default_value_t = Method::Mono)]
-    pub method: Method,
+    /// How rays traverse the tree (a registered method: mono, packet, samesign, frustum, mft,
+    /// cone, mft-cone, ...): one by one, or grouped (4 consecutive rays to a packet; runs of
+    /// up to 64 rays sharing an origin to a frustum or cone).
+    #[arg(long, default_value = "mono", value_name = "METHOD")]
+    pub method: String,
     /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
     #[arg(long)]
     pub any_hit: bool,
@@ -356,111 +355,17 @@ impl Results {
     }
 }
 
-/// Traces `rays` through `tree` with `method` on the current rayon pool, in parallel over
-/// chunks of [`CHUNK`] rays: closest hits, or only whether anything is hit with `any_hit`.
-pub fn trace(tree: &KdTree, rays: &[Ray], method: Method, any_hit: bool) -> Results {
+/// Traces `rays` with `method` on the current rayon pool ([`trace::frame::stream_pass`]):
+/// closest hits, or only whether anything is hit with `any_hit`.
+pub fn trace(method: &dyn FrameTracer, rays: &[Ray], any_hit: bool) -> Results {
     if any_hit {
         let mut out = vec![false; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_kernel() {
-            None => mono_any_chunk(tree, rays, out),
-            Some(m) => packet_any_chunk(tree, rays, m, out),
-        });
+        method.stream_occluded(rays, &mut out);
         Results::AnyHit(out)
     } else {
         let mut out = vec![None; rays.len()];
-        out.par_chunks_mut(CHUNK).zip(rays.par_chunks(CHUNK)).for_each(|(out, rays)| match method.tile_kernel() {
-            None => mono_closest_chunk(tree, rays, out),
-            Some(m) => packet_closest_chunk(tree, rays, m, out),
-        });
+        method.stream(rays, &mut out);
         Results::Closest(out)
-    }
-}
-
-/// Rays per frustum of `--method frustum|mft|cone|mft-cone` on a ray file: up to 16 packets.
-const FRUSTUM_RAYS: usize = 64;
-
-/// Packet closest-hit kernel of one chunk of arbitrary rays, in file order:
-/// - `packet`: each 4 consecutive rays as an omni-directional packet when they share an
-///   origin (and start at it), else as a same-sign packet split by direction signs;
-/// - `samesign`: each 4 consecutive rays as a same-sign packet;
-/// - `frustum`, `mft`, `cone`, `mft-cone`: each run of up to 64 consecutive rays sharing an
-///   origin (and starting at it) as one frustum (or cone), or four quarter-runs as MFT
-///   frusta (or cones); other rays as `packet`.
-fn packet_closest_chunk(tree: &KdTree, rays: &[Ray], method: TileKernel, out: &mut [Option<Hit>]) {
-    let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
-    let mut group: Vec<OmniPacket> = Vec::with_capacity(FRUSTUM_RAYS / 4);
-    let mut start = 0;
-    while start < rays.len() {
-        let origin = rays[start].origin;
-        let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
-        let run = rays[start..].iter().take(FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
-        let frustum = method.bounds_runs() && run > 4;
-        if frustum {
-            group.clear();
-            for four in rays[start..start + run].chunks(4) {
-                let packet = RayPacket::new(four);
-                // A shared origin and t_min >= 0 were checked for the run.
-                group.push(OmniPacket::new(packet).expect("run shares its origin"));
-            }
-            tracer.load_packets(&group).expect("run shares its origin");
-            method.trace(tree, &mut tracer, &mut NoCounters);
-            for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
-                for (lane, slot) in slots.iter_mut().enumerate() {
-                    *slot = hits.get(lane);
-                }
-            }
-            start += run;
-            continue;
-        }
-        let end = (start + 4).min(rays.len());
-        let packet = RayPacket::new(&rays[start..end]);
-        let hits = match (method, OmniPacket::new(packet)) {
-            (TileKernel::Packets(TileMethod::SameSign), _) | (_, None) => {
-                samesign::intersect(tree, &packet, &mut NoCounters)
-            }
-            (_, Some(omni_packet)) => omni::intersect(tree, &omni_packet, &mut NoCounters),
-        };
-        for (lane, slot) in out[start..end].iter_mut().enumerate() {
-            *slot = hits.get(lane);
-        }
-        start = end;
-    }
-}
-
-/// Packet any-hit kernel of one chunk: omni-directional any-hit packets where 4 consecutive
-/// rays share an origin (with `packet`), else the closest-hit kernel's answer.
-fn packet_any_chunk(tree: &KdTree, rays: &[Ray], method: TileKernel, out: &mut [bool]) {
-    if method == TileKernel::Packets(TileMethod::Packet) {
-        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
-            let packet = RayPacket::new(rays);
-            let found = match OmniPacket::new(packet) {
-                Some(p) => omni::occluded(tree, &p, &mut NoCounters).found,
-                None => samesign::intersect(tree, &packet, &mut NoCounters).found,
-            };
-            for (lane, slot) in out.iter_mut().enumerate() {
-                *slot = found.bitmask() >> lane & 1 != 0;
-            }
-        }
-        return;
-    }
-    let mut hits = vec![None; rays.len()];
-    packet_closest_chunk(tree, rays, method, &mut hits);
-    for (slot, hit) in out.iter_mut().zip(hits) {
-        *slot = hit.is_some();
-    }
-}
-
-/// Single-ray closest-hit kernel of one chunk.
-fn mono_closest_chunk(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>]) {
-    for (ray, slot) in rays.iter().zip(out) {
-        *slot = tree.intersect(ray);
-    }
-}
-
-/// Single-ray any-hit kernel of one chunk.
-fn mono_any_chunk(tree: &KdTree, rays: &[Ray], out: &mut [bool]) {
-    for (ray, slot) in rays.iter().zip(out) {
-        *slot = tree.occluded(ray);
     }
 }
 
@@ -616,6 +521,8 @@ pub(crate) fn raycast_command(
     args: &RaycastArgs,
     load: impl FnOnce() -> Result<crate::cli::Built, Error>,
 ) -> Result<(), Error> {
+    let registry = baselines::registry();
+    let selected = registry.select(&args.method, trace::Options::default())?;
     let out_path = args.out.as_ref().filter(|p| !is_dash(p));
     if global.json && out_path.is_none() {
         return Err(Error::Usage("--json prints a summary on stdout, so the results need --out FILE".into()));
@@ -652,9 +559,11 @@ pub(crate) fn raycast_command(
     let built = load()?;
     let prim_ids = &built.scene.mesh.prim_ids;
     check_prim_ids(prim_ids, out_format, args.any_hit)?;
+    let structures = crate::cli::structures_for(&registry, &selected, &built)?;
+    let method = registry.bind(&selected, &structures)?;
 
     let start = Instant::now();
-    let results = trace(&built.tree, &rays, args.method, args.any_hit);
+    let results = trace(&*method.tracer, &rays, args.any_hit);
     let trace_secs = start.elapsed().as_secs_f64();
 
     let start = Instant::now();
@@ -673,7 +582,7 @@ pub(crate) fn raycast_command(
     let Some(path) = out_path else { return Ok(()) };
     let report = RaycastReport {
         scene: built.scene.name.clone(),
-        method: args.method.name().to_string(),
+        method: method.entry.name.to_string(),
         any_hit: args.any_hit,
         intersector: built.report.intersector.clone(),
         threads: rayon::current_num_threads(),
@@ -682,7 +591,7 @@ pub(crate) fn raycast_command(
         rays: rays.len() as u64,
         hits: results.hits(),
         trace_secs,
-        mrays_per_s: crate::report::mrays_per_s(rays.len() as u64, trace_secs),
+        mrays_per_s: trace::timing::mrays_per_s(rays.len() as u64, trace_secs),
         read_secs,
         write_secs,
         rays_file: rays_name,
@@ -694,46 +603,6 @@ pub(crate) fn raycast_command(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Every method gives the single-ray results on a ray list mixing camera rays (runs with
-    /// one origin: packets and frusta), rays from scattered origins, negative t_min and
-    /// axis-parallel rays, closest and any hit.
-    #[test]
-    fn every_method_matches_single_rays_on_a_ray_list() {
-        let scene = scenes::load_scene("arena").unwrap();
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
-        let camera = scene.default_view().camera(40, 30).unwrap();
-        let mut rays: Vec<Ray> = crate::harness::primary_rays(&camera);
-        let mut state = 7u32;
-        let mut rnd = || {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (state >> 8) as f32 / (1 << 24) as f32 * 2.0 - 1.0
-        };
-        for i in 0..600 {
-            let o = camera.eye + Vec3::new(rnd(), rnd(), rnd()) * 5.0;
-            let d = match i % 3 {
-                0 => Vec3::new(rnd(), 0.0, -0.0),
-                _ => Vec3::new(rnd(), rnd(), rnd()),
-            };
-            let d = if d == Vec3::ZERO { Vec3::X } else { d };
-            rays.push(Ray::new(o, d, if i % 5 == 0 { -1.0 } else { 0.0 }, 50.0));
-        }
-        let mono = trace(&tree, &rays, Method::Mono, false);
-        let mono_any = trace(&tree, &rays, Method::Mono, true);
-        for method in [Method::Packet, Method::Samesign, Method::Frustum, Method::Mft, Method::Cone, Method::MftCone] {
-            let (Results::Closest(got), Results::Closest(want)) = (trace(&tree, &rays, method, false), &mono) else {
-                unreachable!()
-            };
-            for (i, (g, w)) in got.iter().zip(want).enumerate() {
-                let tie = matches!((g, w), (Some(g), Some(w)) if g.t == w.t);
-                assert!(g == w || tie, "{method:?} ray {i}: {g:?} vs {w:?}");
-            }
-            let (Results::AnyHit(got), Results::AnyHit(want)) = (trace(&tree, &rays, method, true), &mono_any) else {
-                unreachable!()
-            };
-            assert_eq!(&got, want, "{method:?} any hit");
-        }
-    }
 
     #[test]
     fn parse_line_accepts_rays_comments_and_blanks() {

@@ -1,6 +1,6 @@
 //! `rttest build` memory figures and `--memory-budget` (issue 7).
 
-use bench::report::{parse_bytes, parse_vm_hwm};
+use trace::report::{parse_bytes, parse_vm_hwm};
 
 mod common;
 
@@ -33,7 +33,7 @@ fn the_peak_resident_size_is_read_from_proc_status() {
     assert_eq!(parse_vm_hwm("VmRSS:\t 1024 kB\n"), None);
     assert_eq!(parse_vm_hwm("VmHWM:\t lots kB\n"), None);
     if cfg!(target_os = "linux") {
-        assert!(bench::report::peak_rss_bytes().is_some_and(|b| b > 1 << 20));
+        assert!(trace::report::peak_rss_bytes().is_some_and(|b| b > 1 << 20));
     }
 }
 

@@ -89,11 +89,22 @@ fn compare_text_and_bad_requests() {
 
 #[cfg(feature = "embree")]
 mod embree {
-    use bench::baselines::embree::{BuildQuality, Coherence, Device, EmbreeScene, Packet16};
-    use bench::baselines::embree_blocks::{EmbreeBlocks, EmbreeSingle};
-    use bench::baselines::{SingleRays, primary_pass};
-    use bench::compare::mismatches;
-    use bench::render::{TileLayout, primary_ray};
+    use baselines::embree::{BuildQuality, Coherence, Device, EmbreeScene, Packet16};
+    use baselines::embree_blocks::{EmbreeBlocks, EmbreeSingle};
+    use experiments::compare::mismatches;
+    use kdtree::NoCounters;
+    use trace::method::primary_ray;
+    use trace::{SingleRays, TileLayout};
+
+    /// The frame driver's primary pass, uncounted.
+    fn primary_pass<M: trace::Method>(
+        m: &M,
+        camera: &scenes::Camera,
+        layout: &TileLayout,
+        out: &mut [Option<kdtree::Hit>],
+    ) {
+        let (_, NoCounters) = trace::frame::primary_pass(m, layout, camera, out);
+    }
     use kdtree::oracle::segment_meets_triangle;
     use kdtree::{BruteForce, BuildConfig, Intersector, KdTree};
 

@@ -2,7 +2,7 @@
 //! The watertight test must let none through; Wald's test must be caught leaking on the
 //! hard meshes, so that the harness is shown to find leaks.
 
-use bench::leaks::{self, LeakResult};
+use experiments::leaks::{self, LeakResult};
 
 mod common;
 

@@ -1,5 +1,5 @@
 //! Shadow rays that start on a surface (issue 7): the one offset scheme
-//! (`kdtree::ray::offset_origin`, used by `bench::shade::shadow_ray`) leaves no pixel shadowed
+//! (`kdtree::ray::offset_origin`, used by `trace::shade::shadow_ray`) leaves no pixel shadowed
 //! by its own surface and lets no light leak under contact points, on planes and spheres at
 //! grazing light angles, at scene scales from 1e-3 to 1e5, near the origin and translated a
 //! thousand times the scene's size away from it, with both triangle tests.
@@ -23,7 +23,7 @@ use kdtree::{BuildConfig, Hit, Intersector, KdTree, Ray};
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Mesh, PointLight};
 
-/// How a shadow ray is made from a primary hit (the signature of `bench::shade::shadow_ray`).
+/// How a shadow ray is made from a primary hit (the signature of `trace::shade::shadow_ray`).
 type Spawn = fn(&Mesh, &PointLight, Vec3, Vec3, &Hit) -> Option<Ray>;
 
 /// A convex blocker: the object id (material) of its triangles and its face planes
@@ -266,7 +266,7 @@ fn the_offset_scheme_neither_self_shadows_nor_leaks() {
     let mut failures = Vec::new();
     for setup in setups() {
         for intersector in [Intersector::Wald, Intersector::Watertight] {
-            let t = run(&setup, intersector, bench::shade::shadow_ray);
+            let t = run(&setup, intersector, trace::shade::shadow_ray);
             if t.self_shadowed + t.leaks > 0 {
                 failures.push(format!("{} ({intersector:?}): {t:?}", setup.name));
             }
@@ -280,7 +280,7 @@ fn the_offset_scheme_neither_self_shadows_nor_leaks() {
 
 /// The shadow ray from the hit point itself, no offset.
 fn no_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
-    let n = bench::shade::facing_normal(mesh, hit, dir);
+    let n = trace::shade::facing_normal(mesh, hit, dir);
     let p = origin + hit.t * dir;
     let to_light = light.position - p;
     (n.dot(to_light) > 0.0).then(|| Ray::new(p, to_light, 0.0, 1.0))
@@ -288,7 +288,7 @@ fn no_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit
 
 /// The shadow ray from the hit point moved 0.01 along the normal, whatever the scale.
 fn fixed_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
-    let n = bench::shade::facing_normal(mesh, hit, dir);
+    let n = trace::shade::facing_normal(mesh, hit, dir);
     let p = origin + hit.t * dir;
     let to_light = light.position - p;
     let start = p + 0.01 * n;

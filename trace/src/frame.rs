@@ -205,8 +205,11 @@ pub fn soft_pass<M: Method, C: TileCounters>(
         .reduce(
             || (SoftStats::default(), C::default()),
             |a, b| {
-                let stats =
-                    SoftStats { points: a.0.points + b.0.points, rays: a.0.rays + b.0.rays, blocked: a.0.blocked + b.0.blocked };
+                let stats = SoftStats {
+                    points: a.0.points + b.0.points,
+                    rays: a.0.rays + b.0.rays,
+                    blocked: a.0.blocked + b.0.blocked,
+                };
                 (stats, a.1.merge(b.1))
             },
         )
@@ -239,8 +242,14 @@ pub trait FrameTracer: Sync {
     /// [`primary_pass`] counted.
     fn primary_counted(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, PacketCounts);
     /// [`shadow_pass`] uncounted: (rays, blocked).
-    fn shadow(&self, layout: &TileLayout, scene: &Scene, camera: &Camera, hits: &[Option<Hit>], out: &mut [bool])
-    -> (u64, u64);
+    fn shadow(
+        &self,
+        layout: &TileLayout,
+        scene: &Scene,
+        camera: &Camera,
+        hits: &[Option<Hit>],
+        out: &mut [bool],
+    ) -> (u64, u64);
     /// [`shadow_pass`] counted.
     fn shadow_counted(
         &self,

@@ -143,10 +143,22 @@ pub trait Method: Sync {
     ) -> u16;
 
     /// The closest hits of an arbitrary run of rays (a chunk of a ray file), in order.
-    fn stream<C: TileCounters>(&self, scratch: &mut Self::Scratch, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C);
+    fn stream<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    );
 
     /// Whether each ray of an arbitrary run is blocked, in order.
-    fn stream_occluded<C: TileCounters>(&self, scratch: &mut Self::Scratch, rays: &[Ray], out: &mut [bool], counters: &mut C);
+    fn stream_occluded<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    );
 }
 
 /// A [`Tracer`] traced one ray at a time: every group query as a loop of single rays.

@@ -152,14 +152,21 @@ impl Method for Tiled<'_> {
     /// - `frustum`, `mft`, `cone`, `mft-cone`: each run of up to [`STREAM_FRUSTUM_RAYS`]
     ///   rays sharing an origin (and starting at it) as one frustum (or cone), or four
     ///   quarter-runs as MFT frusta (or cones); other rays as `packet`.
-    fn stream<C: TileCounters>(&self, scratch: &mut TiledScratch, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
+    fn stream<C: TileCounters>(
+        &self,
+        scratch: &mut TiledScratch,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
         let tracer = scratch.stream.get_or_insert_with(|| TileTracer::new(4).expect("4 is a valid tile size"));
         let group = &mut scratch.group;
         let mut start = 0;
         while start < rays.len() {
             let origin = rays[start].origin;
             let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
-            let run = rays[start..].iter().take(STREAM_FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
+            let run =
+                rays[start..].iter().take(STREAM_FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
             if self.kernel.bounds_runs() && run > 4 {
                 group.clear();
                 for four in rays[start..start + run].chunks(4) {
@@ -179,7 +186,9 @@ impl Method for Tiled<'_> {
             let end = (start + 4).min(rays.len());
             let packet = RayPacket::new(&rays[start..end]);
             let hits = match (self.kernel, OmniPacket::new(packet)) {
-                (Kernel::Packets(TileMethod::SameSign), _) | (_, None) => samesign::intersect(self.tree, &packet, counters),
+                (Kernel::Packets(TileMethod::SameSign), _) | (_, None) => {
+                    samesign::intersect(self.tree, &packet, counters)
+                }
                 (_, Some(omni_packet)) => omni::intersect(self.tree, &omni_packet, counters),
             };
             for (lane, slot) in out[start..end].iter_mut().enumerate() {
@@ -191,7 +200,13 @@ impl Method for Tiled<'_> {
 
     /// `packet`: omni-directional any-hit packets where 4 consecutive rays share an origin,
     /// else same-sign packets; the other kernels: whether [`Method::stream`] finds a hit.
-    fn stream_occluded<C: TileCounters>(&self, scratch: &mut TiledScratch, rays: &[Ray], out: &mut [bool], counters: &mut C) {
+    fn stream_occluded<C: TileCounters>(
+        &self,
+        scratch: &mut TiledScratch,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
         if self.kernel == Kernel::Packets(TileMethod::Packet) {
             for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
                 let packet = RayPacket::new(rays);

@@ -176,18 +176,38 @@ impl Registry {
         r.add(ours("packet", "omni-directional 2x2 packets (thesis 4.1.2)", false, true, "kd-pyramid", |s, o| {
             tiled(s, o, Kernel::Packets(TileMethod::Packet))
         }));
-        r.add(ours("samesign", "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)", false, true, "kd-pyramid", |s, o| {
-            tiled(s, o, Kernel::Packets(TileMethod::SameSign))
-        }));
-        r.add(ours("frustum", "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)", true, true, "kd-pyramid", |s, o| {
-            tiled(s, o, Kernel::Packets(TileMethod::Frustum))
-        }));
-        r.add(ours("mft", "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)", true, true, "kd-pyramid", |s, o| {
-            tiled(s, o, Kernel::Packets(TileMethod::Mft))
-        }));
-        r.add(ours("cone", "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)", true, true, "kd-cone", |s, o| {
-            tiled(s, o, Kernel::Cones(cones::ConeMethod::Cone))
-        }));
+        r.add(ours(
+            "samesign",
+            "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)",
+            false,
+            true,
+            "kd-pyramid",
+            |s, o| tiled(s, o, Kernel::Packets(TileMethod::SameSign)),
+        ));
+        r.add(ours(
+            "frustum",
+            "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)",
+            true,
+            true,
+            "kd-pyramid",
+            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Frustum)),
+        ));
+        r.add(ours(
+            "mft",
+            "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)",
+            true,
+            true,
+            "kd-pyramid",
+            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Mft)),
+        ));
+        r.add(ours(
+            "cone",
+            "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)",
+            true,
+            true,
+            "kd-cone",
+            |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::Cone)),
+        ));
         r.add(ours("mft-cone", "four quadrant cones per tile (thesis 4.1.9)", true, true, "kd-cone", |s, o| {
             tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone))
         }));
@@ -264,14 +284,21 @@ impl Registry {
         if !structures.has(entry.structure) {
             return Err(Error::Usage(format!("{}: structure '{}' was not built", selected.name, entry.structure)));
         }
-        let tracer = (entry.bind)(structures, &selected.options)
-            .map_err(|e| Error::Usage(format!("{}: {e}", selected.name)))?;
+        let tracer =
+            (entry.bind)(structures, &selected.options).map_err(|e| Error::Usage(format!("{}: {e}", selected.name)))?;
         Ok(Bound { name: selected.name.clone(), entry, options: selected.options, tracer })
     }
 }
 
 /// An entry of ours, on our kd-tree with the single-ray hard-shadow kernel.
-fn ours(name: &'static str, summary: &'static str, tiled: bool, packets: bool, soft: &'static str, bind: Bind) -> Entry {
+fn ours(
+    name: &'static str,
+    summary: &'static str,
+    tiled: bool,
+    packets: bool,
+    soft: &'static str,
+    bind: Bind,
+) -> Entry {
     Entry {
         name,
         family: "ours",

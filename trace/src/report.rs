@@ -229,6 +229,15 @@ pub struct TraversalReport {
 }
 
 impl TraversalReport {
+    /// The thesis's N and I of the primary pass: per 2x2 packet for packet methods, per 4
+    /// single rays otherwise (Tables 4.1-4.5).
+    pub fn per_packet(&self) -> (f64, f64) {
+        match (self.primary_steps_per_packet, self.primary_tests_per_packet) {
+            (Some(n), Some(i)) => (n, i),
+            _ => (4.0 * self.primary_nodes_per_ray, 4.0 * self.primary_isects_per_ray),
+        }
+    }
+
     /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays;
     /// with `packets` (the primary pass's 2x2 packets, for packet methods) the per-packet
     /// figures too.
@@ -253,7 +262,6 @@ impl TraversalReport {
         }
     }
 }
-
 
 /// Bytes in a human unit.
 fn human_bytes(bytes: u64) -> String {

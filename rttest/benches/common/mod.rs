@@ -1,23 +1,26 @@
-//! Shared by the packet, frustum and MFT benches.
+//! Shared by the packet, frustum, MFT and cone benches.
 
-/// The criterion group `group/scene` timing one primary pass of each `(method, tile)` of
-/// `configs` (ray generation, traversal and intersection of every pixel; no shading, no
-/// shadows), on all cores, with single rays through the same renderer as the reference.
-pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, configs: &[(bench::render::Method, u32)]) {
+/// The criterion group `group/scene` timing one primary pass of each registered method of
+/// `names` (`packet`, `frustum-8`, ...: ray generation, traversal and intersection of every
+/// pixel; no shading, no shadows), on all cores, with single rays (`mono`) through the same
+/// renderer as the reference.
+pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &[&str]) {
     use criterion::Throughput;
-    for (name, scene, tree, camera) in bench::harness::packet_workloads(1024) {
+    use trace::{Options, Registry, Renderer, Shadows, Structures};
+    let registry = Registry::ours();
+    for (name, scene, tree, camera) in trace::setup::packet_workloads(1024) {
+        let structures = Structures::new(&tree);
         let mut g = c.benchmark_group(format!("{group}/{name}"));
         g.sample_size(10)
             .warm_up_time(std::time::Duration::from_secs(1))
             .measurement_time(std::time::Duration::from_secs(3));
         g.throughput(Throughput::Elements(u64::from(camera.width) * u64::from(camera.height)));
-        let mono = [(bench::render::Method::Mono, bench::render::TILE_SIZE)];
-        for &(method, tile) in mono.iter().chain(configs) {
-            let renderer = bench::render::Renderer::new(&scene, &tree, camera, method, bench::render::Shadows::None)
-                .with_tile(tile)
-                .expect("bench tile sizes are valid");
+        for &method in std::iter::once(&"mono").chain(names) {
+            let selected = registry.select(method, Options::default()).expect("bench methods are registered");
+            let bound = registry.bind(&selected, &structures).expect("bench tile sizes are valid");
+            let renderer = Renderer::new(&scene, &bound, camera, Shadows::None);
             let mut buffers = renderer.buffers();
-            g.bench_function(format!("{}-{tile}", method.name()), |b| b.iter(|| renderer.trace(&mut buffers).hits));
+            g.bench_function(&bound.name, |b| b.iter(|| renderer.trace(&mut buffers).hits));
         }
         g.finish();
     }

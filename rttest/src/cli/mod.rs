@@ -13,13 +13,19 @@ use glam::Vec3;
 use kdtree::{BuildConfig, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
+use trace::registry::{KDTREE, Selected, TILE_SIZE};
+use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary};
+use trace::timing::mrays_per_s;
+use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, Structures};
 
-use crate::Error;
-use crate::progress::{self, Progress};
+use crate::progress::{self, Bar};
 use crate::raycast::{self, RaycastArgs};
-use crate::render::{FrameBuffers, FrameStats, Method, Renderer, Shadows};
-use crate::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, mrays_per_s};
-use crate::tables::{self, TablesArgs};
+
+pub mod compare;
+pub mod leaks;
+pub mod main_job;
+pub mod shadows;
+pub mod tables;
 
 /// Largest accepted image side, so a typo cannot ask for terabytes of buffers.
 pub const MAX_SIDE: u32 = 16384;
@@ -62,17 +68,18 @@ pub enum Command {
     /// Build a scene's tree and report build time and tree statistics.
     Build(BuildArgs),
     /// Shoot rays exactly at shared edges and vertices of closed meshes and count the leaks.
-    Leaks(crate::leaks::LeaksArgs),
+    Leaks(leaks::LeaksArgs),
     /// Trace the rays of a file (text or binary) and write one result per ray.
     #[command(after_long_help = raycast::FORMATS_HELP)]
     Raycast(RaycastArgs),
-    /// Print the thesis's Tables 4.1-4.4 (packets, frusta, culling, MFT) for our scenes.
-    Tables(TablesArgs),
+    /// Print the thesis's Tables 4.1-4.6 (packets, frusta, culling, MFT, cones, soft shadows),
+    /// 5.1 and 6.2 for our scenes.
+    Tables(tables::TablesArgs),
     /// Edge-width soft shadows against sampled ones: images, errors, CSV and a plot.
-    Shadows(crate::shadows::ShadowsArgs),
-    /// Our methods against Embree and Rust BVH crates on the same rays (build, primary, shadow
-    /// and soft-shadow Mrays/s, primitive mismatches).
-    Compare(crate::compare::CompareArgs),
+    Shadows(shadows::ShadowsArgs),
+    /// Every registered method, ours and the baselines, on the same rays (build, primary,
+    /// shadow and soft-shadow Mrays/s, primitive mismatches).
+    Compare(compare::CompareArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -96,7 +103,7 @@ pub struct SceneArgs {
     pub empty_bonus: f32,
     /// Stop the build with an error before its buffers (tree included, the scene not) would
     /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
-    #[arg(long, value_name = "BYTES", value_parser = crate::report::parse_bytes)]
+    #[arg(long, value_name = "BYTES", value_parser = trace::report::parse_bytes)]
     pub memory_budget: Option<u64>,
 }
 
@@ -144,9 +151,14 @@ pub struct RenderArgs {
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
-    /// Shadow rays towards the point light.
-    #[arg(long, value_enum, default_value_t = Shadows::Hard)]
-    pub shadows: Shadows,
+    /// Shadow rays: none, one per hit to the point light, or 16 per hit to a spherical light
+    /// at the point light (traced with the method's soft-shadow kernel).
+    #[arg(long, value_enum, default_value_t = ShadowsArg::Hard)]
+    pub shadows: ShadowsArg,
+    /// Radius of the soft shadows' spherical light, in Sponza units (scaled by the scene's
+    /// diagonal, as Table 4.6): a finite number >= 0.
+    #[arg(long, value_name = "R", default_value_t = 1.0)]
+    pub light_radius: f32,
     /// What to write: the shaded image (PNG), or the hit distance or primitive id (PFM).
     #[arg(long, value_enum, default_value_t = Aov::Color)]
     pub aov: Aov,
@@ -157,12 +169,13 @@ pub struct RenderArgs {
     /// Frames traced; the reported trace time is the fastest.
     #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub frames: u32,
-    /// How primary rays traverse the tree (shadow rays always go one by one).
-    #[arg(long, value_enum, default_value_t = Method::Mono)]
-    pub method: Method,
+    /// The method (a registry name: mono, packet, samesign, frustum, mft, cone, mft-cone,
+    /// NAME-TILE such as mft-16, or a baseline such as embree-8 in a build with it).
+    #[arg(long, default_value = "mono", value_name = "METHOD")]
+    pub method: String,
     /// Tile side: the work unit of a thread, and the frustum of `frustum` and `mft` (a
     /// multiple of 4 from 4 to 64 for the packet methods).
-    #[arg(long, value_name = "N", default_value_t = crate::render::TILE_SIZE,
+    #[arg(long, value_name = "N", default_value_t = TILE_SIZE,
           value_parser = clap::value_parser!(u32).range(1..=64))]
     pub tile: u32,
     /// Turn packet/leaf culling off (frustum methods; thesis Table 4.2).
@@ -172,6 +185,27 @@ pub struct RenderArgs {
     /// (and, for packet methods, per 2x2 packet).
     #[arg(long)]
     pub counters: bool,
+}
+
+/// `--shadows` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ShadowsArg {
+    /// No shadow rays: every surface facing the light is lit.
+    None,
+    /// One shadow ray per hit towards the point light.
+    Hard,
+    /// 16 rays per hit to a spherical light at the point light (thesis Table 4.6).
+    Soft16,
+}
+
+impl From<ShadowsArg> for Shadows {
+    fn from(a: ShadowsArg) -> Shadows {
+        match a {
+            ShadowsArg::None => Shadows::None,
+            ShadowsArg::Hard => Shadows::Hard,
+            ShadowsArg::Soft16 => Shadows::Soft16,
+        }
+    }
 }
 
 /// `--aov` values: what the image file holds.
@@ -236,14 +270,16 @@ pub fn parse_camera(s: &str) -> Result<CameraSpec, String> {
     Ok(CameraSpec { eye: Vec3::new(ex, ey, ez), target: Vec3::new(tx, ty, tz), fovy_deg: fovy })
 }
 
-/// The render options of `rttest` without a command: clap's defaults.
-fn default_render_args() -> RenderArgs {
+/// The render options with clap's defaults, and `args` after the command (e.g.
+/// `["--method", "mft-8"]`).
+pub fn render_args(args: &[&str]) -> Result<RenderArgs, Error> {
     #[derive(Parser)]
     struct Defaults {
         #[command(flatten)]
         args: RenderArgs,
     }
-    Defaults::parse_from(["render"]).args
+    let argv = std::iter::once("render").chain(args.iter().copied());
+    Defaults::try_parse_from(argv).map(|d| d.args).map_err(|e| Error::Usage(e.to_string()))
 }
 
 /// Runs the command line `cli`, writing reports to stdout.
@@ -252,20 +288,20 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     let global = cli.global;
     pool.install(|| match cli.command {
         Some(Command::Build(args)) => build_command(&global, &args),
-        Some(Command::Leaks(args)) => crate::leaks::leaks_command(&global, &args),
+        Some(Command::Leaks(args)) => leaks::run(&global, &args),
         Some(Command::Render(args)) => render_command(&global, &args),
         Some(Command::Raycast(args)) => {
             raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
         }
-        Some(Command::Tables(args)) => tables::tables_command(&global, &args),
-        Some(Command::Shadows(args)) => crate::shadows::shadows_command(&global, &args),
-        Some(Command::Compare(args)) => crate::compare::compare_command(&global, &args),
-        None => render_command(&global, &default_render_args()),
+        Some(Command::Tables(args)) => tables::run(&global, &args),
+        Some(Command::Shadows(args)) => shadows::run(&global, &args),
+        Some(Command::Compare(args)) => compare::run(&global, &args),
+        None => main_job::run(&global),
     })
 }
 
 /// Prints a result: its JSON object on one line, or its text table.
-pub(crate) fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Result<(), Error> {
+pub fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Result<(), Error> {
     let mut out = std::io::stdout().lock();
     if global.json {
         let line = serde_json::to_string(report).map_err(std::io::Error::other)?;
@@ -277,14 +313,30 @@ pub(crate) fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report
 }
 
 /// A loaded scene with its tree, as every command starts.
-pub(crate) struct Built {
-    pub(crate) scene: Scene,
-    pub(crate) tree: KdTree,
-    pub(crate) report: BuildReport,
+pub struct Built {
+    /// The scene.
+    pub scene: Scene,
+    /// Its kd-tree.
+    pub tree: KdTree,
+    /// The build's report.
+    pub report: BuildReport,
+}
+
+/// The structures `selected` traces: our kd-tree, and its own structure if it is a baseline
+/// (built here, untimed).
+pub fn structures_for<'a>(registry: &Registry, selected: &Selected, built: &'a Built) -> Result<Structures<'a>, Error> {
+    let mut structures = Structures::new(&built.tree);
+    let name = registry.entry(selected.entry).structure;
+    if name != KDTREE {
+        let entry =
+            registry.structure(name).ok_or_else(|| Error::Usage(format!("no structure '{name}' in this build")))?;
+        structures.insert(name, (entry.build)(&built.scene)?);
+    }
+    Ok(structures)
 }
 
 /// Loads the scene and builds its tree `repeat` times, keeping the fastest build.
-fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<Built, Error> {
+pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<Built, Error> {
     // The builder checks these too; here they fail before the scene is loaded, naming the option.
     if !(args.c_isect.is_finite() && args.c_isect > 0.0) {
         return Err(Error::Usage(format!("--c-isect {} must be a finite number > 0", args.c_isect)));
@@ -294,7 +346,7 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
     }
     let show = progress::enabled(global.json);
     let start = Instant::now();
-    let loading = Progress::spinner(&format!("loading {}", args.scene), show);
+    let loading = Bar::spinner(&format!("loading {}", args.scene), show);
     let scene = scenes::load_scene(&args.scene)?;
     loading.finish();
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -309,7 +361,7 @@ fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<
     };
     let message = format!("building {}", scene.name);
     let building =
-        if repeat > 1 { Progress::bar(u64::from(repeat), &message, show) } else { Progress::spinner(&message, show) };
+        if repeat > 1 { Bar::steps(u64::from(repeat), &message, show) } else { Bar::spinner(&message, show) };
     let mut best: Option<(KdTree, f64)> = None;
     for _ in 0..repeat {
         let start = Instant::now();
@@ -350,20 +402,7 @@ fn camera_for(scene: &Scene, args: &RenderArgs) -> Result<(Camera, String), Erro
         })?;
         return Ok((camera, "custom".into()));
     }
-    view_camera(scene, args.view.as_deref(), w, h)
-}
-
-/// The camera of the scene's view `name` (its default view when `None`) at `w x h`, and the
-/// view's name; a degenerate view is a usage error naming it.
-pub(crate) fn view_camera(scene: &Scene, name: Option<&str>, w: u32, h: u32) -> Result<(Camera, String), Error> {
-    let view = match name {
-        Some(name) => scene.view(name)?,
-        None => scene.default_view(),
-    };
-    let camera = view
-        .camera(w, h)
-        .ok_or_else(|| Error::Usage(format!("view '{}' of scene '{}' is degenerate", view.name, scene.name)))?;
-    Ok((camera, view.name.clone()))
+    trace::setup::view_camera(scene, args.view.as_deref(), w, h)
 }
 
 /// The output file: `--out`, or `<scene>.png` / `<scene>-depth.pfm` / `<scene>-prim.pfm`.
@@ -394,7 +433,7 @@ struct Timing {
 
 /// Traces `frames` frames into `buffers` and keeps the best times.
 fn time_frames(renderer: &Renderer<'_>, buffers: &mut FrameBuffers, frames: u32, show: bool) -> Timing {
-    let bar = Progress::bar(u64::from(frames), "tracing frames", show);
+    let bar = Bar::steps(u64::from(frames), "tracing frames", show);
     let mut timing = Timing { best: FrameStats::default(), primary_secs: f64::INFINITY, shadow_secs: f64::INFINITY };
     for frame in 0..frames {
         let stats = renderer.trace(buffers);
@@ -436,42 +475,45 @@ fn write_image(renderer: &Renderer<'_>, buffers: &FrameBuffers, aov: Aov, out: &
     Ok((shade_secs, start.elapsed().as_secs_f64()))
 }
 
-/// `rttest render` (and `rttest` alone). The text output starts with the build report; the
-/// JSON object has the build time and triangle count only (`rttest build` has the rest).
-fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
-    let built = load_and_build(global, &args.scene, 1)?;
+/// Renders `built` with `args` (method, view, size, shadows, frames, counters) and writes
+/// the image; returns the report.
+pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs) -> Result<RenderReport, Error> {
+    if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
+        return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
+    }
+    let registry = baselines::registry();
+    let selected = registry.select(&args.method, Options { tile: args.tile, culling: !args.no_culling })?;
     let (camera, view) = camera_for(&built.scene, args)?;
     let out = out_path(&built.scene, args);
-
-    let renderer = Renderer::new(&built.scene, &built.tree, camera, args.method, args.shadows)
-        .with_tile(args.tile)
-        .map_err(|e| Error::Usage(format!("--tile: {e}")))?
-        .with_culling(!args.no_culling);
+    let structures = structures_for(&registry, &selected, built)?;
+    let method = registry.bind(&selected, &structures).map_err(|e| match e {
+        Error::Usage(m) => Error::Usage(format!("--method {m}")),
+        e => e,
+    })?;
+    let shadows = Shadows::from(args.shadows);
+    let light = trace::soft::scene_light(&built.scene, &built.tree, args.light_radius);
+    let renderer = Renderer::new(&built.scene, &method, camera, shadows).with_light(light);
     let mut buffers = renderer.buffers();
     let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
     let stats = timing.best;
     let traversal = args.counters.then(|| {
         let (_, primary, shadow) = renderer.trace_counted(&mut buffers);
-        let packets = args.method.tile_kernel().map(|_| renderer.packet_count());
+        let packets = method.entry.packets.then(|| renderer.packet_count());
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
     let (shade_secs, write_secs) = write_image(&renderer, &buffers, args.aov, &out)?;
 
-    let report = RenderReport {
+    Ok(RenderReport {
         scene: built.scene.name.clone(),
-        method: args.method.name().to_string(),
-        tile: args.tile,
+        method: method.entry.name.to_string(),
+        tile: method.options.tile,
         culling: !args.no_culling,
         view,
         width: camera.width,
         height: camera.height,
         threads: rayon::current_num_threads(),
         intersector: built.report.intersector.clone(),
-        shadows: match args.shadows {
-            Shadows::None => "none",
-            Shadows::Hard => "hard",
-        }
-        .to_string(),
+        shadows: shadows.name().to_string(),
         aov: args.aov.name().to_string(),
         triangles: built.report.tree.triangles,
         build_ms: built.report.build_ms,
@@ -491,7 +533,14 @@ fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
         write_secs,
         out: out.display().to_string(),
         traversal,
-    };
+    })
+}
+
+/// `rttest render`. The text output starts with the build report; the JSON object has the
+/// build time and triangle count only (`rttest build` has the rest).
+fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
+    let built = load_and_build(global, &args.scene, 1)?;
+    let report = render(global, &built, args)?;
     // Nothing goes to stdout before everything has succeeded.
     if !global.json {
         emit(global, &built.report)?;

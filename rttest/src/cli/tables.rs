@@ -1,0 +1,57 @@
+//! `rttest tables`: the arguments of [`experiments::tables`] and its output.
+
+use clap::Args;
+use experiments::tables::{self, TablesConfig};
+use trace::Error;
+
+use super::{GlobalArgs, IntersectorArg, parse_size};
+use crate::progress::{self, Bars};
+
+/// `rttest tables` options.
+#[derive(Debug, Clone, Args)]
+pub struct TablesArgs {
+    /// Scenes (built-in names or OBJ paths; repeatable). Default: atrium, arena,
+    /// atrium-rotated, grove and every .obj / .obj.gz in the shared scenes folder.
+    #[arg(long, value_name = "NAME|PATH")]
+    pub scene: Vec<String>,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Frames timed per configuration; the best is kept.
+    #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub frames: u32,
+    /// The ray-triangle test.
+    #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
+    pub intersector: IntersectorArg,
+    /// Print the rows as CSV instead of the markdown tables: one table of the primary-ray
+    /// rows, then (after a blank line) one of the soft-shadow rows of Table 4.6.
+    #[arg(long)]
+    pub csv: bool,
+    /// Leave out Table 4.6 (16-sample soft shadows, the slowest part).
+    #[arg(long)]
+    pub no_soft_shadows: bool,
+    /// Leave out Table 6.2 (frame rate against threads, the best method of each scene).
+    #[arg(long)]
+    pub no_scaling: bool,
+}
+
+impl From<&TablesArgs> for TablesConfig {
+    fn from(a: &TablesArgs) -> TablesConfig {
+        TablesConfig {
+            scene: a.scene.clone(),
+            size: a.size,
+            frames: a.frames,
+            intersector: a.intersector.into(),
+            csv: a.csv,
+            no_soft_shadows: a.no_soft_shadows,
+            no_scaling: a.no_scaling,
+        }
+    }
+}
+
+/// `rttest tables`: markdown (or CSV) on stdout.
+pub fn run(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Error> {
+    let report = tables::run(&args.into(), &Bars { enabled: progress::enabled(global.json) })?;
+    print!("{report}");
+    Ok(())
+}
