@@ -153,6 +153,9 @@ fn bad_input_gives_one_line_and_non_zero_exit() {
         &["render", "--scene", "cube", "--camera", "0,0,0,0,0,0,45"],
         &["render", "--scene", "cube", "--view", "no-such-view"],
         &["render", "--scene", "cube", "--frames", "0"],
+        &["render", "--scene", "cube", "--method", "no-such-method"],
+        &["render", "--scene", "cube", "--method", "mft-6"],
+        &["render", "--scene", "cube", "--method", "mft", "--tile", "6"],
         &["render", "--scene", "cube", "--size", "8x8", "--out", "no/such/dir/x.png"],
         &["build", "--scene", "missing.obj"],
         &["build", "--threads", "0"],
@@ -193,6 +196,7 @@ fn non_finite_numbers_are_errors_naming_the_option() {
         (&["shadows", "--scene", "atrium", "--thickness", "floor=inf"], "--thickness 'floor=inf'"),
         (&["compare", "--light-radius", "nan"], "--light-radius"),
         (&["compare", "--light-radius=-inf"], "--light-radius"),
+        (&["render", "--scene", "cube", "--shadows", "soft16", "--light-radius", "nan"], "--light-radius"),
     ];
     for (args, name) in cases {
         let start = std::time::Instant::now();
@@ -207,15 +211,36 @@ fn non_finite_numbers_are_errors_naming_the_option() {
     }
 }
 
+/// The main job: atrium with MFT and 16-sample soft shadows, single rays beside it.
 #[test]
 fn no_arguments_renders_the_atrium() {
     let dir = scratch("default");
-    let v = json(&rttest(&dir, &["--json", "--threads", "2"]));
-    assert_eq!(v["scene"], "atrium");
-    assert_eq!(v["width"], 512);
-    assert_eq!(v["shadows"], "hard");
-    assert!(v["shadow_rays"].as_u64().unwrap() > 0);
+    let out = rttest(&dir, &["--json", "--threads", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lines: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("one JSON object per line"))
+        .collect();
+    assert_eq!(lines.len(), 2, "single rays, then the best method");
+    let (mono, best) = (&lines[0], &lines[1]);
+    assert_eq!((&mono["method"], &best["method"]), (&"mono".into(), &"mft".into()));
+    for v in &lines {
+        assert_eq!(v["scene"], "atrium");
+        assert_eq!(v["width"], 512);
+        assert_eq!(v["shadows"], "soft16");
+        assert_eq!(v["shadow_rays"].as_u64().unwrap() % 16, 0);
+        assert!(v["shadow_rays"].as_u64().unwrap() > 0);
+        assert!(v["primary_steps_per_packet"].is_number() || v["primary_nodes_per_ray"].is_number());
+    }
+    // The same rays: the same hits and the same blocked soft-shadow rays.
+    assert_eq!((&mono["hits"], &mono["occluded"]), (&best["hits"], &best["occluded"]));
     assert!(dir.join("atrium.png").is_file());
+    let text = rttest(&dir, &["--threads", "2"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("| MFT 8x8 (mft-8) |") && text.contains("Wrote atrium.png") && text.contains("Next:"),
+        "{text}"
+    );
 }
 
 #[test]
