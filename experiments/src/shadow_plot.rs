@@ -11,10 +11,24 @@ use plotters::prelude::*;
 use scenes::Image;
 
 use crate::Error;
-use crate::shadows::ShadowReport;
+
+/// One method's point on the plot: its frame time against its visibility error.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    /// Scene name (the caption).
+    pub scene: String,
+    /// The method's label.
+    pub method: String,
+    /// Milliseconds per frame (x, log scale).
+    pub ms_per_frame: f64,
+    /// RMSE of the visible fraction against the reference (y).
+    pub visibility_rmse: f64,
+    /// On the Pareto front (drawn red, joined by a line).
+    pub pareto: bool,
+}
 
 /// Writes `pareto.svg` and `pareto.png` into `dir`; returns their paths, in that order.
-pub fn plot(dir: &Path, reports: &[ShadowReport]) -> Result<[PathBuf; 2], Error> {
+pub fn plot(dir: &Path, reports: &[Point]) -> Result<[PathBuf; 2], Error> {
     let svg = dir.join("pareto.svg");
     let fail = |path: &Path, e: String| Error::File { path: path.to_path_buf(), message: e };
     {
@@ -39,7 +53,7 @@ pub fn plot(dir: &Path, reports: &[ShadowReport]) -> Result<[PathBuf; 2], Error>
     Ok([svg, png])
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, reports: &[ShadowReport], text: bool) -> Result<(), String> {
+fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, reports: &[Point], text: bool) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let lo = reports.iter().map(|r| r.ms_per_frame).fold(f64::INFINITY, f64::min).max(1e-3);

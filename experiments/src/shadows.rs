@@ -19,6 +19,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::shadow_plot::{Point, plot};
 use edgewidth::analytic::sphere_visible_fraction;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
@@ -819,7 +820,17 @@ fn write_outputs(
     let csv_path = dir.join("shadows.csv");
     std::fs::write(&csv_path, csv).map_err(io(&csv_path))?;
     files.push(csv_path);
-    files.extend(crate::shadow_plot::plot(dir, reports)?);
+    let points: Vec<Point> = reports
+        .iter()
+        .map(|r| Point {
+            scene: r.scene.clone(),
+            method: r.method.clone(),
+            ms_per_frame: r.ms_per_frame,
+            visibility_rmse: r.visibility_rmse,
+            pareto: r.pareto,
+        })
+        .collect();
+    files.extend(plot(dir, &points)?);
     Ok(files)
 }
 

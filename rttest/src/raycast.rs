@@ -55,19 +55,16 @@
 //! on ray lists of this kind), which makes a ray file a test of all of them on arbitrary rays.
 //! Results are formatted in parallel and written through one buffered writer.
 
-use std::fs::File;
-use std::io::{self, BufWriter, Read, Write};
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::io::{self, Read, Write};
+use std::path::Path;
 
-use clap::{Args, ValueEnum};
+use clap::ValueEnum;
 use glam::Vec3;
 use kdtree::{Hit, Ray};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::Error;
-use crate::cli::SceneArgs;
 use trace::FrameTracer;
 
 /// Rays per parallel task when tracing (and per formatting task when writing).
@@ -94,34 +91,6 @@ Results, text: 'prim t u v' per line (prim: the scene file's primitive id); a mi
 Results, binary (.bin, .f32): little-endian i32 prim, f32 t, u, v (16 bytes; a miss is -1, inf, 0, 0);
   with --any-hit one byte 1 or 0 per ray.
 The first bad ray rejects the file: 'rttest: error: FILE:LINE: reason'. With --json, --out is required.";
-
-/// `rttest raycast` options.
-#[derive(Debug, Clone, Args)]
-pub struct RaycastArgs {
-    /// The scene.
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    /// The rays: a text or binary file (see --format), or - for stdin.
-    #[arg(long, value_name = "FILE")]
-    pub rays: PathBuf,
-    /// Format of the ray file (default: binary for .bin and .f32 files, else text).
-    #[arg(long, value_enum, value_name = "FORMAT")]
-    pub format: Option<Format>,
-    /// Where the results go (default: stdout; - is stdout too).
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
-    /// Format of the results (default: binary for an --out file ending in .bin or .f32, else text).
-    #[arg(long, value_enum, value_name = "FORMAT")]
-    pub out_format: Option<Format>,
-    /// How rays traverse the tree (a registered method: mono, packet, samesign, frustum, mft,
-    /// cone, mft-cone, ...): one by one, or grouped (4 consecutive rays to a packet; runs of
-    /// up to 64 rays sharing an origin to a frustum or cone).
-    #[arg(long, default_value = "mono", value_name = "METHOD")]
-    pub method: String,
-    /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
-    #[arg(long)]
-    pub any_hit: bool,
-}
 
 /// `--format` / `--out-format` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
@@ -152,7 +121,7 @@ impl Format {
 }
 
 /// True for the path `-` (stdin or stdout).
-fn is_dash(path: &Path) -> bool {
+pub fn is_dash(path: &Path) -> bool {
     path.as_os_str() == "-"
 }
 
@@ -452,152 +421,12 @@ pub fn write_results(results: &Results, prim_ids: &[u32], format: Format, out: &
 }
 
 /// Fails if a primitive id does not fit the binary output's `i32`.
-fn check_prim_ids(prim_ids: &[u32], format: Format, any_hit: bool) -> Result<(), Error> {
+/// Refuses binary output of primitive ids that do not fit an `i32`.
+pub fn check_prim_ids(prim_ids: &[u32], format: Format, any_hit: bool) -> Result<(), Error> {
     if format == Format::Binary && !any_hit && prim_ids.iter().any(|&id| id > i32::MAX as u32) {
         return Err(Error::Usage("primitive ids above 2^31 - 1 do not fit the binary output; use text".into()));
     }
     Ok(())
-}
-
-// ---------------------------------------------------------------------------------------
-// The command
-
-/// The summary of one `rttest raycast` run (printed with `--json`, or as text with `--out`).
-#[derive(Clone, Debug, Serialize)]
-pub struct RaycastReport {
-    /// Scene name.
-    pub scene: String,
-    /// The traversal method (`mono`).
-    pub method: String,
-    /// True for `--any-hit` (occlusion) queries.
-    pub any_hit: bool,
-    /// The ray-triangle test (`wald` or `watertight`).
-    pub intersector: String,
-    /// Threads in the pool.
-    pub threads: usize,
-    /// Triangles in the scene.
-    pub triangles: u64,
-    /// Milliseconds to build the tree.
-    pub build_ms: f64,
-    /// Rays traced.
-    pub rays: u64,
-    /// Rays that hit (closest hit) or are occluded (`--any-hit`).
-    pub hits: u64,
-    /// Seconds of traversal and intersection for all rays.
-    pub trace_secs: f64,
-    /// `rays / trace_secs / 1e6`.
-    pub mrays_per_s: f64,
-    /// Seconds to read and check the ray file.
-    pub read_secs: f64,
-    /// Seconds to format and write the results.
-    pub write_secs: f64,
-    /// The ray file (`-` for stdin).
-    pub rays_file: String,
-    /// The results file (`-` for stdout).
-    pub out: String,
-}
-
-impl std::fmt::Display for RaycastReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "raycast      {} rays from {}, method {}, {}, {} threads",
-            self.rays,
-            self.rays_file,
-            self.method,
-            if self.any_hit { "any hit" } else { "closest hit" },
-            self.threads
-        )?;
-        writeln!(f, "hits         {}", self.hits)?;
-        writeln!(f, "trace        {:.4} s: {:.2} Mrays/s", self.trace_secs, self.mrays_per_s)?;
-        write!(f, "io           read {:.4} s, write {:.4} s, results in {}", self.read_secs, self.write_secs, self.out)
-    }
-}
-
-/// `rttest raycast`: the scene is loaded and built by `load`, after the arguments and the
-/// ray file have been checked.
-pub(crate) fn raycast_command(
-    global: &crate::cli::GlobalArgs,
-    args: &RaycastArgs,
-    load: impl FnOnce() -> Result<crate::cli::Built, Error>,
-) -> Result<(), Error> {
-    let registry = baselines::registry();
-    let selected = registry.select(&args.method, trace::Options::default())?;
-    let out_path = args.out.as_ref().filter(|p| !is_dash(p));
-    if global.json && out_path.is_none() {
-        return Err(Error::Usage("--json prints a summary on stdout, so the results need --out FILE".into()));
-    }
-    let in_format =
-        args.format.unwrap_or_else(|| if is_dash(&args.rays) { Format::Text } else { Format::of_path(&args.rays) });
-    let out_format = args.out_format.unwrap_or_else(|| out_path.map_or(Format::Text, |p| Format::of_path(p)));
-    let rays_name = args.rays.display().to_string();
-
-    // Read and check every ray before building anything.
-    let start = Instant::now();
-    let rays = if is_dash(&args.rays) {
-        read_rays(&mut io::stdin().lock(), in_format, &rays_name)?
-    } else {
-        let file = File::open(&args.rays)
-            .map_err(|e| Error::File { path: args.rays.clone(), message: format!("cannot open: {e}") })?;
-        if in_format == Format::Binary
-            && let Ok(meta) = file.metadata()
-            && meta.is_file()
-            && meta.len() % RAY_BYTES as u64 != 0
-        {
-            return Err(Error::File {
-                path: args.rays.clone(),
-                message: format!(
-                    "size {} bytes is not a multiple of {RAY_BYTES} (8 little-endian f32 per ray)",
-                    meta.len()
-                ),
-            });
-        }
-        read_rays(&mut io::BufReader::with_capacity(1 << 16, file), in_format, &rays_name)?
-    };
-    let read_secs = start.elapsed().as_secs_f64();
-
-    let built = load()?;
-    let prim_ids = &built.scene.mesh.prim_ids;
-    check_prim_ids(prim_ids, out_format, args.any_hit)?;
-    let structures = crate::cli::structures_for(&registry, &selected, &built)?;
-    let method = registry.bind(&selected, &structures)?;
-
-    let start = Instant::now();
-    let results = trace(&*method.tracer, &rays, args.any_hit);
-    let trace_secs = start.elapsed().as_secs_f64();
-
-    let start = Instant::now();
-    match out_path {
-        Some(path) => {
-            let file = File::create(path)
-                .map_err(|e| Error::File { path: path.clone(), message: format!("cannot create: {e}") })?;
-            let mut w = BufWriter::with_capacity(1 << 20, file);
-            write_results(&results, prim_ids, out_format, &mut w)
-                .map_err(|e| Error::File { path: path.clone(), message: format!("cannot write: {e}") })?;
-        }
-        None => write_results(&results, prim_ids, out_format, &mut io::stdout().lock())?,
-    }
-    let write_secs = start.elapsed().as_secs_f64();
-
-    let Some(path) = out_path else { return Ok(()) };
-    let report = RaycastReport {
-        scene: built.scene.name.clone(),
-        method: method.entry.name.to_string(),
-        any_hit: args.any_hit,
-        intersector: built.report.intersector.clone(),
-        threads: rayon::current_num_threads(),
-        triangles: built.report.tree.triangles,
-        build_ms: built.report.build_ms,
-        rays: rays.len() as u64,
-        hits: results.hits(),
-        trace_secs,
-        mrays_per_s: trace::timing::mrays_per_s(rays.len() as u64, trace_secs),
-        read_secs,
-        write_secs,
-        rays_file: rays_name,
-        out: path.display().to_string(),
-    };
-    crate::cli::emit(global, &report)
 }
 
 #[cfg(test)]

@@ -21,6 +21,9 @@
 //! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
 //! against the brute-force oracle and single rays, and every command takes it by name.
 
+/// The conformance harness: every registered method against its single-ray twin and the
+/// brute-force oracle, on every scene, view and hard case (`tests/conformance.rs`).
+pub mod conformance;
 pub mod error;
 pub mod frame;
 pub mod method;

@@ -19,11 +19,11 @@ use trace::timing::mrays_per_s;
 use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, Structures};
 
 use crate::progress::{self, Bar};
-use crate::raycast::{self, RaycastArgs};
 
 pub mod compare;
 pub mod leaks;
 pub mod main_job;
+pub mod raycast;
 pub mod shadows;
 pub mod tables;
 
@@ -70,8 +70,8 @@ pub enum Command {
     /// Shoot rays exactly at shared edges and vertices of closed meshes and count the leaks.
     Leaks(leaks::LeaksArgs),
     /// Trace the rays of a file (text or binary) and write one result per ray.
-    #[command(after_long_help = raycast::FORMATS_HELP)]
-    Raycast(RaycastArgs),
+    #[command(after_long_help = crate::raycast::FORMATS_HELP)]
+    Raycast(raycast::RaycastArgs),
     /// Print the thesis's Tables 4.1-4.6 (packets, frusta, culling, MFT, cones, soft shadows),
     /// 5.1 and 6.2 for our scenes.
     Tables(tables::TablesArgs),
@@ -290,9 +290,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Build(args)) => build_command(&global, &args),
         Some(Command::Leaks(args)) => leaks::run(&global, &args),
         Some(Command::Render(args)) => render_command(&global, &args),
-        Some(Command::Raycast(args)) => {
-            raycast::raycast_command(&global, &args, || load_and_build(&global, &args.scene, 1))
-        }
+        Some(Command::Raycast(args)) => raycast::run(&global, &args, || load_and_build(&global, &args.scene, 1)),
         Some(Command::Tables(args)) => tables::run(&global, &args),
         Some(Command::Shadows(args)) => shadows::run(&global, &args),
         Some(Command::Compare(args)) => compare::run(&global, &args),
