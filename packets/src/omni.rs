@@ -28,8 +28,8 @@ use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
-use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
+use kdtree::Counters;
 
 /// One deferred back voxel of a 2x2 packet (omni-directional or same-sign): node and the
 /// lanes' intervals in it.
@@ -49,7 +49,7 @@ impl Default for Entry {
 /// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
 /// infinite components, see [`crate::RayPacket::new`]) get no hit.
 #[inline]
-pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+pub fn intersect<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
     match tree.intersector() {
         Intersector::Wald => traverse::<_, C, false>(tree, tree.wald_records(), packet, counters),
         Intersector::Watertight => traverse::<_, C, false>(tree, tree.watertight_records(), packet, counters),
@@ -60,7 +60,7 @@ pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters
 /// `found` lanes are the blocked rays; their `t` is the first blocker found, not the closest.
 /// Invalid lanes are never blocked.
 #[inline]
-pub fn occluded<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+pub fn occluded<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
     match tree.intersector() {
         Intersector::Wald => traverse::<_, C, true>(tree, tree.wald_records(), packet, counters),
         Intersector::Watertight => traverse::<_, C, true>(tree, tree.watertight_records(), packet, counters),
@@ -75,7 +75,7 @@ pub(crate) fn root_interval(tree: &KdTree, rays: &RayPacket) -> (Vec4, Vec4) {
 }
 
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool>(
+fn traverse<T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     records: &[T],
     packet: &OmniPacket,
@@ -121,20 +121,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
             let (front, back) = (left + upper_front, left + 1 - upper_front);
             let front_far = far.min(widen_up(d));
             let back_near = near.max(widen_down(d));
-            let in_front = near.cmple(front_far);
-            let in_back = back_near.cmple(far);
-            if !in_back.any() {
-                index = front;
-                far = front_far;
-            } else if !in_front.any() {
-                index = back;
-                near = back_near;
-            } else {
-                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
-                sp += 1;
-                index = front;
-                far = front_far;
-            }
+            (index, near, far) = descend(&mut stack, &mut sp, (front, back), (near, far), (front_far, back_near));
             continue;
         }
 
@@ -161,6 +148,32 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
             Some((node, n, f)) => (index, near, far) = (node, n, f),
             None => return hit,
         }
+    }
+}
+
+/// The step after an inner node's plane distances (Listing 4.1, and Listing 2.4's with the
+/// same-sign children): the lanes are active in the front child over `[near, front_far]`
+/// and in the back child over `[back_near, far]`. Returns the child to enter next with its
+/// intervals `(node, near, far)`: the front child, unless no lane is active in it; the back
+/// child is pushed when lanes are active in both.
+#[inline(always)]
+pub(crate) fn descend(
+    stack: &mut [Entry; STACK_SIZE],
+    sp: &mut usize,
+    (front, back): (usize, usize),
+    (near, far): (Vec4, Vec4),
+    (front_far, back_near): (Vec4, Vec4),
+) -> (usize, Vec4, Vec4) {
+    let in_front = near.cmple(front_far);
+    let in_back = back_near.cmple(far);
+    if !in_back.any() {
+        (front, near, front_far)
+    } else if !in_front.any() {
+        (back, back_near, far)
+    } else {
+        stack[*sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
+        *sp += 1;
+        (front, near, front_far)
     }
 }
 

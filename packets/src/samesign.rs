@@ -20,16 +20,16 @@ use glam::{BVec4A, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{KdTree, STACK_SIZE};
 
-use crate::omni::{Entry, pop, root_interval};
+use crate::omni::{Entry, descend, pop, root_interval};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
-use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
+use kdtree::Counters;
 
 /// The closest hits of the packet's rays, splitting it by direction signs. Invalid lanes
 /// (rays with NaN or infinite components among them, see [`crate::RayPacket::new`]) get no
 /// hit.
 #[inline]
-pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
+pub fn intersect<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
     let mut hit = PacketHit::new(packet);
     for group in sign_groups(packet) {
         let mut sub = *packet;
@@ -74,7 +74,7 @@ pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
 
 /// Traversal of a packet whose valid lanes share direction signs.
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+fn traverse<T: TriangleTest + PacketTest, C: Counters>(
     tree: &KdTree,
     records: &[T],
     rays: &RayPacket,
@@ -105,20 +105,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
             let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
             let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
-            let in_front = near.cmple(front_far);
-            let in_back = back_near.cmple(far);
-            if !in_back.any() {
-                index = front;
-                far = front_far;
-            } else if !in_front.any() {
-                index = back;
-                near = back_near;
-            } else {
-                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
-                sp += 1;
-                index = front;
-                far = front_far;
-            }
+            (index, near, far) = descend(&mut stack, &mut sp, (front, back), (near, far), (front_far, back_near));
             continue;
         }
 
