@@ -1,6 +1,6 @@
 //! Frustum interval traversal of a tile of 2x2 packets, with one frustum (thesis 2.3.2,
 //! 4.1.3-4.1.4, Listing 4.2 with the omni-directional modification) or four (Multiple Frustum
-//! Traversal, 4.1.5), written once with the number of frusta as a parameter ([`Lanes`]:
+//! Traversal, 4.1.5), written once with the number of frusta as a parameter (`Lanes`:
 //! `f32` for one frustum, `Vec4` for four, as a 2x2 packet traces four rays), the way
 //! Embree's frustum kernel takes its width as a parameter. Both are monomorphic: each width
 //! gets its own code, with no dispatch and no allocation inside the traversal.

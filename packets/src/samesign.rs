@@ -18,12 +18,11 @@
 
 use glam::{BVec4A, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{KdTree, STACK_SIZE};
+use kdtree::{Counters, KdNode, KdTree};
 
-use crate::omni::{Entry, descend, pop, root_interval};
+use crate::omni::{self, ChildOrder, Step};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
 use crate::triangle4::PacketTest;
-use kdtree::Counters;
 
 /// The closest hits of the packet's rays, splitting it by direction signs. Invalid lanes
 /// (rays with NaN or infinite components among them, see [`crate::RayPacket::new`]) get no
@@ -72,6 +71,26 @@ pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
     })
 }
 
+/// Listing 2.4's child order (corrected) for a packet whose valid lanes share direction
+/// signs: bit `axis` of the field is set where the direction's sign bit is, and then the near
+/// child is the upper one. A lane lying in the split plane (`d` NaN) keeps its whole interval
+/// in both children.
+struct SameSign(usize);
+
+impl ChildOrder for SameSign {
+    #[inline(always)]
+    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step {
+        let axis = node.axis() & 3;
+        let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
+        let in_plane = d.cmpne(d);
+        let upper = (self.0 >> axis) & 1;
+        let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
+        let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
+        let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
+        Step::Split { front, back, front_far, back_near }
+    }
+}
+
 /// Traversal of a packet whose valid lanes share direction signs.
 #[inline(always)]
 fn traverse<T: TriangleTest + PacketTest, C: Counters>(
@@ -80,47 +99,9 @@ fn traverse<T: TriangleTest + PacketTest, C: Counters>(
     rays: &RayPacket,
     counters: &mut C,
 ) -> PacketHit {
-    let mut hit = PacketHit::new(rays);
     let first = (rays.valid.bitmask().trailing_zeros() as usize).min(3);
-    // Bit `axis` set where the direction's sign bit is: then the near child is the upper one.
     let upper_first = (0..3).fold(0usize, |m, a| m | usize::from(rays.d[a][first].is_sign_negative()) << a);
-    let (mut near, mut far) = root_interval(tree, rays);
-    let data = T::prepare4(rays);
-    let nodes = tree.nodes();
-    let refs = tree.prim_refs();
-    let mut stack = [Entry::default(); STACK_SIZE];
-    let mut sp = 0usize;
-    let mut index = 0usize;
-    if !near.cmple(far).any() {
-        return hit;
-    }
-    loop {
-        let node = nodes[index];
-        counters.node();
-        if !node.is_leaf() {
-            let axis = node.axis() & 3;
-            let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
-            let in_plane = d.cmpne(d);
-            let upper = (upper_first >> axis) & 1;
-            let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
-            let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
-            let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
-            (index, near, far) = descend(&mut stack, &mut sp, (front, back), (near, far), (front_far, back_near));
-            continue;
-        }
-
-        counters.leaf();
-        let active = near.cmple(far);
-        let prims = &refs[node.prim_range()];
-        counters.tests(prims.len() as u64);
-        for &prim in prims {
-            records[prim as usize].intersect4(rays, &data, active, &mut hit, prim);
-        }
-        match pop(&stack, &mut sp, hit.t) {
-            Some((node, n, f)) => (index, near, far) = (node, n, f),
-            None => return hit,
-        }
-    }
+    omni::traverse::<_, _, C, false>(tree, records, rays, &SameSign(upper_first), counters)
 }
 
 #[cfg(test)]
