@@ -1,18 +1,19 @@
 //! Arbitrary rays (zero, NaN and infinite directions included) -> every traversal method over
 //! a tree of an arbitrary finite soup: never panics; rays accepted by `Ray::try_new` agree
-//! with the brute-force oracle (`BruteForce::check`) as single rays, and the packet methods
-//! (omni-directional, same-sign, frustum and MFT) and the cone methods (one cone, MFT cones)
-//! give the single-ray hits (or a tie at the same distance, or a difference by a rounding
+//! with the brute-force oracle (`BruteForce::check`) as single rays, and every method of
+//! `trace::Registry::ours()` (streams of mixed origins and of one origin, tiles 4 and 16)
+//! gives the single-ray hits (or a tie at the same distance, or a difference by a rounding
 //! artefact on a triangle the ray cannot reach: `BruteForce::equivalent_hits`), closest and
 //! any hit; rejected rays still traverse without a panic.
 #![no_main]
 
 use arbitrary::Arbitrary;
+use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use libfuzzer_sys::fuzz_target;
-use cones::ConeMethod;
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
+use packets::{OmniPacket, RayPacket, TileMethod, TileTracer};
+use trace::{Options, Registry, Structures};
 
 #[derive(Arbitrary, Debug)]
 struct Input {
@@ -51,58 +52,49 @@ fuzz_target!(|input: Input| {
     if accepted.is_empty() {
         return;
     }
-    let single: Vec<Option<Hit>> = accepted.iter().map(|r| tree.intersect(r)).collect();
-
-    // Same-sign packets take any rays.
-    for (rays, want) in accepted.chunks(4).zip(single.chunks(4)) {
-        let hits = samesign::intersect(&tree, &RayPacket::new(rays), &mut NoCounters);
-        for (lane, want) in want.iter().enumerate() {
-            let got = hits.get(lane);
-            assert!(oracle.equivalent_hits(&rays[lane], got, *want), "same-sign lane {lane}: {got:?}, single ray {want:?}");
+    // Every method of the registry on the accepted rays (mixed origins: same-sign packets)
+    // and on `shared`, every accepted direction from one accepted origin (omni packets,
+    // frusta, cones), closest and any hit, against single rays.
+    let eye = accepted[input.eye as usize % accepted.len()];
+    let shared: Vec<Ray> =
+        accepted.iter().filter_map(|r| Ray::try_new(eye.origin, r.dir, r.t_min.max(0.0), r.t_max).ok()).collect();
+    let registry = Registry::ours();
+    let structures = Structures::new(&tree);
+    for rays in [&accepted, &shared] {
+        let want: Vec<Option<Hit>> = rays.iter().map(|r| tree.intersect(r)).collect();
+        let want_any: Vec<bool> = rays.iter().map(|r| tree.occluded(r)).collect();
+        for name in registry.names(&[4, 16]) {
+            let selected = registry.select(&name, Options::default()).expect("a registered name");
+            let method = registry.bind(&selected, &structures).expect("binds on our tree");
+            let (mut got, mut any) = (vec![None; rays.len()], vec![false; rays.len()]);
+            method.tracer.stream(rays, &mut got);
+            method.tracer.stream_occluded(rays, &mut any);
+            for (i, ray) in rays.iter().enumerate() {
+                assert!(
+                    oracle.equivalent_hits(ray, got[i], want[i]),
+                    "{name} ray {i}: {:?}, single ray {:?}",
+                    got[i],
+                    want[i]
+                );
+                assert!(
+                    oracle.equivalent_occlusion(ray, any[i], want_any[i]),
+                    "{name} any-hit ray {i}: {}, single ray {}",
+                    any[i],
+                    want_any[i]
+                );
+            }
         }
     }
 
-    // The shared-origin methods: every accepted ray's direction from one accepted origin.
-    let eye = accepted[input.eye as usize % accepted.len()];
-    let shared: Vec<Ray> = accepted
-        .iter()
-        .filter_map(|r| Ray::try_new(eye.origin, r.dir, r.t_min.max(0.0), r.t_max).ok())
-        .collect();
-    let want: Vec<Option<Hit>> = shared.iter().map(|r| tree.intersect(r)).collect();
+    // The tile tracer's any-hit mode (shadow rays), which no registered stream uses: the
+    // frustum, MFT and cones find a hit exactly where the single ray's occlusion query does.
     let packets: Vec<OmniPacket> =
         shared.chunks(4).map(|rays| OmniPacket::new(RayPacket::new(rays)).expect("one origin, t_min >= 0")).collect();
-    for ((packet, rays), want) in packets.iter().zip(shared.chunks(4)).zip(want.chunks(4)) {
-        let hits = omni::intersect(&tree, packet, &mut NoCounters);
-        let any = omni::occluded(&tree, packet, &mut NoCounters);
-        for (lane, want) in want.iter().enumerate() {
-            let got = hits.get(lane);
-            assert!(oracle.equivalent_hits(&rays[lane], got, *want), "omni lane {lane}: {got:?}, single ray {want:?}");
-            let (found, want) = (any.found.bitmask() >> lane & 1 != 0, tree.occluded(&rays[lane]));
-            assert!(oracle.equivalent_occlusion(&rays[lane], found, want), "omni any-hit lane {lane}: {found}, single ray {want}");
-        }
+    if packets.is_empty() {
+        return;
     }
     let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
     tracer.load_packets(&packets).expect("one origin");
-    for method in [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft] {
-        tracer.trace(&tree, method, &mut NoCounters);
-        for ((hits, want), rays) in tracer.packet_hits().iter().zip(want.chunks(4)).zip(shared.chunks(4)) {
-            for (lane, want) in want.iter().enumerate() {
-                let got = hits.get(lane);
-                assert!(oracle.equivalent_hits(&rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
-            }
-        }
-    }
-    for method in [ConeMethod::Cone, ConeMethod::MftCone] {
-        cones::traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
-        for ((hits, want), rays) in tracer.packet_hits().iter().zip(want.chunks(4)).zip(shared.chunks(4)) {
-            for (lane, want) in want.iter().enumerate() {
-                let got = hits.get(lane);
-                assert!(oracle.equivalent_hits(&rays[lane], got, *want), "{method:?} lane {lane}: {got:?}, single ray {want:?}");
-            }
-        }
-    }
-    // Any-hit mode (shadow rays): the frustum, MFT and cones find a hit exactly where the
-    // single ray's occlusion query does (up to artefacts on unreachable triangles).
     tracer.set_any_hit(true);
     for method in 0..4 {
         match method {
@@ -115,7 +107,10 @@ fuzz_target!(|input: Input| {
             for (lane, ray) in rays.iter().enumerate() {
                 let found = hits.found.bitmask() >> lane & 1 != 0;
                 let want = tree.occluded(ray);
-                assert!(oracle.equivalent_occlusion(ray, found, want), "any-hit method {method} lane {lane}: {found}, single ray {want}");
+                assert!(
+                    oracle.equivalent_occlusion(ray, found, want),
+                    "any-hit method {method} lane {lane}: {found}, single ray {want}"
+                );
             }
         }
     }
