@@ -279,7 +279,7 @@ impl Cone {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use packets::frustum::plane_interval;
+    use packets::bound::plane_interval;
     use proptest::prelude::*;
     use std::f64::consts::{FRAC_PI_2, PI};
 

@@ -14,7 +14,7 @@
 
 use glam::{DVec3, Vec3};
 use kdtree::{Counters, KdTree, Ray};
-use packets::{Frusta, OmniPacket, PacketCounters, RayPacket, TileMethod, TileTracer};
+use packets::{Frusta, OmniPacket, RayPacket, TileMethod, TileTracer};
 use scenes::SphereLight;
 
 use crate::cone::Cone;
@@ -29,7 +29,7 @@ pub enum ShadowMethod {
     /// Each ray on its own (`KdTree::occluded`).
     Single,
     /// The 16 rays as four 2x2 packets under one pyramid frustum (their per-axis direction
-    /// extremes, `packets::frustum`).
+    /// extremes, `packets::bound`).
     Pyramid,
     /// The 16 rays as four 2x2 packets under the cone tangent to the light.
     Cone,
@@ -137,7 +137,7 @@ impl SoftShadowTracer {
     /// origin or direction (or a NaN interval) is not occluded, by every method, as
     /// `KdTree::occluded` answers; rays with different origins are traced one by one; a cone
     /// with a NaN field is replaced by the rays' pyramid (see `TileTracer::trace_frusta`).
-    pub fn occluded<C: PacketCounters + Counters>(
+    pub fn occluded<C: Counters>(
         &mut self,
         tree: &KdTree,
         rays: &[Ray; SAMPLES],

@@ -27,9 +27,9 @@
 //! [`crate::cone::MAX_HALF_ANGLE`] holds falls back to the pyramid.
 
 use glam::{DVec3, Vec3};
-use kdtree::KdTree;
-use packets::frustum::T_UNDERFLOW;
-use packets::{Frusta, FrustumBound, OmniPacket, PacketCounters, TileTracer};
+use kdtree::{Counters, KdTree};
+use packets::bound::T_UNDERFLOW;
+use packets::{Frusta, FrustumBound, OmniPacket, TileTracer};
 use scenes::{Camera, Tile};
 
 use crate::cone::{Cone, ConeError, angle_between};
@@ -182,7 +182,7 @@ pub fn cone_frusta(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, i
 /// a cone or MFT cones: the closest hits (any hits in the tracer's any-hit mode), exactly
 /// those of single rays. Invalid lanes (rays with NaN or infinite components, see
 /// `packets::RayPacket::new`) get no hit and do not shape the cone.
-pub fn trace<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
+pub fn trace<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
     let intervals = tracer.prepare_intervals(tree);
     let frusta = cone_frusta(tree, tracer, method, &intervals);
     tracer.trace_frusta(tree, &frusta, counters);

@@ -82,7 +82,7 @@ fn cone_answers(tree: &KdTree, rays: &[Ray]) -> Vec<(ConeMethod, bool, PacketHit
 /// pyramid compare parameters rounded alike and visit that child; the cone scaled the
 /// pyramid's far end, 0, by `|d|` to a distance of 0, while its own plane distance along the
 /// axis is 2.9e-14, and skipped the child. `cone_bound` now moves the ends out by the
-/// underflow of the parameters (`packets::frustum::T_UNDERFLOW`) before scaling them.
+/// underflow of the parameters (`packets::bound::T_UNDERFLOW`) before scaling them.
 #[test]
 fn cone_far_end_covers_an_exit_parameter_that_underflowed() {
     let tris = [

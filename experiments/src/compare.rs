@@ -326,7 +326,7 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     // Warm-up frame: the hits of every method, for the mismatch column.
     let mut checks = Vec::new();
     for c in &mut contenders {
-        c.method.tracer.primary(&c.layout, &camera, &mut c.hits);
+        c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None);
         checks.push(mismatches(&scene, &camera, &frame.reference, &c.layout.to_row_major(&c.hits)));
     }
 
@@ -343,13 +343,13 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut visible = vec![0.0f32; frame.layout.pixel_count()];
     for _ in 0..config.rounds {
         for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
-            secs.push(timed(|| c.method.tracer.primary(&c.layout, &camera, &mut c.hits)).0);
+            secs.push(timed(|| c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None)).0);
             bar.inc();
         }
         for (i, &(_, by)) in shadows.kernels.iter().enumerate() {
             let tracer = &contenders[by].method.tracer;
             let (secs, (rays, _)) =
-                timed(|| tracer.shadow(&frame.layout, &scene, &camera, &frame.reference_tiles, &mut occluded));
+                timed(|| tracer.shadow(&frame.layout, &scene, &camera, &frame.reference_tiles, &mut occluded, None));
             shadow_secs[i].push(secs);
             shadow_rays[i] = rays;
             bar.inc();
@@ -357,7 +357,7 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         for (i, &(_, by)) in softs.kernels.iter().enumerate() {
             let tracer = &contenders[by].method.tracer;
             let (secs, stats) = timed(|| {
-                tracer.soft(&frame.layout, &scene, &camera, &frame.reference_tiles, &frame.light, &mut visible)
+                tracer.soft(&frame.layout, &scene, &camera, &frame.reference_tiles, &frame.light, &mut visible, None)
             });
             soft_secs[i].push(secs);
             soft_rays[i] = stats.rays;

@@ -228,7 +228,7 @@ fn measure_soft(
     let layout = TileLayout::new(w, h, trace::registry::TILE_SIZE);
     let mono = registry.bind(&registry.select("mono", Options::default())?, structures)?;
     let mut hits = vec![None; layout.pixel_count()];
-    mono.tracer.primary(&layout, &camera, &mut hits);
+    mono.tracer.primary(&layout, &camera, &mut hits, None);
     let frames = config.frames.min(3);
     let bar = progress.task(&format!("table 4.6: {}", scene.name), Some(2 * ShadowMethod::ALL.len() as u64));
     let mut rows = Vec::new();
@@ -243,7 +243,7 @@ fn measure_soft(
             let mut stats = Default::default();
             for _ in 0..frames {
                 let start = Instant::now();
-                stats = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible);
+                stats = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible, None);
                 best = best.min(start.elapsed().as_secs_f64());
             }
             match &reference {
@@ -257,7 +257,8 @@ fn measure_soft(
                 }
                 Some(_) => {}
             }
-            let (counted, counts) = tracer.soft_counted(&layout, scene, &camera, &hits, &light, &mut visible);
+            let mut counts = kdtree::Counts::default();
+            let counted = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible, Some(&mut counts));
             let points = counted.points.max(1) as f64;
             let tests = if method == ShadowMethod::Single { counts.tests as f64 / 4.0 } else { counts.tests as f64 };
             rows.push(SoftRow {

@@ -30,7 +30,7 @@ mod validate;
 
 pub use aabb::Aabb;
 pub use build::{BuildConfig, BuildError, first_phase_bytes, human_bytes};
-pub use counters::{Counters, NoCounters, TraversalCounts};
+pub use counters::{Counters, Counts, NoCounters};
 pub use node::KdNode;
 pub use oracle::BruteForce;
 pub use ray::{Hit, Ray, RayError};

@@ -2,7 +2,7 @@
 //! (thesis 2.2.1 cost model).
 
 use crate::build::surface_area64;
-use crate::tree::is_degenerate;
+use crate::triangle::is_degenerate;
 use crate::{Aabb, KdTree};
 
 /// Statistics of a built tree ([`KdTree::stats`]).

@@ -181,7 +181,7 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
         // Leaf: test its triangles against the closest hit so far.
         counters.leaf();
         let refs = &tree.prim_refs[node.prim_range()];
-        counters.isects(refs.len() as u64);
+        counters.tests(refs.len() as u64);
         for &prim in refs {
             if let Some((t, u, v)) = records[prim as usize].intersect(ray, &prepared, t_hit) {
                 let hit = Hit { t, u, v, prim };

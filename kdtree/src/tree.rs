@@ -3,7 +3,7 @@
 use glam::Vec3;
 
 use crate::build::{self, BuildConfig, BuildError, Meter};
-use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle};
+use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle, is_degenerate};
 use crate::{Aabb, KdNode};
 
 /// A perfect-split SAH kd-tree over a triangle soup (thesis 3.2.1).
@@ -269,11 +269,4 @@ impl KdTree {
         }
         out
     }
-}
-
-/// True for a triangle of exactly zero area: its edge cross product, computed in f64 so that
-/// tiny triangles (edges near 1e-30) do not underflow to zero, is zero.
-pub fn is_degenerate(t: &[Vec3; 3]) -> bool {
-    let (a, b, c) = (t[0].as_dvec3(), t[1].as_dvec3(), t[2].as_dvec3());
-    (b - a).cross(c - a) == glam::DVec3::ZERO
 }

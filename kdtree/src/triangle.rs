@@ -9,6 +9,15 @@ use glam::Vec3;
 
 use crate::Ray;
 
+/// True for a triangle of exactly zero area: its edge cross product, computed in f64 so that
+/// tiny triangles (edges near 1e-30) do not underflow to zero, is zero. Such a triangle is
+/// left out of the tree and never hit by either test (thesis 4.2: Wald's projection has no
+/// dominant normal axis for it).
+pub fn is_degenerate(t: &[Vec3; 3]) -> bool {
+    let (a, b, c) = (t[0].as_dvec3(), t[1].as_dvec3(), t[2].as_dvec3());
+    (b - a).cross(c - a) == glam::DVec3::ZERO
+}
+
 /// Which ray-triangle test a tree's traversal uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Intersector {
@@ -202,7 +211,7 @@ impl WatertightTriangle {
     /// non-zero area and report a hit that the tree, which leaves such triangles out, never
     /// could); so does a triangle with a NaN or infinite vertex.
     pub fn new(tri: &[Vec3; 3]) -> WatertightTriangle {
-        if crate::tree::is_degenerate(tri) || !tri.iter().all(|p| p.is_finite()) {
+        if is_degenerate(tri) || !tri.iter().all(|p| p.is_finite()) {
             return WatertightTriangle { v: [Vec3::NAN; 3] };
         }
         WatertightTriangle { v: *tri }

@@ -3,7 +3,7 @@
 //! to more than one leaf node if it straddles a split plane").
 
 use crate::build::{Polygon, clip_triangle};
-use crate::tree::is_degenerate;
+use crate::triangle::is_degenerate;
 use crate::{Aabb, KdTree, MAX_DEPTH, STACK_SIZE};
 
 /// The boxes of a node's children split on `axis` at `split`.

@@ -220,7 +220,7 @@ fn nan_rays_return_no_hit_and_never_panic() {
             let ray = Ray::new(o, d, t_min, t_max);
             assert!(tree.intersect(&ray).is_none(), "{ray:?}");
             assert!(!tree.occluded(&ray), "{ray:?}");
-            let mut c = kdtree::TraversalCounts::default();
+            let mut c = kdtree::Counts::default();
             assert!(tree.intersect_counted(&ray, &mut c).is_none() && !tree.occluded_counted(&ray, &mut c));
         }
     }
@@ -231,9 +231,9 @@ fn counters_count_and_agree_with_the_uncounted_query() {
     let tris = planar_grid(8);
     let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
     let ray = Ray::new(Vec3::new(3.3, 4.1, 2.0), Vec3::NEG_Z, 0.0, f32::INFINITY);
-    let mut c = kdtree::TraversalCounts::default();
+    let mut c = kdtree::Counts::default();
     assert_eq!(tree.intersect_counted(&ray, &mut c), tree.intersect(&ray));
-    assert!(c.nodes >= 1 && c.leaves >= 1 && c.isects >= 1, "{c:?}");
+    assert!(c.nodes >= 1 && c.leaves >= 1 && c.tests >= 1, "{c:?}");
     assert!(c.nodes >= c.leaves);
 }
 

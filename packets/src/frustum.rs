@@ -1,170 +1,258 @@
-//! Frustum interval traversal with packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4, Listing
-//! 4.2 with the omni-directional modification).
+//! Frustum interval traversal of a tile of 2x2 packets, with one frustum (thesis 2.3.2,
+//! 4.1.3-4.1.4, Listing 4.2 with the omni-directional modification) or four (Multiple Frustum
+//! Traversal, 4.1.5), written once with the number of frusta as a parameter (`Lanes`:
+//! `f32` for one frustum, `Vec4` for four, as a 2x2 packet traces four rays), the way
+//! Embree's frustum kernel takes its width as a parameter. Both are monomorphic: each width
+//! gets its own code, with no dispatch and no allocation inside the traversal.
 //!
 //! A tile of 2x2 packets sharing one origin goes down the tree as **one interval**
-//! `[near, far]` that bounds every ray's interval, computed from the tile's *extremal rays*.
-//! Listing 4.2 takes the four corner rays of the tile and, at each split plane, the minimum
-//! and maximum of their four plane distances. We use the same bound in a form that is exact
-//! for any ray set: per axis `k`, the smallest and largest direction component over all the
-//! tile's rays, `lo[k]` and `hi[k]`. A ray with component `n` in `[lo, hi]` reaches the plane
-//! at `t = dist / n`, which is monotonic in `n` on each side of 0, so over the tile
-//! `t in [min(dist/lo, dist/hi), max(...)]` once negative distances are taken as `+inf`
-//! (modification 1; a mixed-sign range gives `+inf` at the top, as it must, since some rays
-//! are then parallel to the plane). For unnormalised pinhole rays these extremes are corner
-//! rays; for our normalised camera rays an inner ray can hold one (when the axis points into
-//! the tile), which the corner rays would miss.
+//! `[near, far]` per frustum that bounds every ray's interval, computed from the frustum's
+//! [`FrustumBound`] (the pyramid of the extremal rays or a cone, see [`crate::bound`]).
+//! Front and back voxels come from the origin's side of the plane alone (modification 2).
+//! At an inner node the front voxel gets `[near, min(far, dmax)]` and the back voxel
+//! `[max(near, dmin), far]`; a child in which no frustum's interval is left is skipped. At
+//! a leaf each unfinished 2x2 packet of an active frustum is first **culled** against the
+//! leaf's box (4.1.4): the exact slab test of its four rays, clipped to each ray's closest
+//! hit so far; only the lanes that pass are tested against the leaf's triangles. The voxel
+//! box is carried down the traversal and on the stack.
 //!
-//! Front and back voxels come from the origin's side of the plane alone (modification 2). At
-//! an inner node the front voxel gets `[near, min(far, dmax)]` and the back voxel
-//! `[max(near, dmin), far]`; an empty one is skipped. At a leaf each unfinished 2x2 packet
-//! is first **culled** against the leaf's box (4.1.4): the exact slab test of its four rays,
-//! clipped to each ray's closest hit so far; only the lanes that pass are tested against the
-//! leaf's triangles. The voxel box is carried down the traversal and on the stack.
+//! **Multiple frusta** (4.1.5). The tile is split into its four quadrants, each bounded as a
+//! frustum of its own, and the four go down the tree together, one per lane of a `Vec4`.
+//! Following the thesis's list of changes:
+//! 1. each frustum is a "ray" with its own interval `[near, far]`;
+//! 2. a frustum is active where `near <= far` and it still has unfinished rays (a complete
+//!    frustum's interval is clamped empty);
+//! 3. the four intervals are updated together at each split plane;
+//! 4. the active state is pushed with each deferred voxel (as the four intervals: a lane is
+//!    active in it where `near <= far`);
+//! 5. a child in which no frustum is active is not entered;
+//! 6. at a leaf only the packets of the active frusta are culled and intersected;
+//! 7. a frustum whose rays are all finished is masked from then on.
+//!
+//! Since the four quadrants' extremal rays are the tile's, each frustum's interval is never
+//! wider than the single frustum's, so MFT visits no node and tests no packet that the single
+//! frustum of the same tile would not (checked by the tests, tile by tile).
 //!
 //! **Finishing rays** (the thesis's "the tile finishes when all its rays have hit", made
 //! exact): a lane is finished when its closest hit so far lies no further than where the
 //! ray leaves the current leaf's box (moved inwards by a few ulps, so that rounding cannot
-//! finish a ray whose hit lies just beyond the box). Every voxel visited later lies beyond a split plane
-//! the ray crosses after that point, so no later voxel can hold a closer hit. The tile stops
-//! when every lane is finished; deferred voxels are also dropped when they start beyond the
-//! furthest hit of the unfinished lanes. Below an origin-on-the-plane node (the case where
-//! both children are visited over the whole interval, out of order for some rays) no lane is
-//! finished early.
+//! finish a ray whose hit lies just beyond the box). Every voxel visited later lies beyond a
+//! split plane the ray crosses after that point, so no later voxel can hold a closer hit. A
+//! frustum stops when every lane of its packets is finished; deferred voxels are also
+//! dropped when they start beyond the furthest hit of the unfinished lanes. Below an
+//! origin-on-the-plane node (the case where both children are visited over the whole
+//! interval, out of order for some rays) no lane is finished early.
+
+use std::ops::Range;
 
 use glam::Vec4;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{KdTree, STACK_SIZE};
+use kdtree::{Counters, KdTree, STACK_SIZE};
 
-use crate::packet::{widen_down, widen_down1, widen_up1};
-use crate::stats::PacketCounters;
-use crate::tile::{TileTracer, mask_of, max_where};
+use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
+use crate::packet::{mask_of, max_where, widen_down};
+use crate::tile::TileTracer;
 use crate::triangle4::PacketTest;
 
-/// The bound a frustum of rays sharing one origin goes down the tree with: at a split plane
-/// `dist = split - o[axis]` away from the origin, every ray of the frustum that crosses the
-/// plane does so between `min(dist * k0[axis], dist * k1[axis])` and the `max` of the two,
-/// negative values taken as `+inf` ([`plane_interval`]), and inside `[near, far]`.
-///
-/// Two shapes fill it in: the **pyramid** of the extremal rays ([`bound`]: `k0 = 1 / lo`,
-/// `k1 = 1 / hi`, the per-axis direction extremes, distances in ray parameter `t`) and the
-/// **cone** of the `cones` crate (thesis 4.1.7, "cone frustums": Listing 4.4's precomputed
-/// values, distances measured along the cone's axis). `hit_scale` converts a ray's hit
-/// parameter into the bound's distance: a hit at `t` lies no further than `t * hit_scale`
-/// along the bound's measure (1 for the pyramid; for a cone the longest direction among its
-/// rays, since a point at parameter `t` of ray `d` is `t |d| cos(angle)` along the axis;
-/// the conversion must also cover the rounding of `t`, see [`distance_up`]).
+/// The frusta a loaded tile is traced with by [`TileTracer::trace_frusta`]: one for the
+/// whole tile (2.3.2), or one per quadrant traced together in the lanes of a `Vec4` (MFT,
+/// 4.1.5).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FrustumBound {
-    /// First factor per axis (`[x, y, z, 0]`): `1 / lo[k]` for a pyramid.
-    pub k0: [f32; 4],
-    /// Second factor per axis: `1 / hi[k]` for a pyramid.
-    pub k1: [f32; 4],
-    /// Start of the interval (`+inf` when no ray is left).
-    pub near: f32,
-    /// End of the interval (`-inf` when no ray is left).
-    pub far: f32,
-    /// A bound on `distance / t` for a hit at ray parameter `t` (1 for a pyramid).
-    pub hit_scale: f32,
+pub enum Frusta {
+    /// One frustum over every packet (interval traversal, 2.3.2).
+    One(FrustumBound),
+    /// Quadrant `q`'s packets bounded by frustum `q` (Multiple Frustum Traversal).
+    Four([FrustumBound; 4]),
 }
 
-impl FrustumBound {
-    /// Whether a field is NaN: such a bound holds no ray, and
-    /// [`crate::TileTracer::trace_frusta`] traces with the rays' pyramid instead.
-    /// (Infinite fields are meaningful: a factor of `±inf` for a zero direction extreme,
-    /// `near = +inf` when no ray is left.)
-    pub fn has_nan(&self) -> bool {
-        self.k0.iter().chain(&self.k1).any(|k| k.is_nan())
-            || self.near.is_nan()
-            || self.far.is_nan()
-            || self.hit_scale.is_nan()
+impl TileTracer {
+    /// Starts a frustum trace of the loaded tile with frusta made elsewhere (the cones of
+    /// the `cones` crate, thesis 4.1.7-4.1.9): resets the hits, finishes the lanes that miss
+    /// the tree's root box and returns each quadrant's pyramid bound ([`bound::pyramid`]),
+    /// whose `near` and `far` bound the ray parameters of its rays inside the root box.
+    /// Follow it with [`TileTracer::trace_frusta`].
+    pub fn prepare(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
+        self.reset(tree, true);
+        let quadrants = self.quadrants.clone();
+        quadrants.map(|range| bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range]))
+    }
+
+    /// [`TileTracer::prepare`] without the pyramids: resets the hits, finishes the lanes
+    /// that miss the root box and returns each quadrant's interval `(near, far)` of ray
+    /// parameters inside it (what a cone needs, thesis 4.1.7; its per-ray cost is the box
+    /// clip alone).
+    pub fn prepare_intervals(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
+        self.reset(tree, true);
+        let quadrants = self.quadrants.clone();
+        quadrants.map(|range| bound::root_interval(tree, &self.packets[range.clone()], &mut self.done[range]))
+    }
+
+    /// The pyramid bound (thesis 2.3.2) of quadrant `q` of a prepared tile
+    /// ([`bound::pyramid`]), for a cone that cannot be made.
+    pub fn pyramid(&mut self, tree: &KdTree, q: usize) -> FrustumBound {
+        let range = self.quadrants[q & 3].clone();
+        bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
+    }
+
+    /// Traces the tile [`TileTracer::prepare`]d with `frusta` (thesis 2.3.2 for one, 4.1.5
+    /// for four), which must bound its rays (every ray of the frustum, or of quadrant `q` for
+    /// frustum `q`, inside the frustum).
+    ///
+    /// A bound with a NaN field bounds nothing: it is replaced by the pyramid of its rays
+    /// ([`TileTracer::pyramid`], or [`bound::pyramid`] of the whole tile for
+    /// [`Frusta::One`]), so the hits are still exactly the single rays'.
+    pub fn trace_frusta<C: Counters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
+        match frusta {
+            Frusta::One(f) if f.has_nan() => {
+                let f = bound::pyramid(tree, &self.packets, &mut self.done);
+                intersect(tree, self, &Bounds::one(&f), counters)
+            }
+            Frusta::One(f) => intersect(tree, self, &Bounds::one(f), counters),
+            Frusta::Four(bounds) if bounds.iter().any(FrustumBound::has_nan) => {
+                let bounds: [FrustumBound; 4] =
+                    std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
+                intersect(tree, self, &Bounds::four(&bounds), counters)
+            }
+            Frusta::Four(bounds) => intersect(tree, self, &Bounds::four(bounds), counters),
+        }
     }
 }
 
-/// Bound on the absolute rounding error of a ray parameter `t` computed in `f32` that
-/// underflowed below `f32::MIN_POSITIVE`: the spacing of the subnormals, `2^-149` (the
-/// smallest positive `f32`; the error of one rounding is half of it). The relative widening
-/// ([`kdtree::traverse::WIDEN`]) adds nothing to such a `t` (`|t| W` rounds to zero), which is
-/// harmless while `t` is compared with other parameters rounded alike, but not once `t` is
-/// converted into another measure: scaled by a long direction (a cone's `hit_scale`, up to
-/// `3e38`) it becomes a large distance. A clip exit of `1.7e-46` rounds to 0 and, times
-/// `|d| = 1.7e32`, would put a cone's far end `2.9e-14` short of the ray's (a fuzz finding).
-pub const T_UNDERFLOW: f32 = f32::from_bits(1);
-
-/// An upper bound on the distance, along a bound's measure, of a point at a ray parameter
-/// computed as `t`, with `scale` the bound's `hit_scale` (`t * scale` when exact):
-/// `(t + T_UNDERFLOW) * scale` widened by [`kdtree::traverse::WIDEN`], so that both the
-/// parameter's relative rounding and its underflow ([`T_UNDERFLOW`]) are covered.
-/// Infinities stay as they are.
-#[inline(always)]
-pub fn distance_up(t: f32, scale: f32) -> f32 {
-    widen_up1((t + T_UNDERFLOW) * scale)
+/// The number of frusta traced together, as the type of one interval end: `f32` for one
+/// frustum (2.3.2), `Vec4` for the four of MFT (4.1.5), one per lane. Every operation the
+/// traversal does on intervals goes through it, so the traversal is written once.
+pub(crate) trait Lanes: Copy + Default {
+    /// `+inf` in every lane.
+    const INFINITY: Self;
+    /// Lane-wise minimum.
+    fn min(a: Self, b: Self) -> Self;
+    /// Lane-wise maximum.
+    fn max(a: Self, b: Self) -> Self;
+    /// Whether some frustum's interval `[near, far]` is not empty (is active).
+    fn any_open(near: Self, far: Self) -> bool;
+    /// Whether no frustum's interval `[near, far]` is left (the child is not entered).
+    fn none_open(near: Self, far: Self) -> bool;
+    /// Each frustum's plane interval at a split plane `dist` away ([`plane_interval`]).
+    fn plane_interval(dist: f32, k0: Self, k1: Self) -> (Self, Self);
+    /// Each frustum's hit limit in its bound's measure ([`distance_up`]).
+    fn distance_up(t: Self, scale: Self) -> Self;
+    /// Runs `visit(quadrants, previous)` at a leaf for each active frustum, `quadrants` being
+    /// the packets it bounds and `previous` its current `limit`, and returns the new limits.
+    fn leaf(near: Self, far: Self, limit: Self, visit: impl FnMut(Range<usize>, f32) -> f32) -> Self;
+    /// Whether every frustum is complete (its limit `-inf`: no unfinished lane left).
+    fn all_complete(limit: Self) -> bool;
 }
 
-/// Marks the lanes of `tracer`'s packets in `range` that miss the tree's root box as finished
-/// (no hit), and returns the pyramid bound of the others: per axis the reciprocals of the
-/// smallest and largest direction component, and the interval that holds every unfinished
-/// ray's clip to the root box.
-pub fn bound(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
-    bound_of::<true>(tree, tracer, range)
+impl Lanes for f32 {
+    const INFINITY: f32 = f32::INFINITY;
+    #[inline(always)]
+    fn min(a: f32, b: f32) -> f32 {
+        a.min(b)
+    }
+    #[inline(always)]
+    fn max(a: f32, b: f32) -> f32 {
+        a.max(b)
+    }
+    #[inline(always)]
+    fn any_open(near: f32, far: f32) -> bool {
+        near <= far
+    }
+    #[inline(always)]
+    fn none_open(near: f32, far: f32) -> bool {
+        near > far
+    }
+    #[inline(always)]
+    fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
+        plane_interval(dist, k0, k1)
+    }
+    #[inline(always)]
+    fn distance_up(t: f32, scale: f32) -> f32 {
+        distance_up(t, scale)
+    }
+    #[inline(always)]
+    fn leaf(_near: f32, _far: f32, limit: f32, mut visit: impl FnMut(Range<usize>, f32) -> f32) -> f32 {
+        // The one frustum is active wherever the traversal goes.
+        visit(0..4, limit)
+    }
+    #[inline(always)]
+    fn all_complete(limit: f32) -> bool {
+        limit == f32::NEG_INFINITY
+    }
 }
 
-/// [`bound`] without the direction extremes: finishes the lanes of the packets in `range`
-/// that miss the root box and returns the interval `(near, far)` of the others' clips to
-/// it. What a bound made elsewhere (a cone) needs from the rays.
-pub fn root_interval(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> (f32, f32) {
-    let b = bound_of::<false>(tree, tracer, range);
-    (b.near, b.far)
-}
-
-/// [`bound`], with the direction extremes only when `DIRS` (else the factors are left 0).
-#[inline(always)]
-fn bound_of<const DIRS: bool>(tree: &KdTree, tracer: &mut TileTracer, range: std::ops::Range<usize>) -> FrustumBound {
-    let b = tree.bounds();
-    let (lo_box, hi_box) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
-    let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
-    let (mut near4, mut far4) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
-    for i in range {
-        let rays = &tracer.packets[i].rays;
-        let (enter, exit) = rays.clip(lo_box, hi_box);
-        let inside = enter.cmple(exit) & !mask_of(tracer.done[i]);
-        tracer.done[i] |= (!inside.bitmask() & 0xF) as u8;
-        if !inside.any() {
-            continue;
+impl Lanes for Vec4 {
+    const INFINITY: Vec4 = Vec4::INFINITY;
+    #[inline(always)]
+    fn min(a: Vec4, b: Vec4) -> Vec4 {
+        a.min(b)
+    }
+    #[inline(always)]
+    fn max(a: Vec4, b: Vec4) -> Vec4 {
+        a.max(b)
+    }
+    #[inline(always)]
+    fn any_open(near: Vec4, far: Vec4) -> bool {
+        near.cmple(far).any()
+    }
+    #[inline(always)]
+    fn none_open(near: Vec4, far: Vec4) -> bool {
+        !near.cmple(far).any()
+    }
+    #[inline(always)]
+    fn plane_interval(dist: f32, k0: Vec4, k1: Vec4) -> (Vec4, Vec4) {
+        plane_interval4(dist, k0, k1)
+    }
+    #[inline(always)]
+    fn distance_up(t: Vec4, scale: Vec4) -> Vec4 {
+        distance_up4(t, scale)
+    }
+    #[inline(always)]
+    fn leaf(near: Vec4, far: Vec4, limit: Vec4, mut visit: impl FnMut(Range<usize>, f32) -> f32) -> Vec4 {
+        let active = near.cmple(far).bitmask();
+        let mut l = limit.to_array();
+        for (q, slot) in l.iter_mut().enumerate() {
+            if active >> q & 1 != 0 {
+                *slot = visit(q..q + 1, *slot);
+            }
         }
-        // Lane-wise accumulation; the horizontal reductions come once at the end.
-        near4 = near4.min(Vec4::select(inside, enter, Vec4::INFINITY));
-        far4 = far4.max(Vec4::select(inside, exit, Vec4::NEG_INFINITY));
-        if !DIRS {
-            continue;
-        }
-        for a in 0..3 {
-            lo[a] = lo[a].min(Vec4::select(inside, rays.d[a], Vec4::INFINITY));
-            hi[a] = hi[a].max(Vec4::select(inside, rays.d[a], Vec4::NEG_INFINITY));
+        Vec4::from_array(l)
+    }
+    #[inline(always)]
+    fn all_complete(limit: Vec4) -> bool {
+        limit.cmpeq(Vec4::NEG_INFINITY).all()
+    }
+}
+
+/// The bounds of the frusta in lanes: per axis each factor (`k0`, `k1` of [`FrustumBound`]),
+/// the initial intervals and the hit scales.
+#[derive(Clone, Copy)]
+pub(crate) struct Bounds<L> {
+    k0: [L; 4],
+    k1: [L; 4],
+    near: L,
+    far: L,
+    hit_scale: L,
+}
+
+impl Bounds<f32> {
+    /// One frustum.
+    pub(crate) fn one(b: &FrustumBound) -> Bounds<f32> {
+        Bounds { k0: b.k0, k1: b.k1, near: b.near, far: b.far, hit_scale: b.hit_scale }
+    }
+}
+
+impl Bounds<Vec4> {
+    /// Four frusta, quadrant `q` in lane `q`.
+    pub(crate) fn four(bounds: &[FrustumBound; 4]) -> Bounds<Vec4> {
+        let axis = |a: usize, second: bool| Vec4::from_array(bounds.map(|b| if second { b.k1[a] } else { b.k0[a] }));
+        Bounds {
+            k0: [axis(0, false), axis(1, false), axis(2, false), Vec4::ZERO],
+            k1: [axis(0, true), axis(1, true), axis(2, true), Vec4::ZERO],
+            near: Vec4::from_array(bounds.map(|b| b.near)),
+            far: Vec4::from_array(bounds.map(|b| b.far)),
+            hit_scale: Vec4::from_array(bounds.map(|b| b.hit_scale)),
         }
     }
-    let (k0, k1) = if DIRS {
-        let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
-        let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
-        (lo.recip().to_array(), hi.recip().to_array())
-    } else {
-        ([0.0; 4], [0.0; 4])
-    };
-    FrustumBound { k0, k1, near: near4.min_element(), far: far4.max_element(), hit_scale: 1.0 }
-}
-
-/// The plane distances bounding a frustum at a split plane `dist` away from the origin along
-/// an axis with factors `k0`, `k1` (see [`FrustumBound`]): `(dmin, dmax)`, negative distances
-/// taken as `+inf` (modification 1), widened by a few ulps. `dist` must not be 0.
-///
-/// A distance is negative when `dist` and the factor have opposite signs, whatever their
-/// product rounds to: a product that underflows to -0.0 is still a plane behind the origin
-/// (the fuzzer found rays sent to the far side of a plane 2.3e-38 behind their origin, at
-/// distance -6e-54, and missing their hit).
-#[inline(always)]
-pub fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
-    let fix = |k: f32| if (dist > 0.0 && k < 0.0) || (dist < 0.0 && k > 0.0) { f32::INFINITY } else { dist * k };
-    let (a, b) = (fix(k0), fix(k1));
-    (widen_down1(a.min(b)), widen_up1(a.max(b)))
 }
 
 /// Culls and intersects the packets of quadrant `q` (or of every quadrant, `q = None`) at a
@@ -181,7 +269,7 @@ pub fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
 /// unfinished lane is tested.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
+fn leaf<T: PacketTest, C: Counters>(
     records: &[T],
     prims: &[u32],
     tracer: &mut TileTracer,
@@ -270,17 +358,17 @@ pub(crate) fn leaf<T: PacketTest, C: PacketCounters>(
 /// An inner node's children in visiting order, with their boxes: the front voxel is the
 /// child on the origin's side of the plane (modification 2), the lower child when the origin
 /// lies on it (`dist == 0`, where both are visited over the whole interval).
-pub(crate) struct Children {
-    pub(crate) front: usize,
-    pub(crate) back: usize,
-    pub(crate) front_box: ([f32; 4], [f32; 4]),
-    pub(crate) back_box: ([f32; 4], [f32; 4]),
+struct Children {
+    front: usize,
+    back: usize,
+    front_box: ([f32; 4], [f32; 4]),
+    back_box: ([f32; 4], [f32; 4]),
 }
 
 /// The [`Children`] of the inner node with left child `left` splitting box `[lo, hi]` on
 /// `axis` at `split`, the origin lying `dist = split - o[axis]` below the plane.
 #[inline(always)]
-pub(crate) fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32; 4], hi: [f32; 4]) -> Children {
+fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32; 4], hi: [f32; 4]) -> Children {
     let (mut below_hi, mut above_lo) = (hi, lo);
     below_hi[axis & 3] = split;
     above_lo[axis & 3] = split;
@@ -292,19 +380,25 @@ pub(crate) fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32
     }
 }
 
-/// One deferred back voxel of the single frustum.
+/// One deferred back voxel: its box and the frusta's intervals in it.
 #[derive(Clone, Copy, Default)]
-struct Entry {
+struct Entry<L> {
     node: u32,
     unordered: bool,
-    near: f32,
-    far: f32,
+    near: L,
+    far: L,
     lo: [f32; 4],
     hi: [f32; 4],
 }
 
-/// Traces the loaded (and reset) tile as one frustum with bound `f`.
-pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTracer, f: &FrustumBound, counters: &mut C) {
+/// Traces the loaded (and reset) tile with the frusta `f`: one over the whole tile, or four,
+/// quadrant `q` in lane `q`.
+pub(crate) fn intersect<L: Lanes, C: Counters>(
+    tree: &KdTree,
+    tracer: &mut TileTracer,
+    f: &Bounds<L>,
+    counters: &mut C,
+) {
     match tree.intersector() {
         Intersector::Wald => traverse(tree, tree.wald_records(), tracer, f, counters),
         Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, f, counters),
@@ -312,26 +406,27 @@ pub(crate) fn intersect<C: PacketCounters>(tree: &KdTree, tracer: &mut TileTrace
 }
 
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
     tree: &KdTree,
     records: &[T],
     tracer: &mut TileTracer,
-    f: &FrustumBound,
+    f: &Bounds<L>,
     counters: &mut C,
 ) {
     let (mut near, mut far) = (f.near, f.far);
-    if near.is_nan() || far.is_nan() || near > far {
+    if !L::any_open(near, far) {
         return;
     }
     let origin = tracer.origin;
     let b = tree.bounds();
     let (mut lo, mut hi) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
     let mut unordered = false;
-    // The furthest hit of the unfinished lanes: deferred voxels starting beyond it are dropped.
-    let mut limit = f32::INFINITY;
+    // Per frustum, the furthest hit of its unfinished lanes (-inf once it is complete):
+    // deferred voxels starting beyond it are dropped.
+    let mut limit = L::INFINITY;
     let nodes = tree.nodes();
     let refs = tree.prim_refs();
-    let mut stack = [Entry::default(); STACK_SIZE];
+    let mut stack = [Entry::<L>::default(); STACK_SIZE];
     let mut sp = 0usize;
     let mut index = 0usize;
     loop {
@@ -343,7 +438,7 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             let dist = split - origin[axis];
             let c = children(node.left_child(), axis, split, dist, lo, hi);
             if dist == 0.0 || dist.is_nan() {
-                // Origin on the plane: both children over the whole interval, lower first.
+                // Origin on the plane: both children over the whole intervals, lower first.
                 let (back_lo, back_hi) = c.back_box;
                 stack[sp % STACK_SIZE] =
                     Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi };
@@ -351,12 +446,12 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
                 (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
-            let (dmin, dmax) = plane_interval(dist, f.k0[axis], f.k1[axis]);
-            let front_far = far.min(dmax);
-            let back_near = near.max(dmin);
-            if back_near > far {
+            let (dmin, dmax) = L::plane_interval(dist, f.k0[axis], f.k1[axis]);
+            let front_far = L::min(far, dmax);
+            let back_near = L::max(near, dmin);
+            if L::none_open(back_near, far) {
                 (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
-            } else if near > front_far {
+            } else if L::none_open(near, front_far) {
                 (index, near, (lo, hi)) = (c.back, back_near, c.back_box);
             } else {
                 let (back_lo, back_hi) = c.back_box;
@@ -372,8 +467,10 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
         let prims = &refs[node.prim_range()];
         if !prims.is_empty() {
             let rect = tracer.screen_rect(lo, hi);
-            limit = leaf(records, prims, tracer, 0..4, rect, lo, hi, unordered, limit, counters);
-            if limit == f32::NEG_INFINITY {
+            limit = L::leaf(near, far, limit, |quadrants, previous| {
+                leaf(records, prims, tracer, quadrants, rect, lo, hi, unordered, previous, counters)
+            });
+            if L::all_complete(limit) {
                 return;
             }
         }
@@ -384,44 +481,11 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
             sp -= 1;
             let e = stack[sp % STACK_SIZE];
             near = e.near;
-            far = e.far.min(distance_up(limit, f.hit_scale));
-            if near <= far {
+            far = L::min(e.far, L::distance_up(limit, f.hit_scale));
+            if L::any_open(near, far) {
                 (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
                 break;
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A ray parameter computed as `(plane - o) * (1 / d)` in `f32` (as the clips compute
-    /// them), against its exact value: once it underflows below `f32::MIN_POSITIVE` the
-    /// relative widening adds nothing, and only the absolute term keeps the converted
-    /// distance an upper bound.
-    #[test]
-    fn distances_bound_parameters_that_underflowed() {
-        let mut widened_short = 0;
-        for i in 0..2000u32 {
-            // Origins from 4e-31 down to the subnormals, direction lengths from 1.3 to 2e38:
-            // the parameters span both sides of f32::MIN_POSITIVE.
-            let o = f32::from_bits(0x0D00_0000 / 2000 * (2000 - i));
-            let d = -1.3 * 2f32.powi((i % 127) as i32);
-            let (t, exact) = ((0.0 - o) * (1.0 / d), (0.0 - f64::from(o)) / f64::from(d));
-            assert!(t >= 0.0 && exact > 0.0);
-            let scale = d.abs();
-            let bound = f64::from(distance_up(t, scale));
-            assert!(bound >= exact * f64::from(scale), "t = {t:e} (exact {exact:e}), |d| = {scale:e}");
-            // Without the absolute term some of them fall short.
-            widened_short += usize::from(f64::from(widen_up1(t * scale)) < exact * f64::from(scale));
-        }
-        assert!(widened_short > 0, "the cases include underflowed parameters");
-        assert_eq!(distance_up(f32::INFINITY, 3.0), f32::INFINITY);
-        assert_eq!(distance_up(f32::NEG_INFINITY, 3.0), f32::NEG_INFINITY);
-        assert_eq!(distance_up(0.0, 1.0), T_UNDERFLOW, "at least one subnormal spacing");
-        // Normal parameters: the absolute term is below their rounding.
-        assert_eq!(distance_up(1.0, 1.0), widen_up1(1.0));
     }
 }

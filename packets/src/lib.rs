@@ -9,33 +9,40 @@
 //!   origin and any mix of direction signs, front and back voxels chosen from the origin.
 //! - [`samesign`]: the standard packet traversal (2.3.1, Listing 2.4 corrected) beside it,
 //!   which splits a packet whose rays disagree on direction signs.
+//! - [`bound`]: the bound a frustum goes down the tree with ([`FrustumBound`]): the pyramid
+//!   of its extremal rays (2.3.2) or a cone (4.1.7, made by the `cones` crate), and the plane
+//!   intervals and distance conversions the traversal does with it.
 //! - [`frustum`]: frustum interval traversal (2.3.2, Listing 4.2 with the omni modification)
-//!   of a tile of 2x2 packets, with packet/leaf culling (4.1.4).
-//! - [`mft`]: Multiple Frustum Traversal (4.1.5): the tile's four quadrant frusta in the four
-//!   lanes of a `Vec4`, masked when inactive or complete.
+//!   of a tile of 2x2 packets, with packet/leaf culling (4.1.4), written once for one frustum
+//!   and for Multiple Frustum Traversal (4.1.5: the tile's four quadrant frusta in the four
+//!   lanes of a `Vec4`, masked when inactive or complete).
 //! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
-//! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant, and the
-//!   per-tile entry points the renderer calls.
-//! - [`stats`]: the counters behind the thesis's N (steps per 2x2 packet), I (ray-triangle
-//!   tests per 2x2 packet) and the share of packets culled at leaves; they compile to nothing
-//!   when off.
+//! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant: the
+//!   scratch state of a trace.
+//! - [`method`]: [`TileMethod`] and [`TileTracer::trace`], the per-tile entry point the
+//!   renderer calls.
+//!
+//! The kernels count the thesis's N (steps per 2x2 packet), I (packet-triangle tests per
+//! 2x2 packet) and the share of packets culled at leaves through [`kdtree::Counters`], which
+//! compiles to nothing with [`kdtree::NoCounters`].
 //!
 //! Every method here returns exactly the closest hit (or occlusion) that single-ray
 //! traversal returns for the same rays; the tests check it against `KdTree::intersect` and
 //! the brute-force oracle. Nothing here allocates during traversal: tiles are traced in
 //! scratch space allocated once per thread ([`tile::TileTracer`]).
 
+pub mod bound;
 pub mod frustum;
-pub mod mft;
+pub mod method;
 pub mod mirror;
 pub mod omni;
 pub mod packet;
 pub mod samesign;
-pub mod stats;
 pub mod tile;
 pub mod triangle4;
 
-pub use frustum::FrustumBound;
+pub use bound::FrustumBound;
+pub use frustum::Frusta;
+pub use method::TileMethod;
 pub use packet::{OmniPacket, PacketHit, RayPacket};
-pub use stats::{PacketCounters, PacketCounts};
-pub use tile::{Frusta, TileMethod, TileTracer};
+pub use tile::TileTracer;

@@ -25,10 +25,9 @@
 
 use glam::{BVec4A, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{KdTree, STACK_SIZE};
+use kdtree::{Counters, KdNode, KdTree, STACK_SIZE};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
-use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
 
 /// One deferred back voxel of a 2x2 packet (omni-directional or same-sign): node and the
@@ -49,21 +48,27 @@ impl Default for Entry {
 /// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
 /// infinite components, see [`crate::RayPacket::new`]) get no hit.
 #[inline]
-pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
-    match tree.intersector() {
-        Intersector::Wald => traverse::<_, C, false>(tree, tree.wald_records(), packet, counters),
-        Intersector::Watertight => traverse::<_, C, false>(tree, tree.watertight_records(), packet, counters),
-    }
+pub fn intersect<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+    trace::<C, false>(tree, packet, counters)
 }
 
 /// Which of the packet's rays are blocked (any hit: the shadow query). The returned hit's
 /// `found` lanes are the blocked rays; their `t` is the first blocker found, not the closest.
 /// Invalid lanes are never blocked.
 #[inline]
-pub fn occluded<C: PacketCounters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+pub fn occluded<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+    trace::<C, true>(tree, packet, counters)
+}
+
+/// [`intersect`] (or [`occluded`], with `ANY_HIT`) with the tree's triangle test.
+#[inline(always)]
+fn trace<C: Counters, const ANY_HIT: bool>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+    let order = Omni(packet.origin);
     match tree.intersector() {
-        Intersector::Wald => traverse::<_, C, true>(tree, tree.wald_records(), packet, counters),
-        Intersector::Watertight => traverse::<_, C, true>(tree, tree.watertight_records(), packet, counters),
+        Intersector::Wald => traverse::<_, _, C, ANY_HIT>(tree, tree.wald_records(), &packet.rays, &order, counters),
+        Intersector::Watertight => {
+            traverse::<_, _, C, ANY_HIT>(tree, tree.watertight_records(), &packet.rays, &order, counters)
+        }
     }
 }
 
@@ -74,14 +79,62 @@ pub(crate) fn root_interval(tree: &KdTree, rays: &RayPacket) -> (Vec4, Vec4) {
     rays.clip(b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array())
 }
 
+/// How a 2x2 packet traversal orders an inner node's children, the one part in which
+/// Listing 4.1 (omni-directional, [`Omni`]) and Listing 2.4 (same-sign,
+/// `samesign::SameSign`) differ; the loop, the leaf and the stack are [`traverse`]'s.
+pub(crate) trait ChildOrder {
+    /// The children of inner `node` for the packet `rays` with lane intervals `[near, far]`.
+    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step;
+}
+
+/// An inner node's children as a [`ChildOrder`] orders them.
+pub(crate) enum Step {
+    /// Both children over the lanes' whole intervals, `first` first.
+    Both { first: usize, second: usize },
+    /// The front child with the lanes' intervals `[near, front_far]`, the back child with
+    /// `[back_near, far]`.
+    Split { front: usize, back: usize, front_far: Vec4, back_near: Vec4 },
+}
+
+/// Listing 4.1's child order: front and back from the common origin's side of the plane
+/// (modification 2), negative plane distances as `+inf` (modification 1); both children when
+/// the origin lies on the plane. Holds the origin, `[x, y, z, 0]`.
+pub(crate) struct Omni(pub(crate) [f32; 4]);
+
+impl ChildOrder for Omni {
+    #[inline(always)]
+    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step {
+        let axis = node.axis() & 3;
+        let dist = node.split() - self.0[axis];
+        let left = node.left_child();
+        if dist == 0.0 || dist.is_nan() {
+            // Origin on the plane: both children, whole intervals.
+            return Step::Both { first: left, second: left + 1 };
+        }
+        // Modification 1: negative distances (planes behind the origin) become +inf. Behind
+        // is decided by the signs of `dist` and `1 / d`, not by the product's: a product
+        // that underflows to -0.0 is still a plane behind the origin (the fuzzer found a
+        // lane sent to the far side of a plane 2.3e-38 behind it, at distance -6e-54).
+        let inv = rays.inv[axis];
+        let behind = if dist > 0.0 { inv.cmplt(Vec4::ZERO) } else { inv.cmpgt(Vec4::ZERO) };
+        let d = Vec4::select(behind, Vec4::INFINITY, Vec4::splat(dist) * inv);
+        // Modification 2: front and back from the origin's side of the plane.
+        let upper_front = (dist < 0.0) as usize;
+        let (front, back) = (left + upper_front, left + 1 - upper_front);
+        Step::Split { front, back, front_far: far.min(widen_up(d)), back_near: near.max(widen_down(d)) }
+    }
+}
+
+/// The 2x2 packet traversal of Listings 4.1 and 2.4, with the child order `O`: closest hits,
+/// or any hits (`ANY_HIT`, a lane finished at its first hit).
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool>(
+pub(crate) fn traverse<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     records: &[T],
-    packet: &OmniPacket,
+    rays: &RayPacket,
+    order: &O,
     counters: &mut C,
 ) -> PacketHit {
-    let rays = &packet.rays;
     let mut hit = PacketHit::new(rays);
     let (mut near, mut far) = root_interval(tree, rays);
     // `limit` ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
@@ -99,41 +152,16 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
         let node = nodes[index];
         counters.node();
         if !node.is_leaf() {
-            let axis = node.axis() & 3;
-            let dist = node.split() - packet.origin[axis];
-            let left = node.left_child();
-            if dist == 0.0 || dist.is_nan() {
-                // Origin on the plane: both children, whole intervals.
-                stack[sp % STACK_SIZE] = Entry { node: (left + 1) as u32, near, far };
-                sp += 1;
-                index = left;
-                continue;
-            }
-            // Modification 1: negative distances (planes behind the origin) become +inf. Behind
-            // is decided by the signs of `dist` and `1 / d`, not by the product's: a product
-            // that underflows to -0.0 is still a plane behind the origin (the fuzzer found a
-            // lane sent to the far side of a plane 2.3e-38 behind it, at distance -6e-54).
-            let inv = rays.inv[axis];
-            let behind = if dist > 0.0 { inv.cmplt(Vec4::ZERO) } else { inv.cmpgt(Vec4::ZERO) };
-            let d = Vec4::select(behind, Vec4::INFINITY, Vec4::splat(dist) * inv);
-            // Modification 2: front and back from the origin's side of the plane.
-            let upper_front = (dist < 0.0) as usize;
-            let (front, back) = (left + upper_front, left + 1 - upper_front);
-            let front_far = far.min(widen_up(d));
-            let back_near = near.max(widen_down(d));
-            let in_front = near.cmple(front_far);
-            let in_back = back_near.cmple(far);
-            if !in_back.any() {
-                index = front;
-                far = front_far;
-            } else if !in_front.any() {
-                index = back;
-                near = back_near;
-            } else {
-                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
-                sp += 1;
-                index = front;
-                far = front_far;
+            match order.step(rays, node, near, far) {
+                Step::Both { first, second } => {
+                    stack[sp % STACK_SIZE] = Entry { node: second as u32, near, far };
+                    sp += 1;
+                    index = first;
+                }
+                Step::Split { front, back, front_far, back_near } => {
+                    (index, near, far) =
+                        descend(&mut stack, &mut sp, (front, back), (near, far), (front_far, back_near));
+                }
             }
             continue;
         }
@@ -161,6 +189,32 @@ fn traverse<T: TriangleTest + PacketTest, C: PacketCounters, const ANY_HIT: bool
             Some((node, n, f)) => (index, near, far) = (node, n, f),
             None => return hit,
         }
+    }
+}
+
+/// The step after an inner node's plane distances (Listing 4.1, and Listing 2.4's with the
+/// same-sign children): the lanes are active in the front child over `[near, front_far]`
+/// and in the back child over `[back_near, far]`. Returns the child to enter next with its
+/// intervals `(node, near, far)`: the front child, unless no lane is active in it; the back
+/// child is pushed when lanes are active in both.
+#[inline(always)]
+pub(crate) fn descend(
+    stack: &mut [Entry; STACK_SIZE],
+    sp: &mut usize,
+    (front, back): (usize, usize),
+    (near, far): (Vec4, Vec4),
+    (front_far, back_near): (Vec4, Vec4),
+) -> (usize, Vec4, Vec4) {
+    let in_front = near.cmple(front_far);
+    let in_back = back_near.cmple(far);
+    if !in_back.any() {
+        (front, near, front_far)
+    } else if !in_front.any() {
+        (back, back_near, far)
+    } else {
+        stack[*sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
+        *sp += 1;
+        (front, near, front_far)
     }
 }
 

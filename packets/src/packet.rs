@@ -237,6 +237,18 @@ pub fn widen_down1(t: f32) -> f32 {
     if t.is_finite() { t - t.abs() * WIDEN } else { t }
 }
 
+/// The lanes of a 4-bit mask as a `BVec4A` (bit `l` for lane `l`, as `BVec4A::bitmask`).
+#[inline(always)]
+pub(crate) fn mask_of(bits: u8) -> BVec4A {
+    BVec4A::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
+}
+
+/// The largest lane of `v` among `mask`, `-inf` if none.
+#[inline(always)]
+pub(crate) fn max_where(mask: BVec4A, v: Vec4) -> f32 {
+    Vec4::select(mask, v, Vec4::NEG_INFINITY).max_element()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

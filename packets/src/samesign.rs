@@ -18,18 +18,17 @@
 
 use glam::{BVec4A, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{KdTree, STACK_SIZE};
+use kdtree::{Counters, KdNode, KdTree};
 
-use crate::omni::{Entry, pop, root_interval};
+use crate::omni::{self, ChildOrder, Step};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
-use crate::stats::PacketCounters;
 use crate::triangle4::PacketTest;
 
 /// The closest hits of the packet's rays, splitting it by direction signs. Invalid lanes
 /// (rays with NaN or infinite components among them, see [`crate::RayPacket::new`]) get no
 /// hit.
 #[inline]
-pub fn intersect<C: PacketCounters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
+pub fn intersect<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
     let mut hit = PacketHit::new(packet);
     for group in sign_groups(packet) {
         let mut sub = *packet;
@@ -72,68 +71,37 @@ pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
     })
 }
 
+/// Listing 2.4's child order (corrected) for a packet whose valid lanes share direction
+/// signs: bit `axis` of the field is set where the direction's sign bit is, and then the near
+/// child is the upper one. A lane lying in the split plane (`d` NaN) keeps its whole interval
+/// in both children.
+struct SameSign(usize);
+
+impl ChildOrder for SameSign {
+    #[inline(always)]
+    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step {
+        let axis = node.axis() & 3;
+        let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
+        let in_plane = d.cmpne(d);
+        let upper = (self.0 >> axis) & 1;
+        let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
+        let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
+        let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
+        Step::Split { front, back, front_far, back_near }
+    }
+}
+
 /// Traversal of a packet whose valid lanes share direction signs.
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: PacketCounters>(
+fn traverse<T: TriangleTest + PacketTest, C: Counters>(
     tree: &KdTree,
     records: &[T],
     rays: &RayPacket,
     counters: &mut C,
 ) -> PacketHit {
-    let mut hit = PacketHit::new(rays);
     let first = (rays.valid.bitmask().trailing_zeros() as usize).min(3);
-    // Bit `axis` set where the direction's sign bit is: then the near child is the upper one.
     let upper_first = (0..3).fold(0usize, |m, a| m | usize::from(rays.d[a][first].is_sign_negative()) << a);
-    let (mut near, mut far) = root_interval(tree, rays);
-    let data = T::prepare4(rays);
-    let nodes = tree.nodes();
-    let refs = tree.prim_refs();
-    let mut stack = [Entry::default(); STACK_SIZE];
-    let mut sp = 0usize;
-    let mut index = 0usize;
-    if !near.cmple(far).any() {
-        return hit;
-    }
-    loop {
-        let node = nodes[index];
-        counters.node();
-        if !node.is_leaf() {
-            let axis = node.axis() & 3;
-            let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
-            let in_plane = d.cmpne(d);
-            let upper = (upper_first >> axis) & 1;
-            let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
-            let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
-            let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
-            let in_front = near.cmple(front_far);
-            let in_back = back_near.cmple(far);
-            if !in_back.any() {
-                index = front;
-                far = front_far;
-            } else if !in_front.any() {
-                index = back;
-                near = back_near;
-            } else {
-                stack[sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
-                sp += 1;
-                index = front;
-                far = front_far;
-            }
-            continue;
-        }
-
-        counters.leaf();
-        let active = near.cmple(far);
-        let prims = &refs[node.prim_range()];
-        counters.tests(prims.len() as u64);
-        for &prim in prims {
-            records[prim as usize].intersect4(rays, &data, active, &mut hit, prim);
-        }
-        match pop(&stack, &mut sp, hit.t) {
-            Some((node, n, f)) => (index, near, far) = (node, n, f),
-            None => return hit,
-        }
-    }
+    omni::traverse::<_, _, C, false>(tree, records, rays, &SameSign(upper_first), counters)
 }
 
 #[cfg(test)]

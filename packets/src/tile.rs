@@ -1,5 +1,6 @@
-//! A tile of primary rays as 2x2 packets, and the per-tile entry points of every packet
-//! method.
+//! A tile of primary rays as 2x2 packets (thesis 4.1.1-4.1.5): the state a tile is traced
+//! in, not the tracing (the entry points are [`TileTracer::trace`] in [`crate::method`] and
+//! [`TileTracer::trace_frusta`] in [`crate::frustum`]).
 //!
 //! A tile of `N x N` pixels (`N` a multiple of 4, the thesis uses 4 to 32) is stored as
 //! `(N/2)^2` [`OmniPacket`]s, **quadrant by quadrant** (top-left, top-right, bottom-left,
@@ -18,36 +19,8 @@ use kdtree::triangle::{Intersector, WatertightTriangle};
 use kdtree::{Hit, KdTree};
 use scenes::{Camera, Tile};
 
-use crate::frustum::{self, FrustumBound};
 use crate::packet::{OmniPacket, PacketHit, RayPacket};
-use crate::stats::PacketCounters;
 use crate::triangle4::{PacketTest, ShearedPacket};
-use crate::{mft, omni, samesign};
-
-/// How a tile's rays are traced.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TileMethod {
-    /// Each 2x2 packet on its own, omni-directional (4.1.2).
-    Packet,
-    /// Each 2x2 packet on its own, standard same-sign traversal (2.3.1), split by signs.
-    SameSign,
-    /// The whole tile as one frustum interval (2.3.2, 4.1.3) with packet/leaf culling.
-    Frustum,
-    /// The tile's four quadrants as four frusta in SSE lanes (4.1.5).
-    Mft,
-}
-
-impl TileMethod {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            TileMethod::Packet => "packet",
-            TileMethod::SameSign => "samesign",
-            TileMethod::Frustum => "frustum",
-            TileMethod::Mft => "mft",
-        }
-    }
-}
 
 /// Why a tile could not be loaded.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -96,16 +69,6 @@ pub struct TileTracer {
     pub(crate) culling: bool,
     /// Any-hit mode (shadow rays): the frustum methods finish a lane at its first hit.
     pub(crate) any_hit: bool,
-}
-
-/// The frusta a loaded tile is traced with by [`TileTracer::trace_frusta`]: one for the
-/// whole tile, or one per quadrant traced together in the lanes of a `Vec4` (MFT, 4.1.5).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Frusta {
-    /// One frustum over every packet (interval traversal, 2.3.2).
-    One(FrustumBound),
-    /// Quadrant `q`'s packets bounded by frustum `q` (Multiple Frustum Traversal).
-    Four([FrustumBound; 4]),
 }
 
 impl TileTracer {
@@ -263,7 +226,7 @@ impl TileTracer {
 
     /// Resets the hits and finished lanes before a trace, and makes the watertight shear
     /// table when a frustum method traces a watertight tree.
-    fn reset(&mut self, tree: &KdTree, frustum: bool) {
+    pub(crate) fn reset(&mut self, tree: &KdTree, frustum: bool) {
         self.sheared.clear();
         if frustum && tree.intersector() == Intersector::Watertight {
             self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
@@ -272,83 +235,6 @@ impl TileTracer {
         self.hits.extend(self.packets.iter().map(|p| PacketHit::new(&p.rays)));
         self.done.clear();
         self.done.extend(self.packets.iter().map(|p| (!p.rays.valid.bitmask() & 0xF) as u8));
-    }
-
-    /// Traces the loaded tile's closest hits with `method` (any hits for the frustum methods
-    /// in any-hit mode).
-    pub fn trace<C: PacketCounters>(&mut self, tree: &KdTree, method: TileMethod, counters: &mut C) {
-        match method {
-            TileMethod::Packet => {
-                self.reset(tree, false);
-                for (packet, hit) in self.packets.iter().zip(&mut self.hits) {
-                    *hit = omni::intersect(tree, packet, counters);
-                }
-            }
-            TileMethod::SameSign => {
-                self.reset(tree, false);
-                for (packet, hit) in self.packets.iter().zip(&mut self.hits) {
-                    *hit = samesign::intersect(tree, &packet.rays, counters);
-                }
-            }
-            TileMethod::Frustum => {
-                self.reset(tree, true);
-                let f = frustum::bound(tree, self, 0..self.packets.len());
-                frustum::intersect(tree, self, &f, counters);
-            }
-            TileMethod::Mft => {
-                let bounds = self.prepare(tree);
-                mft::intersect(tree, self, &bounds, counters);
-            }
-        }
-    }
-
-    /// Starts a frustum trace of the loaded tile with frusta made elsewhere (the cones of
-    /// the `cones` crate): resets the hits, finishes the lanes that miss the tree's root box
-    /// and returns each quadrant's pyramid bound ([`frustum::bound`]), whose `near` and `far`
-    /// bound the ray parameters of its rays inside the root box. Follow it with
-    /// [`TileTracer::trace_frusta`].
-    pub fn prepare(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
-        self.reset(tree, true);
-        let quadrants = self.quadrants.clone();
-        quadrants.map(|range| frustum::bound(tree, self, range))
-    }
-
-    /// [`TileTracer::prepare`] without the pyramids: resets the hits, finishes the lanes
-    /// that miss the root box and returns each quadrant's interval `(near, far)` of ray
-    /// parameters inside it (what a cone needs; its per-ray cost is the box clip alone).
-    pub fn prepare_intervals(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
-        self.reset(tree, true);
-        let quadrants = self.quadrants.clone();
-        quadrants.map(|range| frustum::root_interval(tree, self, range))
-    }
-
-    /// The pyramid bound of quadrant `q` of a prepared tile ([`frustum::bound`]), for a cone
-    /// that cannot be made.
-    pub fn pyramid(&mut self, tree: &KdTree, q: usize) -> FrustumBound {
-        let range = self.quadrants[q & 3].clone();
-        frustum::bound(tree, self, range)
-    }
-
-    /// Traces the tile [`TileTracer::prepare`]d with `frusta`, which must bound its rays
-    /// (every ray of the frustum, or of quadrant `q` for frustum `q`, inside the frustum).
-    ///
-    /// A bound with a NaN field bounds nothing: it is replaced by the pyramid of its rays
-    /// ([`TileTracer::pyramid`], or [`frustum::bound`] of the whole tile for
-    /// [`Frusta::One`]), so the hits are still exactly the single rays'.
-    pub fn trace_frusta<C: PacketCounters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
-        match frusta {
-            Frusta::One(f) if f.has_nan() => {
-                let f = frustum::bound(tree, self, 0..self.packets.len());
-                frustum::intersect(tree, self, &f, counters)
-            }
-            Frusta::One(f) => frustum::intersect(tree, self, f, counters),
-            Frusta::Four(bounds) if bounds.iter().any(FrustumBound::has_nan) => {
-                let bounds: [FrustumBound; 4] =
-                    std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
-                mft::intersect(tree, self, &bounds, counters)
-            }
-            Frusta::Four(bounds) => mft::intersect(tree, self, bounds, counters),
-        }
     }
 
     /// The camera and tile of a primary tile ([`TileTracer::load_primary`]); `None` for
@@ -473,18 +359,6 @@ impl PrimaryRays {
             valid: inside,
         }
     }
-}
-
-/// The lanes of a 4-bit mask as a `BVec4A`.
-#[inline(always)]
-pub(crate) fn mask_of(bits: u8) -> BVec4A {
-    BVec4A::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
-}
-
-/// The largest lane of `v` among `mask`, `-inf` if none.
-#[inline(always)]
-pub(crate) fn max_where(mask: BVec4A, v: Vec4) -> f32 {
-    Vec4::select(mask, v, Vec4::NEG_INFINITY).max_element()
 }
 
 #[cfg(test)]

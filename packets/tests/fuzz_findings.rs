@@ -152,7 +152,7 @@ fn check_shared_origin_packets(soup: &[[[f32; 3]; 3]], watertight: bool, rays: &
 }
 
 /// `traversal` (Wald's test): the frustum kernel sent a ray to the far side of a plane behind
-/// its origin whose distance underflowed to -0.0 (`packets::frustum::plane_interval`, shared
+/// its origin whose distance underflowed to -0.0 (`packets::bound::plane_interval`, shared
 /// with the cones), missing the single ray's hit on triangle 0 at t = 66.5.
 #[test]
 fn frustum_plane_behind_the_origin_at_an_underflowed_distance_wald() {

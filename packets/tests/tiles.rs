@@ -1,11 +1,14 @@
-//! Every packet method against single rays (and the brute-force oracle) on the built-in
-//! scenes, Sponza when present, random soups and the hard cases: the same closest hit per
-//! pixel, and MFT never doing more work than the single frustum of the same tile.
+//! Packet methods against single rays where the conformance harness
+//! (`trace/tests/conformance.rs`, every registered method on the built-in and shared scenes
+//! and the hard cases) does not reach: random soups and cameras (proptest) at every tile
+//! size, MFT never doing more work than the single frustum of the same tile, omni packets in
+//! every direction, non-finite cameras and lanes, NaN frustum bounds.
 
 use glam::Vec3;
+use kdtree::Counts;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use packets::TileMethod;
 use packets::tile::TileTracer;
-use packets::{PacketCounts, TileMethod};
 use proptest::prelude::*;
 use scenes::{Camera, tiles};
 
@@ -27,11 +30,11 @@ fn compare(tree: &KdTree, camera: &Camera, method: TileMethod, tile_size: u32) -
     let (mut bad, mut first) = (0, None);
     for tile in tiles(camera.width, camera.height, tile_size) {
         tracer.load_primary(camera, &tile).unwrap();
-        let mut counts = PacketCounts::default();
+        let mut counts = Counts::default();
         tracer.trace(tree, method, &mut counts);
         if method == TileMethod::Mft {
             single.load_primary(camera, &tile).unwrap();
-            let mut frustum = PacketCounts::default();
+            let mut frustum = Counts::default();
             single.trace(tree, TileMethod::Frustum, &mut frustum);
             assert!(
                 counts.nodes <= frustum.nodes && counts.tests <= frustum.tests,
@@ -56,93 +59,6 @@ fn compare(tree: &KdTree, camera: &Camera, method: TileMethod, tile_size: u32) -
 fn build(scene: &scenes::Scene, intersector: Intersector) -> KdTree {
     let config = BuildConfig { intersector, ..Default::default() };
     KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap()
-}
-
-fn check_all(tree: &KdTree, camera: &Camera, what: &str) {
-    for method in METHODS {
-        let sizes: &[u32] =
-            if matches!(method, TileMethod::Packet | TileMethod::SameSign) { &[8] } else { &[4, 8, 16, 32] };
-        for &size in sizes {
-            let (bad, first) = compare(tree, camera, method, size);
-            assert_eq!(bad, 0, "{what}, {method:?} tile {size}: {bad} pixels differ; first {first:?}");
-        }
-    }
-}
-
-#[test]
-fn every_method_matches_single_rays_on_every_builtin_scene_and_view() {
-    for &name in scenes::builtin::NAMES {
-        let scene = scenes::load_scene(name).unwrap();
-        for intersector in [Intersector::Wald, Intersector::Watertight] {
-            let tree = build(&scene, intersector);
-            for view in &scene.views {
-                // Odd sizes: clipped tiles at the right and bottom edges, and a centre column.
-                let camera = view.camera(75, 45).unwrap();
-                check_all(&tree, &camera, &format!("{name} view {} {intersector:?}", view.name));
-            }
-        }
-    }
-}
-
-#[test]
-fn every_method_matches_single_rays_on_sponza() {
-    let found = scenes::shared_scenes_dir().and_then(|dir| {
-        let entries = std::fs::read_dir(dir).ok()?;
-        entries
-            .flatten()
-            .map(|e| e.path())
-            .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("sponza")))
-    });
-    let Some(path) = found else {
-        eprintln!("skipped: no sponza* file in the shared scenes");
-        return;
-    };
-    let scene = scenes::load_scene(path.to_str().unwrap()).unwrap();
-    let tree = build(&scene, Intersector::Wald);
-    let camera = scene.default_view().camera(160, 120).unwrap();
-    check_all(&tree, &camera, "sponza");
-}
-
-/// The eye exactly on split planes of the tree (the origin-on-the-plane case, where both
-/// children are visited), looking exactly along an axis with an odd image width, so that
-/// the centre column's rays have an exactly zero component and lie in the split plane.
-#[test]
-fn eye_on_split_planes_and_rays_in_them() {
-    let scene = scenes::load_scene("atrium").unwrap();
-    let tree = build(&scene, Intersector::Wald);
-    let nodes = tree.nodes();
-    let view = scene.default_view();
-    let mut tried = 0;
-    for node in nodes.iter().filter(|n| !n.is_leaf()).take(40) {
-        let axis = node.axis();
-        if axis == 1 {
-            continue; // the camera's up is +Y: keep a well-defined frame
-        }
-        let mut eye = view.eye;
-        eye[axis] = node.split();
-        // Look along the other horizontal axis, so the centre column has a zero `axis` component.
-        let mut target = eye;
-        target[2 - axis] += 10.0;
-        let camera = Camera::look_at(eye, target, 70.0, 33, 21).unwrap();
-        let centre = camera.pixel_ray(16, 10).1;
-        assert_eq!(centre[axis], 0.0, "centre ray {centre} should lie in the plane");
-        check_all(&tree, &camera, &format!("eye on split {axis} = {}", node.split()));
-        tried += 1;
-    }
-    assert!(tried >= 10);
-}
-
-/// Far from the origin and tiny: the same scene scaled and translated.
-#[test]
-fn scaled_and_translated_scenes() {
-    let scene = scenes::load_scene("arena").unwrap();
-    for (scale, shift) in [(1e-3f32, Vec3::ZERO), (1e3, Vec3::ZERO), (1.0, Vec3::splat(1e4))] {
-        let positions: Vec<Vec3> = scene.mesh.positions.iter().map(|&p| p * scale + shift).collect();
-        let tree = KdTree::build(&positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
-        let v = scene.default_view();
-        let camera = Camera::look_at(v.eye * scale + shift, v.target * scale + shift, v.fovy_deg, 48, 40).unwrap();
-        check_all(&tree, &camera, &format!("arena x{scale} + {shift}"));
-    }
 }
 
 fn vertex() -> impl Strategy<Value = Vec3> {

@@ -24,7 +24,7 @@ fn soft_shadows(c: &mut Criterion) {
         let bind = |m: &str| registry.bind(&registry.select(m, Options::default()).expect("registered"), &structures);
         let mono = bind("mono").expect("mono binds");
         let mut hits = vec![None; layout.pixel_count()];
-        mono.tracer.primary(&layout, &camera, &mut hits);
+        mono.tracer.primary(&layout, &camera, &mut hits, None);
         let mut visible = vec![0.0; layout.pixel_count()];
         for r in [1.0, 2.0] {
             let light = trace::soft::scene_light(&scene, &tree, r);
@@ -32,13 +32,13 @@ fn soft_shadows(c: &mut Criterion) {
             g.sample_size(10)
                 .warm_up_time(std::time::Duration::from_secs(1))
                 .measurement_time(std::time::Duration::from_secs(3));
-            let rays = mono.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible).rays;
+            let rays = mono.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible, None).rays;
             g.throughput(Throughput::Elements(rays));
             // One method per soft-shadow kernel: single rays, the pyramid, the cone.
             for (kernel, method) in [("single", "mono"), ("pyramid", "packet"), ("cone", "cone")] {
                 let bound = bind(method).expect("registered methods bind");
                 g.bench_function(kernel, |b| {
-                    b.iter(|| bound.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible).blocked)
+                    b.iter(|| bound.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible, None).blocked)
                 });
             }
             g.finish();

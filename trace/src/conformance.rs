@@ -739,20 +739,23 @@ fn check_case(
             let layout = TileLayout::new(camera.width, camera.height, tile);
             let want = frames.entry((check.reference.clone(), tile, ci)).or_insert_with(|| {
                 let mut hits = vec![None; layout.pixel_count()];
-                reference.tracer.primary(&layout, camera, &mut hits);
+                reference.tracer.primary(&layout, camera, &mut hits, None);
                 let mut shadow = vec![false; layout.pixel_count()];
-                let shadow_counts = reference.tracer.shadow(&layout, scene, camera, &hits, &mut shadow);
+                let shadow_counts = reference.tracer.shadow(&layout, scene, camera, &hits, &mut shadow, None);
                 let mut visible = vec![0.0; layout.pixel_count()];
-                let soft = reference.tracer.soft(&layout, scene, camera, &hits, light, &mut visible);
+                let soft = reference.tracer.soft(&layout, scene, camera, &hits, light, &mut visible, None);
                 Frame { hits, shadow, shadow_counts, visible, soft }
             });
             let n = layout.pixel_count();
             let (mut hits, mut shadow, mut visible) = (vec![None; n], vec![false; n], vec![0.0; n]);
-            m.tracer.primary(&layout, camera, &mut hits);
+            m.tracer.primary(&layout, camera, &mut hits, None);
             // Shadows from the reference's hits, so that both trace the same rays.
-            let counts = m.tracer.shadow(&layout, scene, camera, &want.hits, &mut shadow);
-            let stats =
-                if soft { m.tracer.soft(&layout, scene, camera, &want.hits, light, &mut visible) } else { want.soft };
+            let counts = m.tracer.shadow(&layout, scene, camera, &want.hits, &mut shadow, None);
+            let stats = if soft {
+                m.tracer.soft(&layout, scene, camera, &want.hits, light, &mut visible, None)
+            } else {
+                want.soft
+            };
             if !soft {
                 visible.copy_from_slice(&want.visible);
             }

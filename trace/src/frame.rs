@@ -15,8 +15,8 @@
 //! registry hands methods out ([`crate::registry`]).
 
 use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use kdtree::Counts;
 use kdtree::{Hit, NoCounters, Ray};
-use packets::PacketCounts;
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
@@ -135,7 +135,16 @@ pub fn primary_pass<M: Method, C: TileCounters>(
                 (out.iter().filter(|h| h.is_some()).count() as u64, counts)
             },
         )
-        .reduce(|| (0, C::default()), |a, b| (a.0 + b.0, a.1.merge(b.1)))
+        .reduce(
+            || (0, C::default()),
+            |a, b| {
+                (a.0 + b.0, {
+                    let mut c = a.1;
+                    c += b.1;
+                    c
+                })
+            },
+        )
 }
 
 /// Pass 2: the hard shadow ray of every hit of `hits` (tile order of `layout`) into
@@ -161,7 +170,16 @@ pub fn shadow_pass<M: Method, C: TileCounters>(
                 (rays, blocked, counts)
             },
         )
-        .reduce(|| (0, 0, C::default()), |a, b| (a.0 + b.0, a.1 + b.1, a.2.merge(b.2)))
+        .reduce(
+            || (0, 0, C::default()),
+            |a, b| {
+                (a.0 + b.0, a.1 + b.1, {
+                    let mut c = a.2;
+                    c += b.2;
+                    c
+                })
+            },
+        )
 }
 
 /// Pass 3: the 16 shadow rays of every hit of `hits` (tile order of `layout`) to `light`
@@ -210,7 +228,11 @@ pub fn soft_pass<M: Method, C: TileCounters>(
                     rays: a.0.rays + b.0.rays,
                     blocked: a.0.blocked + b.0.blocked,
                 };
-                (stats, a.1.merge(b.1))
+                (stats, {
+                    let mut c = a.1;
+                    c += b.1;
+                    c
+                })
             },
         )
 }
@@ -235,13 +257,19 @@ pub fn stream_occluded_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [bool
 }
 
 /// The passes of one method behind a `dyn`: what the registry hands out. One virtual call per
-/// pass; inside, the generic passes above run monomorphic.
+/// pass; inside, the generic passes above run monomorphic. Each pass counts into `counts`
+/// when given one (slower: not for timing), and with `None` counting compiles away.
 pub trait FrameTracer: Sync {
-    /// [`primary_pass`] uncounted.
-    fn primary(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> u64;
-    /// [`primary_pass`] counted.
-    fn primary_counted(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, PacketCounts);
-    /// [`shadow_pass`] uncounted: (rays, blocked).
+    /// [`primary_pass`]: the number of hits.
+    fn primary(
+        &self,
+        layout: &TileLayout,
+        camera: &Camera,
+        out: &mut [Option<Hit>],
+        counts: Option<&mut Counts>,
+    ) -> u64;
+    /// [`shadow_pass`] from `hits`: (rays traced, rays blocked).
+    #[allow(clippy::too_many_arguments)]
     fn shadow(
         &self,
         layout: &TileLayout,
@@ -249,17 +277,9 @@ pub trait FrameTracer: Sync {
         camera: &Camera,
         hits: &[Option<Hit>],
         out: &mut [bool],
+        counts: Option<&mut Counts>,
     ) -> (u64, u64);
-    /// [`shadow_pass`] counted.
-    fn shadow_counted(
-        &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
-        hits: &[Option<Hit>],
-        out: &mut [bool],
-    ) -> (u64, u64, PacketCounts);
-    /// [`soft_pass`] uncounted.
+    /// [`soft_pass`] from `hits` to `light`.
     #[allow(clippy::too_many_arguments)]
     fn soft(
         &self,
@@ -269,18 +289,8 @@ pub trait FrameTracer: Sync {
         hits: &[Option<Hit>],
         light: &SphereLight,
         visible: &mut [f32],
+        counts: Option<&mut Counts>,
     ) -> SoftStats;
-    /// [`soft_pass`] counted.
-    #[allow(clippy::too_many_arguments)]
-    fn soft_counted(
-        &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
-        hits: &[Option<Hit>],
-        light: &SphereLight,
-        visible: &mut [f32],
-    ) -> (SoftStats, PacketCounts);
     /// [`stream_pass`].
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]);
     /// [`stream_occluded_pass`].
@@ -292,12 +302,21 @@ pub trait FrameTracer: Sync {
 pub struct Driven<M>(pub M);
 
 impl<M: Method> FrameTracer for Driven<M> {
-    fn primary(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> u64 {
-        primary_pass::<M, NoCounters>(&self.0, layout, camera, out).0
-    }
-
-    fn primary_counted(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, PacketCounts) {
-        primary_pass(&self.0, layout, camera, out)
+    fn primary(
+        &self,
+        layout: &TileLayout,
+        camera: &Camera,
+        out: &mut [Option<Hit>],
+        counts: Option<&mut Counts>,
+    ) -> u64 {
+        match counts {
+            None => primary_pass::<M, NoCounters>(&self.0, layout, camera, out).0,
+            Some(c) => {
+                let (hits, k) = primary_pass::<M, Counts>(&self.0, layout, camera, out);
+                *c += k;
+                hits
+            }
+        }
     }
 
     fn shadow(
@@ -307,20 +326,20 @@ impl<M: Method> FrameTracer for Driven<M> {
         camera: &Camera,
         hits: &[Option<Hit>],
         out: &mut [bool],
+        counts: Option<&mut Counts>,
     ) -> (u64, u64) {
-        let (rays, blocked, NoCounters) = shadow_pass(&self.0, layout, scene, camera, hits, out);
-        (rays, blocked)
-    }
-
-    fn shadow_counted(
-        &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
-        hits: &[Option<Hit>],
-        out: &mut [bool],
-    ) -> (u64, u64, PacketCounts) {
-        shadow_pass(&self.0, layout, scene, camera, hits, out)
+        let m = &self.0;
+        match counts {
+            None => {
+                let (rays, blocked, NoCounters) = shadow_pass(m, layout, scene, camera, hits, out);
+                (rays, blocked)
+            }
+            Some(c) => {
+                let (rays, blocked, k) = shadow_pass::<M, Counts>(m, layout, scene, camera, hits, out);
+                *c += k;
+                (rays, blocked)
+            }
+        }
     }
 
     fn soft(
@@ -331,20 +350,17 @@ impl<M: Method> FrameTracer for Driven<M> {
         hits: &[Option<Hit>],
         light: &SphereLight,
         visible: &mut [f32],
+        counts: Option<&mut Counts>,
     ) -> SoftStats {
-        soft_pass::<M, NoCounters>(&self.0, layout, scene, camera, hits, light, visible).0
-    }
-
-    fn soft_counted(
-        &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
-        hits: &[Option<Hit>],
-        light: &SphereLight,
-        visible: &mut [f32],
-    ) -> (SoftStats, PacketCounts) {
-        soft_pass(&self.0, layout, scene, camera, hits, light, visible)
+        let m = &self.0;
+        match counts {
+            None => soft_pass::<M, NoCounters>(m, layout, scene, camera, hits, light, visible).0,
+            Some(c) => {
+                let (stats, k) = soft_pass::<M, Counts>(m, layout, scene, camera, hits, light, visible);
+                *c += k;
+                stats
+            }
+        }
     }
 
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {

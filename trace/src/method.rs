@@ -12,7 +12,7 @@
 //! A method's per-thread scratch space (packet buffers, Embree ray packets) is made once per
 //! rayon task by [`Method::scratch`], so no query allocates. Every query takes a counters
 //! argument `C: TileCounters`: with [`kdtree::NoCounters`] the counting compiles away, with
-//! [`packets::PacketCounts`] it gives the thesis's N and I; baselines count nothing.
+//! [`kdtree::Counts`] it gives the thesis's N and I; baselines count nothing.
 //!
 //! The frame driver ([`crate::frame`]) runs a `Method` over whole frames; the registry
 //! ([`crate::registry`]) makes one from a name.
@@ -20,32 +20,16 @@
 use cones::Cone;
 use cones::shadows::SAMPLES;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
-use packets::{PacketCounters, PacketCounts};
 use scenes::{Camera, Scene, Tile};
 
 use crate::shade;
 
-/// Traversal counters that can be summed over tiles: [`NoCounters`] for timed frames
-/// (counting compiles away), [`PacketCounts`] for `--counters` and the thesis's tables.
-pub trait TileCounters: Counters + PacketCounters + Default + Send {
-    /// The sum of two tiles' counts.
-    fn merge(self, other: Self) -> Self;
-}
+/// The counters a frame pass sums over tiles on several threads: any [`Counters`] that is
+/// `Send` ([`NoCounters`] for timed frames, where counting compiles away; [`Counts`] for
+/// `--counters` and the thesis's tables). A bound alias, not a second counters trait.
+pub trait TileCounters: Counters + Send {}
 
-impl TileCounters for NoCounters {
-    #[inline]
-    fn merge(self, _other: Self) -> Self {
-        self
-    }
-}
-
-impl TileCounters for PacketCounts {
-    #[inline]
-    fn merge(mut self, other: Self) -> Self {
-        self += other;
-        self
-    }
-}
+impl<C: Counters + Send> TileCounters for C {}
 
 /// A single-ray tracer: the two queries every acceleration structure answers (thesis 2.2.1).
 pub trait Tracer: Sync {

@@ -13,8 +13,8 @@
 use std::time::Instant;
 
 use glam::Vec3;
+use kdtree::Counts;
 use kdtree::Hit;
-use packets::PacketCounts;
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
@@ -155,45 +155,34 @@ impl<'a> Renderer<'a> {
 
     /// [`Renderer::trace`] counting traversal steps, leaves and intersection tests, for the
     /// primary and the shadow pass apart. Slower: not for timing.
-    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, PacketCounts, PacketCounts) {
+    pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, Counts, Counts) {
         self.trace_with(buf, true)
     }
 
-    fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, PacketCounts, PacketCounts) {
+    fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, Counts, Counts) {
         let tracer = &self.method.tracer;
         let (scene, camera, layout) = (self.scene, &self.camera, &self.layout);
         let start = Instant::now();
-        let (hits, primary_counts) = if counted {
-            tracer.primary_counted(layout, camera, &mut buf.hits)
-        } else {
-            (tracer.primary(layout, camera, &mut buf.hits), PacketCounts::default())
-        };
+        let (mut primary_counts, mut shadow_counts) = (Counts::default(), Counts::default());
+        let hits = tracer.primary(layout, camera, &mut buf.hits, counted.then_some(&mut primary_counts));
         let primary_secs = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let (shadow_rays, occluded, shadow_counts) = match (self.shadows, self.light) {
+        let counts = counted.then_some(&mut shadow_counts);
+        let (shadow_rays, occluded) = match (self.shadows, self.light) {
             (Shadows::None, _) => {
                 buf.occluded.fill(false);
-                (0, 0, PacketCounts::default())
+                (0, 0)
             }
             (Shadows::Soft16, Some(light)) => {
                 buf.occluded.fill(false);
                 buf.visible.resize(layout.pixel_count(), 0.0);
-                let (stats, counts) = if counted {
-                    tracer.soft_counted(layout, scene, camera, &buf.hits, &light, &mut buf.visible)
-                } else {
-                    (tracer.soft(layout, scene, camera, &buf.hits, &light, &mut buf.visible), PacketCounts::default())
-                };
-                let SoftStats { rays, blocked, .. } = stats;
-                (rays, blocked, counts)
+                let SoftStats { rays, blocked, .. } =
+                    tracer.soft(layout, scene, camera, &buf.hits, &light, &mut buf.visible, counts);
+                (rays, blocked)
             }
             (Shadows::Hard | Shadows::Soft16, _) => {
                 buf.visible.clear();
-                if counted {
-                    tracer.shadow_counted(layout, scene, camera, &buf.hits, &mut buf.occluded)
-                } else {
-                    let (rays, blocked) = tracer.shadow(layout, scene, camera, &buf.hits, &mut buf.occluded);
-                    (rays, blocked, PacketCounts::default())
-                }
+                tracer.shadow(layout, scene, camera, &buf.hits, &mut buf.occluded, counts)
             }
         };
         let shadow_secs = if self.shadows == Shadows::None { 0.0 } else { start.elapsed().as_secs_f64() };

@@ -7,7 +7,7 @@ use std::fmt;
 
 use kdtree::KdTree;
 
-use packets::PacketCounts;
+use kdtree::Counts;
 use serde::Serialize;
 
 /// The statistics of a built kd-tree, as reported by `rttest build`.
@@ -241,13 +241,7 @@ impl TraversalReport {
     /// Per-ray means of the counts of `primary_rays` primary and `shadow_rays` shadow rays;
     /// with `packets` (the primary pass's 2x2 packets, for packet methods) the per-packet
     /// figures too.
-    pub fn new(
-        primary_rays: u64,
-        primary: PacketCounts,
-        shadow_rays: u64,
-        shadow: PacketCounts,
-        packets: Option<u64>,
-    ) -> Self {
+    pub fn new(primary_rays: u64, primary: Counts, shadow_rays: u64, shadow: Counts, packets: Option<u64>) -> Self {
         let per = |n: u64, rays: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
         TraversalReport {
             primary_steps_per_packet: packets.map(|p| primary.steps_per_packet(p)),

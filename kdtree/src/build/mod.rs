@@ -166,7 +166,7 @@ pub fn first_phase_bytes(positions: &[Vec3], triangles: &[[u32; 3]]) -> u64 {
     for tri in triangles {
         let [Some(a), Some(b), Some(c)] = tri.map(|i| positions.get(i as usize).copied()) else { continue };
         let v = [a, b, c];
-        if crate::tree::is_degenerate(&v) {
+        if crate::triangle::is_degenerate(&v) {
             continue;
         }
         in_tree += 1;
