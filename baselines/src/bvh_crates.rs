@@ -4,14 +4,59 @@
 //!   `traverse_iterator` (every leaf whose box the ray crosses, no near-to-far pruning: the
 //!   crate has no closest-hit traversal); its own triangle test culls back faces, so the
 //!   leaves run our Wald test (`kdtree::triangle::WaldTriangle`, the one our tree uses);
+//!
+//!   The crate misses boxes for rays with a zero direction component: `Ray::new` caches
+//!   `inv_direction = 1 / d` (`±inf` for `±0`), and its slab test
+//!   (`ray/intersect_default.rs` and the `simd` kernel of `ray/intersect_simd.rs`) computes
+//!   `(aabb - origin) * inv_direction`, which is `0 * inf = NaN` when the origin's coordinate
+//!   lies exactly on a face of the box, and then returns `false` ("the ray is in the plane
+//!   of an AABB face ... consider this a non-intersection"). A ray in the plane `z = c` of
+//!   a box face at `z = c` therefore never enters that box or its subtree, although the box
+//!   is closed and its triangles (a floor at `z = c`, a wall standing on it) may be hit: 6
+//!   of 935 sibenik pixels and 91 of 14,732 soup and hard-case rays were lost to it (rays
+//!   along a floor meeting the foot of a wall, axis-parallel stream rays).
+//!
+//!   Our adapter builds the crate's `Ray` itself: `inv_direction` is `1 / d` for a non-zero
+//!   component (our `Ray::new` keeps none whose reciprocal overflows) and `+f32::MAX` or
+//!   `-f32::MAX` for a zero one, so that `0 * MAX = 0`. On an axis with a zero component a
+//!   box then gives the interval `[-(o - lo) MAX, (hi - o) MAX]` when the origin is strictly
+//!   inside its slab (all of `t` but beyond `t = gap * MAX`: only a gap below about `1e-31`
+//!   can matter), one beyond `gap * MAX` when outside (a box at most visited in vain), and,
+//!   with the origin on a face, `[0, (hi - o) MAX]` for a box above it with `+MAX` but
+//!   `[-(hi - o) MAX, 0]` with `-MAX` (and the mirror image below). So each sign is right
+//!   for boxes on one side of the plane only, and the adapter traverses once per choice of
+//!   signs (two rays for one zero component, four for two) and keeps the union of the
+//!   leaves. That misses nothing the exact slab test keeps: a box touching the plane from
+//!   above has only descendants touching it from above or lying in it, and a box lying in
+//!   the plane (flat in that axis) holds only triangles coplanar with the ray, which the
+//!   Wald test never hits. The leaves run our triangle test on our ray, so the hits are
+//!   those of the ray we were given (closest hit and the lower index at equal `t`,
+//!   whatever the traversal order); rays without a zero component trace once, as before;
 //! - `obvhs` (0.4): PLOC build collapsed to a compressed 8-wide BVH (CWBVH,
 //!   `build_cwbvh_from_tris` with `BvhBuildParams::medium_build`, which its authors tune to
 //!   Embree's build time), traversed with `ray_traverse` (closest hit) and `ray_traverse_miss`
 //!   (any hit) and its own Möller-Trumbore test (`Triangle::intersect`).
 //!
+//!   The crate's `build_cwbvh_from_tris` ends, in builds with debug assertions (the crate
+//!   compiled with `debug-assertions`: our test and dev profiles, not `--release`), with
+//!   `CwBvh::validate`, which asserts that every primitive's box lies within its parent's
+//!   decoded (quantised) box up to an absolute `1e-5` (`cwbvh/mod.rs`). At coordinates of
+//!   4e4 (the arena scaled by 1e3) an `f32` ulp is 0.004, so the decoded box may miss the
+//!   exact one by more than `1e-5` and the assertion panics ("Primitive 1309 does not fit
+//!   in parent 24"); a debug build of `rttest compare` would abort on such a user scene.
+//!   [`Obvhs::build`] therefore runs the same steps itself (PLOC, reinsertion, conversion
+//!   to CWBVH with the preset's parameters) without that check, in every build.
+//!   Two limits of the crate remain and show in the conformance test's reported streams:
+//!   `safe_inverse` turns a direction component with `|d| <= f32::EPSILON` (zero included)
+//!   into `±1 / EPSILON` (8.4e6) for the box tests, so an axis-parallel ray treats boxes
+//!   whose face lies within `t * 1.2e-7` of its origin's coordinate as missed beyond that
+//!   `t`; and its box tests start at `t = EPSILON`, not `tmin`, so a negative `tmin` finds
+//!   no box behind the origin. A third shows on the conformance test's soup scaled by 1e-6
+//!   (coordinates and hit distances of a few 1e-6): obvhs finds none of its hits, which the
+//!   cause has not been traced (an absolute tolerance of its traversal, `EPSILON`-sized, is
+//!   the likely one); that case runs without obvhs.
+//!
 //! Their hits carry the triangle and distance only: `u` and `v` are 0.
-
-use std::time::Duration;
 
 use bvh::aabb::{Aabb, Bounded};
 use bvh::bounding_hierarchy::{BHShape, BoundingHierarchy};
@@ -20,7 +65,10 @@ use kdtree::triangle::{TriangleTest, WaldTriangle};
 use kdtree::{Hit, Ray};
 use nalgebra::{Point3, Vector3};
 use obvhs::BvhBuildParams;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::CwBvh;
+use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::ploc::PlocBuilder;
 use obvhs::triangle::Triangle;
 use scenes::Scene;
 use trace::frame::Driven;
@@ -113,37 +161,55 @@ impl BvhCrate {
         BvhCrate { bvh, shapes, records: tris.iter().map(WaldTriangle::new).collect() }
     }
 
-    /// The crate's ray for ours (it has no interval: ours is checked at the leaves).
+    /// The crate's rays for ours (it has no interval: ours is checked at the leaves): one
+    /// per choice of sign of `±f32::MAX` as the reciprocal of each zero direction component
+    /// (one ray when there is none, two or four otherwise; see the module documentation).
     #[inline]
-    fn ray(ray: &Ray) -> bvh::ray::Ray<f32, 3> {
+    fn rays(ray: &Ray) -> impl Iterator<Item = bvh::ray::Ray<f32, 3>> {
         let (o, d) = (ray.origin, ray.dir);
-        bvh::ray::Ray::new(Point3::new(o.x, o.y, o.z), Vector3::new(d.x, d.y, d.z))
+        let zero = [d.x == 0.0, d.y == 0.0, d.z == 0.0];
+        let k = zero.iter().filter(|&&z| z).count();
+        (0..1u32 << k).map(move |signs| {
+            let mut bit = 0;
+            let mut inv = |c: f32, zero: bool| {
+                if !zero {
+                    return 1.0 / c;
+                }
+                let negative = signs >> bit & 1 == 1;
+                bit += 1;
+                if negative { -f32::MAX } else { f32::MAX }
+            };
+            let inv_direction = Vector3::new(inv(d.x, zero[0]), inv(d.y, zero[1]), inv(d.z, zero[2]));
+            bvh::ray::Ray { origin: Point3::new(o.x, o.y, o.z), direction: Vector3::new(d.x, d.y, d.z), inv_direction }
+        })
     }
 }
 
 impl Tracer for BvhCrate {
     fn intersect_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> Option<Hit> {
-        let query = Self::ray(ray);
         let data = WaldTriangle::prepare(ray);
         let mut best = None;
         let mut t_max = ray.t_max;
-        for shape in self.bvh.traverse_iterator(&query, &self.shapes) {
-            if let Some((t, u, v)) = self.records[shape.prim as usize].intersect(ray, &data, t_max)
-                && best.is_none_or(|b: Hit| t < b.t || (t == b.t && shape.prim < b.prim))
-            {
-                best = Some(Hit { t, u, v, prim: shape.prim });
-                t_max = t;
+        for query in Self::rays(ray) {
+            for shape in self.bvh.traverse_iterator(&query, &self.shapes) {
+                if let Some((t, u, v)) = self.records[shape.prim as usize].intersect(ray, &data, t_max)
+                    && best.is_none_or(|b: Hit| t < b.t || (t == b.t && shape.prim < b.prim))
+                {
+                    best = Some(Hit { t, u, v, prim: shape.prim });
+                    t_max = t;
+                }
             }
         }
         best
     }
 
     fn occluded_counted<C: TileCounters>(&self, ray: &Ray, _: &mut C) -> bool {
-        let query = Self::ray(ray);
         let data = WaldTriangle::prepare(ray);
-        self.bvh
-            .traverse_iterator(&query, &self.shapes)
-            .any(|shape| self.records[shape.prim as usize].intersect(ray, &data, ray.t_max).is_some())
+        Self::rays(ray).any(|query| {
+            self.bvh
+                .traverse_iterator(&query, &self.shapes)
+                .any(|shape| self.records[shape.prim as usize].intersect(ray, &data, ray.t_max).is_some())
+        })
     }
 }
 
@@ -171,11 +237,20 @@ impl Obvhs {
                 Triangle { v0: v(a), v1: v(b), v2: v(c) }
             })
             .collect();
-        let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+        // `build_cwbvh_from_tris`'s steps for a build without pre-splits (the medium preset
+        // has none), but without its `#[cfg(debug_assertions)]` `CwBvh::validate`, which
+        // panics in debug builds on scenes at large coordinates (see the module docs).
+        let config = BvhBuildParams::medium_build();
+        debug_assert!(!config.pre_split);
+        let mut bvh2 = PlocBuilder::with_capacity(tris.len()).build(
+            config.ploc_search_distance,
             &tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
+            (0..tris.len() as u32).collect(),
+            config.sort_precision,
+            config.search_depth_threshold,
         );
+        ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+        let bvh = bvh2_to_cwbvh(&bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false);
         Obvhs { bvh, tris }
     }
 
@@ -205,6 +280,27 @@ impl Tracer for Obvhs {
 mod tests {
     use super::*;
     use kdtree::{BuildConfig, KdTree};
+
+    /// A ray in the plane of a box face (`z = 0`, direction `z` zero) hits the foot of a wall
+    /// standing on that plane: the crate's own `Ray::new` loses the box (`0 * inf = NaN`),
+    /// our adapter's ray does not, and gives our tree's hit.
+    #[test]
+    fn zero_direction_components_in_a_box_face() {
+        let wall = [glam::Vec3::new(1.0, -1.0, 0.0), glam::Vec3::new(1.0, 1.0, 0.0), glam::Vec3::new(1.0, 0.0, 1.0)];
+        let floor = [glam::Vec3::new(2.0, -1.0, 0.0), glam::Vec3::new(3.0, -1.0, 0.0), glam::Vec3::new(2.0, 1.0, 0.0)];
+        let scene = trace::conformance::soup_scene("wall", &[wall, floor]);
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
+        let b = BvhCrate::build(&scene);
+        for dir in [glam::Vec3::new(1.0, 0.0, 0.0), glam::Vec3::new(1.0, 0.0, -0.0), glam::Vec3::new(1.0, 0.25, 0.0)] {
+            let ray = Ray::new(glam::Vec3::new(-1.0, 0.2, 0.0), dir, 0.0, f32::INFINITY);
+            let want = tree.intersect(&ray).expect("the wall's foot");
+            assert_eq!(want.prim, 0);
+            assert_eq!(b.intersect(&ray).map(|h| (h.prim, h.t)), Some((0, want.t)), "{dir}");
+            assert!(b.occluded(&ray));
+            let theirs = bvh::ray::Ray::new(Point3::new(-1.0, 0.2, 0.0), Vector3::new(dir.x, dir.y, dir.z));
+            assert_eq!(b.bvh.traverse_iterator(&theirs, &b.shapes).count(), 0, "the crate's bug is gone: {dir}");
+        }
+    }
 
     /// Both crates find our single-ray hits (same triangle, or a tie at the same distance) on
     /// the atrium, and the same occlusion for its shadow rays.

@@ -12,6 +12,19 @@
 //!   ones itself), so Embree's `primID` is our triangle index ([`Hit::prim`]);
 //! - `tnear` / `tfar` are our `t_min` / `t_max`, and directions are passed as they are
 //!   (unnormalised shadow rays too), so `t` is in the same units;
+//! - Embree requires `tnear >= 0` (Debian's libembree3 is built with assertions and aborts
+//!   the process on `ray.tnear() >= 0.0f`), so a ray with a negative `t_min` is moved back
+//!   along itself ([`EmbreeRay`]): origin `o + t_min * d`, `tnear = 0`, `tfar = t_max - t_min`,
+//!   and the hit's `t` is shifted back by `t_min`. This is exact in real arithmetic; in `f32`
+//!   the moved origin is rounded (by up to an ulp of `|o| + |t_min * d|` per component),
+//!   `tfar` by half an ulp of `t_max - t_min`, and the reported `t` by half an ulp of `t`
+//!   plus the origin's error along the ray, so such a hit may differ from an unshifted
+//!   trace by a few ulps of `|t_min|`, and hits within that distance of either end of the
+//!   interval may fall in or out of it;
+//! - a ray Embree cannot take (a NaN interval, `t_min = -inf` or a moved origin that is not
+//!   finite, components beyond Embree's `FLT_LARGE` = 1.844e18, which its `ray.valid()`
+//!   assertion also aborts on) is not sent to Embree: it is answered as a miss (not
+//!   occluded). Rays of rendering never are; a ray file may hold them.
 //! - Embree's `u`, `v` weight the second and third vertex, as ours do.
 //!
 //! The struct layouts below are those of `rtcore_ray.h` / `rtcore_common.h` with
@@ -477,10 +490,12 @@ impl EmbreeScene {
         Ok(out)
     }
 
-    /// The closest hit of `ray` in `[t_min, t_max]` (`rtcIntersect1`).
+    /// The closest hit of `ray` in `[t_min, t_max]` (`rtcIntersect1`; a negative `t_min`
+    /// as [`EmbreeRay`] moves it).
     #[inline]
     pub fn intersect(&self, ray: &Ray, coherence: Coherence) -> Option<Hit> {
-        let mut rayhit = sys::RtcRayHit { ray: rtc_ray(ray), hit: sys::RtcHit::default() };
+        let e = EmbreeRay::new(ray)?;
+        let mut rayhit = sys::RtcRayHit { ray: e.rtc(ray), hit: sys::RtcHit::default() };
         rayhit.hit.geom_id = sys::INVALID_GEOMETRY_ID;
         rayhit.hit.inst_id = [sys::INVALID_GEOMETRY_ID];
         let mut ctx = context(coherence);
@@ -488,7 +503,7 @@ impl EmbreeScene {
         // the call (RtcRayHit is 16-byte aligned by its fields' `repr(align(16))`).
         unsafe { sys::rtcIntersect1(self.raw.as_ptr(), &mut ctx, &mut rayhit) };
         (rayhit.hit.geom_id != sys::INVALID_GEOMETRY_ID).then_some(Hit {
-            t: rayhit.ray.tfar,
+            t: rayhit.ray.tfar + e.shift,
             u: rayhit.hit.u,
             v: rayhit.hit.v,
             prim: rayhit.hit.prim_id,
@@ -498,7 +513,8 @@ impl EmbreeScene {
     /// Whether anything blocks `ray` in `[t_min, t_max]` (`rtcOccluded1`).
     #[inline]
     pub fn occluded(&self, ray: &Ray, coherence: Coherence) -> bool {
-        let mut r = rtc_ray(ray);
+        let Some(e) = EmbreeRay::new(ray) else { return false };
+        let mut r = e.rtc(ray);
         let mut ctx = context(coherence);
         // SAFETY: as in `intersect`; RtcRay is 16-byte aligned.
         unsafe { sys::rtcOccluded1(self.raw.as_ptr(), &mut ctx, &mut r) };
@@ -527,18 +543,54 @@ impl Drop for EmbreeScene {
     }
 }
 
-/// Our ray as an `RTCRay`: `tnear = t_min`, `tfar = t_max`, every mask bit set.
-#[inline]
-fn rtc_ray(ray: &Ray) -> sys::RtcRay {
-    sys::RtcRay {
-        org: ray.origin.to_array(),
-        tnear: ray.t_min,
-        dir: ray.dir.to_array(),
-        time: 0.0,
-        tfar: ray.t_max,
-        mask: u32::MAX,
-        id: 0,
-        flags: 0,
+/// Embree's `FLT_LARGE`: `RTCRay::valid()` asserts that every origin and direction
+/// component is within it.
+const FLT_LARGE: f32 = 1.844e18;
+
+/// Our ray in the form Embree takes (see the module documentation): `tnear >= 0`, the origin
+/// moved back by a negative `t_min`, and the `shift` to add to Embree's `t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmbreeRay {
+    /// The origin: ours, or `o + t_min * d` for a negative `t_min`.
+    pub org: [f32; 3],
+    /// `t_min`, or 0 for a negative `t_min`.
+    pub tnear: f32,
+    /// `t_max`, or `t_max - t_min` for a negative `t_min`.
+    pub tfar: f32,
+    /// What to add to Embree's `t` for ours: 0, or the negative `t_min`.
+    pub shift: f32,
+}
+
+impl EmbreeRay {
+    /// `ray` in Embree's form, or `None` when Embree cannot take it (the ray is then a miss).
+    pub fn new(ray: &Ray) -> Option<EmbreeRay> {
+        let (t_min, t_max) = (ray.t_min, ray.t_max);
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max {
+            return None;
+        }
+        let out = if t_min < 0.0 {
+            let org = ray.origin + t_min * ray.dir;
+            EmbreeRay { org: org.to_array(), tnear: 0.0, tfar: t_max - t_min, shift: t_min }
+        } else {
+            EmbreeRay { org: ray.origin.to_array(), tnear: t_min, tfar: t_max, shift: 0.0 }
+        };
+        let within = |v: [f32; 3]| v.iter().all(|c| c.abs() <= FLT_LARGE);
+        (within(out.org) && within(ray.dir.to_array()) && !out.tfar.is_nan()).then_some(out)
+    }
+
+    /// The `RTCRay`, every mask bit set.
+    #[inline]
+    fn rtc(&self, ray: &Ray) -> sys::RtcRay {
+        sys::RtcRay {
+            org: self.org,
+            tnear: self.tnear,
+            dir: ray.dir.to_array(),
+            time: 0.0,
+            tfar: self.tfar,
+            mask: u32::MAX,
+            id: 0,
+            flags: 0,
+        }
     }
 }
 
@@ -549,7 +601,8 @@ pub trait Packet: Default + Send {
     const WIDTH: usize;
     /// Makes every lane inactive.
     fn clear(&mut self);
-    /// Puts `ray` in `lane` and makes the lane active. Panics if `lane >= WIDTH`.
+    /// Puts `ray` in `lane` and makes the lane active (a negative `t_min` moved as
+    /// [`EmbreeRay`] does; a ray Embree cannot take is a miss). Panics if `lane >= WIDTH`.
     fn set(&mut self, lane: usize, ray: &Ray);
     /// Whether `lane` is active.
     fn active(&self, lane: usize) -> bool;
@@ -572,7 +625,12 @@ macro_rules! packet {
         $(#[$doc])*
         #[derive(Clone, Copy)]
         pub struct $name {
+            /// Embree's mask: lanes set with a ray Embree can take.
             valid: [c_int; $k],
+            /// Lanes set (with any ray).
+            used: [bool; $k],
+            /// Per lane, what to add to Embree's `t` ([`EmbreeRay::shift`]).
+            shift: [f32; $k],
             rayhit: sys::$rayhit,
         }
 
@@ -581,7 +639,7 @@ macro_rules! packet {
                 // SAFETY: every field of the SoA structs is an array of f32 or u32, for which
                 // all-zero bytes are valid values.
                 let rayhit: sys::$rayhit = unsafe { std::mem::zeroed() };
-                $name { valid: [0; $k], rayhit }
+                $name { valid: [0; $k], used: [false; $k], shift: [0.0; $k], rayhit }
             }
         }
 
@@ -597,20 +655,26 @@ macro_rules! packet {
             #[inline]
             fn clear(&mut self) {
                 self.valid = [0; $k];
+                self.used = [false; $k];
             }
 
             #[inline]
             fn set(&mut self, lane: usize, ray: &Ray) {
+                self.used[lane] = true;
+                // A ray Embree cannot take stays out of its mask: a miss.
+                let Some(e) = EmbreeRay::new(ray) else {
+                    self.valid[lane] = 0;
+                    return;
+                };
+                self.shift[lane] = e.shift;
                 let r = &mut self.rayhit.ray;
-                r.org_x[lane] = ray.origin.x;
-                r.org_y[lane] = ray.origin.y;
-                r.org_z[lane] = ray.origin.z;
-                r.tnear[lane] = ray.t_min;
+                [r.org_x[lane], r.org_y[lane], r.org_z[lane]] = e.org;
+                r.tnear[lane] = e.tnear;
                 r.dir_x[lane] = ray.dir.x;
                 r.dir_y[lane] = ray.dir.y;
                 r.dir_z[lane] = ray.dir.z;
                 r.time[lane] = 0.0;
-                r.tfar[lane] = ray.t_max;
+                r.tfar[lane] = e.tfar;
                 r.mask[lane] = u32::MAX;
                 r.id[lane] = lane as u32;
                 r.flags[lane] = 0;
@@ -622,14 +686,14 @@ macro_rules! packet {
 
             #[inline]
             fn active(&self, lane: usize) -> bool {
-                self.valid[lane] != 0
+                self.used[lane]
             }
 
             #[inline]
             fn hit(&self, lane: usize) -> Option<Hit> {
                 let h = &self.rayhit.hit;
                 (self.valid[lane] != 0 && h.geom_id[lane] != sys::INVALID_GEOMETRY_ID).then(|| Hit {
-                    t: self.rayhit.ray.tfar[lane],
+                    t: self.rayhit.ray.tfar[lane] + self.shift[lane],
                     u: h.u[lane],
                     v: h.v[lane],
                     prim: h.prim_id[lane],
@@ -756,6 +820,64 @@ mod tests {
             scene.occluded_packet(&mut packet, Coherence::Incoherent);
             assert!(packet.occluded(2) && !packet.occluded(3) && !packet.occluded(0));
         }
+    }
+
+    /// A negative `t_min` (which Embree's own assertion would abort on) finds hits behind the
+    /// origin, single rays and packets alike; rays Embree cannot take are misses, not aborts.
+    #[test]
+    fn negative_t_min_and_rays_embree_cannot_take() {
+        let device = Device::new(Some(1)).unwrap();
+        let (p, t) = quad();
+        let scene = EmbreeScene::build(&device, &p, &t, BuildQuality::High).unwrap();
+        let tree = kdtree::KdTree::build(&p, &t, &kdtree::BuildConfig::default()).unwrap();
+        // The quad (z = 0) lies at t = -1 behind the origin, at t = 1 in front of the other.
+        let below = |t_min: f32, t_max: f32| Ray::new(Vec3::new(0.5, -0.5, -1.0), -Vec3::Z, t_min, t_max);
+        let above = Ray::new(Vec3::new(-0.25, 0.5, 1.0), -Vec3::Z, -5.0, 3.0);
+        let behind = below(-2.0, f32::INFINITY);
+        let hit = scene.intersect(&behind, Coherence::Coherent).unwrap();
+        assert_eq!((hit.prim, hit.t), (0, -1.0));
+        assert_eq!(tree.intersect(&behind).map(|h| (h.prim, h.t)), Some((0, -1.0)));
+        assert!(scene.occluded(&behind, Coherence::Coherent));
+        let hit = scene.intersect(&above, Coherence::Incoherent).unwrap();
+        assert_eq!((hit.prim, hit.t), (1, 1.0));
+        let short = [below(-0.5, f32::INFINITY), below(-3.0, -1.5), below(0.0, 10.0)];
+        for r in &short {
+            assert!(scene.intersect(r, Coherence::Coherent).is_none(), "{r:?}");
+            assert!(!scene.occluded(r, Coherence::Coherent), "{r:?}");
+            assert!(tree.intersect(r).is_none(), "{r:?}");
+        }
+        // NaN intervals, t_min = -inf and origins beyond FLT_LARGE: misses, not aborts.
+        let cannot = [
+            below(f32::NAN, 1.0),
+            below(f32::NEG_INFINITY, 1.0),
+            Ray::new(Vec3::new(0.0, 0.0, 1e19), -Vec3::Z, 0.0, f32::INFINITY),
+            Ray::new(Vec3::new(0.0, 0.0, 1e18), -Vec3::Z, -1e18, f32::INFINITY),
+        ];
+        for r in &cannot {
+            assert!(EmbreeRay::new(r).is_none(), "{r:?}");
+            assert!(scene.intersect(r, Coherence::Coherent).is_none() && !scene.occluded(r, Coherence::Coherent));
+        }
+        assert_eq!(
+            EmbreeRay::new(&behind).map(|e| (e.org, e.tnear, e.tfar, e.shift)),
+            Some(([0.5, -0.5, 1.0], 0.0, f32::INFINITY, -2.0))
+        );
+        // Packets: the same answers lane by lane; every set lane is active.
+        // Lane 7: the quad at t = -1 from a negative interval that ends before 0.
+        let lanes = [behind, above, short[0], short[1], cannot[0], cannot[1], cannot[2], below(-1.5, -0.5)];
+        let mut packet = Packet8::default();
+        for (lane, r) in lanes.iter().enumerate() {
+            packet.set(lane, r);
+        }
+        scene.intersect_packet(&mut packet, Coherence::Coherent);
+        for (lane, r) in lanes.iter().enumerate() {
+            assert!(packet.active(lane));
+            let single = scene.intersect(r, Coherence::Coherent);
+            assert_eq!(packet.hit(lane).map(|h| (h.prim, h.t)), single.map(|h| (h.prim, h.t)), "lane {lane}");
+        }
+        assert_eq!(packet.hit(7).map(|h| (h.prim, h.t)), Some((0, -1.0)));
+        scene.occluded_packet(&mut packet, Coherence::Coherent);
+        let blocked: Vec<bool> = (0..8).map(|lane| packet.occluded(lane)).collect();
+        assert_eq!(blocked, [true, true, false, false, false, false, false, true]);
     }
 
     #[test]

@@ -302,8 +302,22 @@ mod tests {
     use trace::frame::{primary_pass, shadow_pass, soft_pass};
     use trace::method::SingleRays;
 
+    /// The same triangle at the same distance, or a tie within a few ulps of the distance: a
+    /// neighbour sharing a vertex (the packet kernels round `t` by an ulp differently) or a
+    /// coincident coplanar face (the atrium has some; the first found of two equal `t` wins).
+    fn same_or_edge_tie(scene: &Scene, got: Option<Hit>, want: Option<Hit>) -> bool {
+        match (got, want) {
+            (Some(g), Some(w)) if g.prim != w.prim => {
+                let (a, b) = (scene.mesh.triangle(g.prim as usize), scene.mesh.triangle(w.prim as usize));
+                let near = (g.t - w.t).abs() <= 4.0 * f32::EPSILON * w.t.abs();
+                near && (a.iter().any(|v| b.contains(v)) || trace::conformance::coplanar(&a, &b))
+            }
+            _ => got.map(|h| (h.prim, h.t)) == want.map(|h| (h.prim, h.t)),
+        }
+    }
+
     /// Every packet width gives the single-ray answers on every pixel, shadow ray and
-    /// soft-shadow ray (Embree's packet kernels run the same triangle test).
+    /// soft-shadow ray (Embree's packet kernels run the same triangle test), up to edge ties.
     #[test]
     fn packets_agree_with_single_rays() {
         let scene = scenes::load_scene("atrium").unwrap();
@@ -339,7 +353,7 @@ mod tests {
             let mut got = vec![None; want.len()];
             primary_pass::<_, NoCounters>(b, layout, camera, &mut got);
             for (g, h) in got.iter().zip(want) {
-                assert_eq!(g.map(|h| (h.prim, h.t)), h.map(|h| (h.prim, h.t)), "width {}", P::WIDTH);
+                assert!(same_or_edge_tie(scene, *g, *h), "width {}: {g:?} vs {h:?}", P::WIDTH);
             }
             let mut occ = vec![false; want.len()];
             let (rays, blocked, NoCounters) = shadow_pass(b, layout, scene, camera, want, &mut occ);
@@ -351,7 +365,7 @@ mod tests {
             let mut stream = vec![None; w.4.len()];
             b.stream(&mut P::default(), w.4, &mut stream, &mut NoCounters);
             for (g, h) in stream.iter().zip(w.5) {
-                assert_eq!(g.map(|h| (h.prim, h.t)), h.map(|h| (h.prim, h.t)), "stream, width {}", P::WIDTH);
+                assert!(same_or_edge_tie(scene, *g, *h), "stream, width {}: {g:?} vs {h:?}", P::WIDTH);
             }
         }
         let w = ((rays, blocked), &want_occ[..], want_soft, &want_vis[..], &all[..], &want_stream[..]);
