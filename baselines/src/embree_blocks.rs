@@ -310,7 +310,7 @@ mod tests {
             (Some(g), Some(w)) if g.prim != w.prim => {
                 let (a, b) = (scene.mesh.triangle(g.prim as usize), scene.mesh.triangle(w.prim as usize));
                 let near = (g.t - w.t).abs() <= 4.0 * f32::EPSILON * w.t.abs();
-                near && (a.iter().any(|v| b.contains(v)) || trace::conformance::coplanar(&a, &b))
+                near && (a.iter().any(|v| b.contains(v)) || trace::ties::coplanar(&a, &b))
             }
             _ => got.map(|h| (h.prim, h.t)) == want.map(|h| (h.prim, h.t)),
         }

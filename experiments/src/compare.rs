@@ -34,6 +34,7 @@ use serde::Serialize;
 use trace::progress::Progress;
 use trace::registry::{KDTREE, Selected, TILE_SIZE};
 use trace::setup::view_camera;
+use trace::ties::{coplanar, near_shared};
 use trace::timing::{median, mrays_per_s, timed};
 use trace::{Bound, Error, Options, Registry, Structures, TileLayout, soft};
 
@@ -452,16 +453,6 @@ pub fn mismatches(scene: &Scene, camera: &Camera, reference: &[Option<Hit>], got
     m
 }
 
-/// Whether two triangles lie in one plane (normals parallel within 1e-4 rad, the second's
-/// vertices within 1e-4 of the triangles' size from the first's plane).
-fn coplanar(a: &[glam::Vec3; 3], b: &[glam::Vec3; 3]) -> bool {
-    let [a, b] = [a, b].map(|t| t.map(|v| v.as_dvec3()));
-    let (na, nb) = ((a[1] - a[0]).cross(a[2] - a[0]), (b[1] - b[0]).cross(b[2] - b[0]));
-    let (Some(na), Some(nb)) = (na.try_normalize(), nb.try_normalize()) else { return false };
-    let size = a.iter().chain(&b).fold(0.0f64, |m, v| m.max((*v - a[0]).length()));
-    na.cross(nb).length() <= 1e-4 && b.iter().all(|v| na.dot(*v - a[0]).abs() <= 1e-4 * size)
-}
-
 /// Whether hits `a` and `b` on different triangles are a tie at their shared edge or vertex
 /// (see [`mismatches`]); `p` is the point of `a`.
 fn is_edge_tie(scene: &Scene, p: glam::Vec3, a: &Hit, b: &Hit) -> bool {
@@ -471,16 +462,7 @@ fn is_edge_tie(scene: &Scene, p: glam::Vec3, a: &Hit, b: &Hit) -> bool {
     let (ta, tb) = (scene.mesh.triangle(a.prim as usize), scene.mesh.triangle(b.prim as usize));
     let shared: Vec<glam::Vec3> = ta.iter().copied().filter(|v| tb.contains(v)).collect();
     let size = ta.iter().chain(&tb).fold(0.0f32, |m, v| m.max((*v - ta[0]).length()));
-    let tol = 1e-4 * size.max(f32::MIN_POSITIVE);
-    match shared[..] {
-        [] => false,
-        [v] => (p - v).length() <= tol,
-        [v, w, ..] => {
-            let e = w - v;
-            let s = ((p - v).dot(e) / e.length_squared().max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
-            (p - (v + s * e)).length() <= tol
-        }
-    }
+    near_shared(&shared, p, 1e-4 * size.max(f32::MIN_POSITIVE))
 }
 
 impl std::fmt::Display for CompareReport {

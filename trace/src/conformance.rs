@@ -35,6 +35,7 @@ use crate::frame::{SoftStats, TileLayout};
 use crate::method::{hard_shadow_ray, primary_ray};
 use crate::registry::{KDTREE, Options, Registry, Structures};
 use crate::soft;
+use crate::ties::{coplanar, near_shared};
 
 /// The tile sizes every tiled method is checked at (and the frame driver's tiles of the
 /// others): 4, 8 and 16, with odd image sizes so that edge tiles are cut.
@@ -617,15 +618,7 @@ impl Judge<'_> {
         // of the positions is more than 1e-4 of a triangle).
         let far = a.iter().chain(&b).fold(p.abs().max_element(), |m, v| m.max(v.abs().max_element()));
         let tol = 1e-4 * size.max(f32::MIN_POSITIVE) + 8.0 * f32::EPSILON * far;
-        let at_edge = match shared[..] {
-            [] => false,
-            [v] => (p - v).length() <= tol,
-            [v, w, ..] => {
-                let e = w - v;
-                let s = ((p - v).dot(e) / e.length_squared().max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
-                (p - (v + s * e)).length() <= tol
-            }
-        };
+        let at_edge = near_shared(&shared, p, tol);
         // Coincident faces: coplanar, and the point lies in both (within 1e-4).
         let slack = (tol / size.max(f32::MIN_POSITIVE)) as f64;
         at_edge || coplanar(&a, &b) && contains(&b, p, slack) && contains(&a, ray.at(got.t), slack)
@@ -693,16 +686,6 @@ impl Judge<'_> {
             Rule::Exact => Outcome::Refused,
         }
     }
-}
-
-/// Whether two triangles lie in one plane: normals parallel within 1e-4 rad, the second's
-/// corners within 1e-4 of the triangles' size from the first's plane (in `f64`).
-pub fn coplanar(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
-    let [a, b] = [a, b].map(|t| t.map(|v| v.as_dvec3()));
-    let (na, nb) = ((a[1] - a[0]).cross(a[2] - a[0]), (b[1] - b[0]).cross(b[2] - b[0]));
-    let (Some(na), Some(nb)) = (na.try_normalize(), nb.try_normalize()) else { return false };
-    let size = a.iter().chain(&b).fold(0.0f64, |m, v| m.max((*v - a[0]).length()));
-    na.cross(nb).length() <= 1e-4 && b.iter().all(|v| na.dot(*v - a[0]).abs() <= 1e-4 * size)
 }
 
 /// Whether `p` (near the triangle's plane) lies in triangle `t`, barycentrics within `eps`

@@ -114,6 +114,59 @@ pub struct SoftStats {
     pub blocked: u64,
 }
 
+/// What a tile's pass returns, summed over tiles.
+trait Sum: Default + Send {
+    fn sum(self, other: Self) -> Self;
+}
+
+impl Sum for u64 {
+    fn sum(self, other: u64) -> u64 {
+        self + other
+    }
+}
+
+impl Sum for (u64, u64) {
+    fn sum(self, other: (u64, u64)) -> (u64, u64) {
+        (self.0 + other.0, self.1 + other.1)
+    }
+}
+
+impl Sum for SoftStats {
+    fn sum(self, o: SoftStats) -> SoftStats {
+        SoftStats { points: self.points + o.points, rays: self.rays + o.rays, blocked: self.blocked + o.blocked }
+    }
+}
+
+/// Runs `pass` on every tile of `layout` with its chunk of `chunks`, in parallel over the
+/// current rayon pool with one scratch per rayon task, and sums what the tiles return and
+/// count.
+fn over_tiles<M: Method, C: TileCounters, I: Send, R: Sum>(
+    method: &M,
+    layout: &TileLayout,
+    chunks: Vec<I>,
+    pass: impl Fn(&mut M::Scratch, &Tile, I, &mut C) -> R + Sync + Send,
+) -> (R, C) {
+    layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map_init(
+            || method.scratch(),
+            |scratch, (tile, chunk)| {
+                let mut counts = C::default();
+                let out = pass(scratch, tile, chunk, &mut counts);
+                (out, counts)
+            },
+        )
+        .reduce(
+            || (R::default(), C::default()),
+            |(a, mut ca), (b, cb)| {
+                ca += cb;
+                (a.sum(b), ca)
+            },
+        )
+}
+
 /// Pass 1: the closest hit of every pixel's primary ray into `out` (tile order of `layout`).
 /// Returns the number of hits and the summed counters.
 pub fn primary_pass<M: Method, C: TileCounters>(
@@ -122,29 +175,10 @@ pub fn primary_pass<M: Method, C: TileCounters>(
     camera: &Camera,
     out: &mut [Option<Hit>],
 ) -> (u64, C) {
-    let chunks = layout.chunks_mut(out);
-    layout
-        .tiles()
-        .par_iter()
-        .zip(chunks)
-        .map_init(
-            || method.scratch(),
-            |scratch, (tile, out)| {
-                let mut counts = C::default();
-                method.primary_tile(scratch, camera, tile, out, &mut counts);
-                (out.iter().filter(|h| h.is_some()).count() as u64, counts)
-            },
-        )
-        .reduce(
-            || (0, C::default()),
-            |a, b| {
-                (a.0 + b.0, {
-                    let mut c = a.1;
-                    c += b.1;
-                    c
-                })
-            },
-        )
+    over_tiles(method, layout, layout.chunks_mut(out), |scratch, tile, out, counts| {
+        method.primary_tile(scratch, camera, tile, out, counts);
+        out.iter().filter(|h| h.is_some()).count() as u64
+    })
 }
 
 /// Pass 2: the hard shadow ray of every hit of `hits` (tile order of `layout`) into
@@ -158,28 +192,10 @@ pub fn shadow_pass<M: Method, C: TileCounters>(
     occluded: &mut [bool],
 ) -> (u64, u64, C) {
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(occluded)).collect();
-    layout
-        .tiles()
-        .par_iter()
-        .zip(chunks)
-        .map_init(
-            || method.scratch(),
-            |scratch, (tile, (hits, out))| {
-                let mut counts = C::default();
-                let (rays, blocked) = method.shadow_tile(scratch, scene, camera, tile, hits, out, &mut counts);
-                (rays, blocked, counts)
-            },
-        )
-        .reduce(
-            || (0, 0, C::default()),
-            |a, b| {
-                (a.0 + b.0, a.1 + b.1, {
-                    let mut c = a.2;
-                    c += b.2;
-                    c
-                })
-            },
-        )
+    let ((rays, blocked), counts) = over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
+        method.shadow_tile(scratch, scene, camera, tile, hits, out, counts)
+    });
+    (rays, blocked, counts)
 }
 
 /// Pass 3: the 16 shadow rays of every hit of `hits` (tile order of `layout`) to `light`
@@ -195,46 +211,23 @@ pub fn soft_pass<M: Method, C: TileCounters>(
     visible: &mut [f32],
 ) -> (SoftStats, C) {
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(visible)).collect();
-    layout
-        .tiles()
-        .par_iter()
-        .zip(chunks)
-        .map_init(
-            || method.scratch(),
-            |scratch, (tile, (hits, out))| {
-                let mut counts = C::default();
-                let mut stats = SoftStats::default();
-                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
-                    *slot = 0.0;
-                    let Some(hit) = hit else { continue };
-                    let dir = camera.pixel_ray(x, y).1;
-                    let Some((start, cone)) = soft::shadow_start(scene, light, hit, dir) else { continue };
-                    let Some(samples) = light_samples(start, light) else { continue };
-                    let mask = method.soft_point(scratch, &shadow_rays(start, &samples), &cone, &mut counts);
-                    let n = u64::from(mask.count_ones());
-                    stats.points += 1;
-                    stats.blocked += n;
-                    *slot = 1.0 - n as f32 / SAMPLES as f32;
-                }
-                stats.rays = stats.points * SAMPLES as u64;
-                (stats, counts)
-            },
-        )
-        .reduce(
-            || (SoftStats::default(), C::default()),
-            |a, b| {
-                let stats = SoftStats {
-                    points: a.0.points + b.0.points,
-                    rays: a.0.rays + b.0.rays,
-                    blocked: a.0.blocked + b.0.blocked,
-                };
-                (stats, {
-                    let mut c = a.1;
-                    c += b.1;
-                    c
-                })
-            },
-        )
+    over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
+        let mut stats = SoftStats::default();
+        for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+            *slot = 0.0;
+            let Some(hit) = hit else { continue };
+            let dir = camera.pixel_ray(x, y).1;
+            let Some((start, cone)) = soft::shadow_start(scene, light, hit, dir) else { continue };
+            let Some(samples) = light_samples(start, light) else { continue };
+            let mask = method.soft_point(scratch, &shadow_rays(start, &samples), &cone, counts);
+            let n = u64::from(mask.count_ones());
+            stats.points += 1;
+            stats.blocked += n;
+            *slot = 1.0 - n as f32 / SAMPLES as f32;
+        }
+        stats.rays = stats.points * SAMPLES as u64;
+        stats
+    })
 }
 
 /// Rays per parallel chunk of a ray stream.

@@ -35,6 +35,7 @@ pub mod report;
 pub mod setup;
 pub mod shade;
 pub mod soft;
+pub mod ties;
 pub mod timing;
 
 pub use error::Error;

@@ -43,3 +43,40 @@ fn every_method_on_the_shared_scenes() {
     eprintln!("{}", report.summary());
     report.assert_ok();
 }
+
+mod random {
+    use glam::Vec3;
+    use proptest::prelude::*;
+    use scenes::Camera;
+    use trace::Registry;
+    use trace::conformance::{self, Case, Plan};
+
+    /// A corner: on a grid of quarters (shared vertices, axis planes) or anywhere in [-1, 1].
+    fn vertex() -> impl Strategy<Value = Vec3> {
+        let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
+        (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+        /// Random soups (sharing vertices and axis planes) seen by random cameras inside and
+        /// outside them, narrow and wide: every method at every tile size gives the single
+        /// ray's answers, which agree with the brute-force oracle.
+        #[test]
+        fn every_method_on_random_soups_and_cameras(
+            tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
+            eye in vertex(), target in vertex(), wide in any::<bool>(), seed in any::<u64>(),
+        ) {
+            let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
+            let eye = eye * 1.5;
+            prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
+            let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 24, 20).unwrap();
+            let scene = conformance::soup_scene("random soup", &tris);
+            let case = Case::new("random soup", scene, vec![("random".into(), camera)], true, seed);
+            let registry = Registry::ours();
+            let report = conformance::run(&registry, &Plan::ours(&registry), &[case]);
+            prop_assert!(report.failing().is_empty(), "{}", report.summary());
+        }
+    }
+}
