@@ -1,15 +1,14 @@
 //! Cone and MFT-cone traversal against single rays where the conformance harness
-//! (`trace/tests/conformance.rs`, every registered method on the built-in and shared scenes
-//! and the hard cases) does not reach: random soups and cameras (proptest), packets loaded
-//! from elsewhere in narrow and wide bundles, non-finite lanes and cameras, and cone soft
-//! shadows on two light sizes against the pyramid and single rays.
+//! (`trace/tests/conformance.rs`, every registered method on the built-in and shared scenes,
+//! random soups, cameras and lights, and the hard cases) does not reach: packets loaded from
+//! elsewhere in narrow and wide bundles, non-finite lanes and cameras, and cone soft shadows
+//! on two light sizes against the pyramid and single rays.
 
 use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
 use cones::{ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{OmniPacket, RayPacket, TileTracer};
-use proptest::prelude::*;
 use scenes::{Camera, SphereLight, tiles};
 
 const METHODS: [ConeMethod; 2] = [ConeMethod::Cone, ConeMethod::MftCone];
@@ -168,45 +167,5 @@ fn non_finite_cameras_have_no_cone() {
         let e = traverse::primary_cone(&camera, &tile).unwrap_err();
         assert!(matches!(e, cones::ConeError::NotFinite(_)), "{e:?}");
         assert!(TileTracer::new(8).unwrap().load_primary(&camera, &tile).is_err());
-    }
-}
-
-fn vertex() -> impl Strategy<Value = Vec3> {
-    let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
-    (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
-
-    /// Random soups (sharing vertices and axis planes), random cameras, random spherical
-    /// lights: the cone and pyramid soft shadows give the single rays' occlusion (the cone
-    /// methods' primary hits are the conformance harness's, `trace/tests/conformance.rs`).
-    #[test]
-    fn random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
-                                eye in vertex(), target in vertex(), wide in any::<bool>(),
-                                watertight in any::<bool>(), light in vertex(), radius in 0.01f32..0.5) {
-        let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
-        let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
-        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
-        let eye = eye * 1.5;
-        prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
-        let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 24, 20).unwrap();
-        let light = SphereLight { center: light * 1.2, radius, intensity: Vec3::ONE };
-        let mut t = SoftShadowTracer::new();
-        for y in (0..20).step_by(2) {
-            for x in (0..24).step_by(2) {
-                let (o, d) = camera.pixel_ray(x, y);
-                let Some(hit) = tree.intersect(&Ray::new(o, d, 0.0, f32::INFINITY)) else { continue };
-                let tri = tree.triangle(hit.prim);
-                let p = kdtree::ray::offset_origin(&tri, &hit, light.center - kdtree::ray::surface_point(&tri, &hit));
-                let (Some(s), Some(cone)) = (light_samples(p, &light), sample_cone(p, &light)) else { continue };
-                let rays = shadow_rays(p, &s);
-                let single = t.occluded(&tree, &rays, &cone, ShadowMethod::Single, &mut NoCounters);
-                for m in [ShadowMethod::Pyramid, ShadowMethod::Cone] {
-                    prop_assert_eq!(t.occluded(&tree, &rays, &cone, m, &mut NoCounters), single, "{:?}", m);
-                }
-            }
-        }
     }
 }

@@ -61,18 +61,20 @@ mod random {
         #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
 
         /// Random soups (sharing vertices and axis planes) seen by random cameras inside and
-        /// outside them, narrow and wide: every method at every tile size gives the single
-        /// ray's answers, which agree with the brute-force oracle.
+        /// outside them, narrow and wide, lit from random points: every method at every tile
+        /// size gives the single ray's answers (primary, hard and soft shadows, streams),
+        /// which agree with the brute-force oracle.
         #[test]
         fn every_method_on_random_soups_and_cameras(
             tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
-            eye in vertex(), target in vertex(), wide in any::<bool>(), seed in any::<u64>(),
+            eye in vertex(), target in vertex(), wide in any::<bool>(), light in vertex(), seed in any::<u64>(),
         ) {
             let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
             let eye = eye * 1.5;
             prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
             let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 24, 20).unwrap();
-            let scene = conformance::soup_scene("random soup", &tris);
+            let mut scene = conformance::soup_scene("random soup", &tris);
+            scene.point_light.position = light * 1.2;
             let case = Case::new("random soup", scene, vec![("random".into(), camera)], true, seed);
             let registry = Registry::ours();
             let report = conformance::run(&registry, &Plan::ours(&registry), &[case]);
