@@ -55,11 +55,17 @@ pub trait TriangleTest: Sync {
 /// Precomputed record of Wald's projected-barycentric test (thesis 4.2, `render_poly`).
 ///
 /// The triangle's plane `n . p = n . a` is divided by the normal's largest component `n_k`,
-/// so that along axis `k` the distance is `t = (n_d - o_k - n_u o_u - n_v o_v) /
-/// (d_k + n_u d_u + n_v d_v)`; the hit point, projected onto the `(u, v)` plane (`u = k+1`,
-/// `v = k+2` mod 3) and taken relative to vertex `a`, gives the barycentrics by two dot
-/// products with precomputed edge coefficients (the `n_k` in their denominator is the
-/// projected triangle's doubled signed area).
+/// so that along axis `k` the distance is `t = ((a_k - o_k) + n_u (a_u - o_u) + n_v (a_v -
+/// o_v)) / (d_k + n_u d_u + n_v d_v)`; the hit point, projected onto the `(u, v)` plane
+/// (`u = k+1`, `v = k+2` mod 3) and taken relative to vertex `a` (`t d_u - (a_u - o_u)`),
+/// gives the barycentrics by two dot products with precomputed edge coefficients (the `n_k`
+/// in their denominator is the projected triangle's doubled signed area).
+///
+/// The thesis (and Wald) store the plane offset `n_d = (n . a) / n_k` and compute
+/// `n_d - o_k - n_u o_u - n_v o_v`: far from the origin that subtracts numbers near `|o|` and loses the
+/// surface (at 1e5 units an f32 ulp is 0.008, and the error grows with `n_u`, `n_v`). Here
+/// vertex `a` is stored and `a - o` is formed first, between nearby numbers, so the error is
+/// relative to the distance to the triangle, not to the coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct WaldTriangle {
@@ -69,8 +75,8 @@ pub struct WaldTriangle {
     pub n_u: f32,
     /// `n_v / n_k`.
     pub n_v: f32,
-    /// `(n . a) / n_k`: the plane offset.
-    pub n_d: f32,
+    /// Vertex `a`: its `k` coordinate (with `a_u`, `a_v` the whole vertex).
+    pub a_k: f32,
     /// Vertex `a` projected: its `u` coordinate.
     pub a_u: f32,
     /// Vertex `a` projected: its `v` coordinate.
@@ -112,7 +118,7 @@ impl WaldTriangle {
                 kuv: pack_axes(k),
                 n_u: nan,
                 n_v: nan,
-                n_d: nan,
+                a_k: nan,
                 a_u: nan,
                 a_v: nan,
                 b_nu: nan,
@@ -126,7 +132,7 @@ impl WaldTriangle {
             kuv: pack_axes(k),
             n_u: (n[u] * inv) as f32,
             n_v: (n[v] * inv) as f32,
-            n_d: (n.dot(a) * inv) as f32,
+            a_k: a[k] as f32,
             a_u: a[u] as f32,
             a_v: a[v] as f32,
             b_nu: (e2[v] * inv) as f32,
@@ -182,13 +188,15 @@ impl TriangleTest for WaldTriangle {
         let (k, u, v) = self.axes();
         let (o, d) = (&r.o, &r.d);
         let denom = d[k] + self.n_u * d[u] + self.n_v * d[v];
-        let t = (self.n_d - o[k] - self.n_u * o[u] - self.n_v * o[v]) / denom;
+        // Vertex `a` relative to the origin: nearby numbers, subtracted first.
+        let (ak, au, av) = (self.a_k - o[k], self.a_u - o[u], self.a_v - o[v]);
+        let t = (ak + self.n_u * au + self.n_v * av) / denom;
         // Written so that NaN (a degenerate record, or 0/0 for a ray in the plane) fails.
         if !(t >= ray.t_min && t <= t_max && t < f32::INFINITY) {
             return None;
         }
-        let hu = o[u] + t * d[u] - self.a_u;
-        let hv = o[v] + t * d[v] - self.a_v;
+        let hu = t * d[u] - au;
+        let hv = t * d[v] - av;
         let beta = self.b_nu * hu + self.b_nv * hv;
         let gamma = self.c_nu * hu + self.c_nv * hv;
         if beta >= 0.0 && gamma >= 0.0 && beta + gamma <= 1.0 { Some((t, beta, gamma)) } else { None }

@@ -11,6 +11,18 @@ fn tri(a: [f32; 9]) -> [Vec3; 3] {
     [Vec3::new(a[0], a[1], a[2]), Vec3::new(a[3], a[4], a[5]), Vec3::new(a[6], a[7], a[8])]
 }
 
+/// With both triangle tests: the tree over `soup` reports no hit for `ray`, the oracle finds
+/// triangle `prim` unreachable (`why`) and accepts the tree's answers.
+fn tree_misses_an_unreachable_triangle(soup: &[[Vec3; 3]], ray: &Ray, prim: u32, why: &str) {
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = KdTree::build_soup(soup, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        let oracle = BruteForce::for_tree(&tree);
+        assert!(oracle.unreachable(ray, prim), "{why}");
+        assert_eq!(tree.intersect(ray), None);
+        oracle.check(ray, tree.intersect(ray), tree.occluded(ray)).unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
+    }
+}
+
 /// `build_soup`: a soup mixing 1e29 and denormal coordinates. The clip of the 1e29 triangle
 /// to a 1e9 node lost most of its part in the node (see `build/clip.rs`), so the tree left
 /// it out of a leaf it enters, and rays into that leaf missed it.
@@ -78,15 +90,7 @@ fn ray_beside_a_triangle_outside_its_box() {
     assert_eq!(ray.dir.y, 0.0, "the denormal component is flushed");
     let record = WatertightTriangle::new(&t);
     assert_eq!(record.intersect(&ray, &WatertightTriangle::prepare(&ray), ray.t_max), None);
-    for intersector in [Intersector::Wald, Intersector::Watertight] {
-        let tree = KdTree::build_soup(&[t], &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
-        let oracle = BruteForce::for_tree(&tree);
-        assert!(oracle.unreachable(&ray, 0), "z = 1.8e-43 is above the triangle's z range [-3e33, 0]");
-        assert_eq!(tree.intersect(&ray), None);
-        oracle
-            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
-            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
-    }
+    tree_misses_an_unreachable_triangle(&[t], &ray, 0, "z = 1.8e-43 is above the triangle's z range [-3e33, 0]");
 }
 
 /// `traversal`: a ray with a huge y component (-4e31) and a tiny x component (2e-38) that
@@ -122,15 +126,7 @@ fn ray_with_a_tiny_direction_component_beside_a_sliver_triangle() {
     let record = WaldTriangle::new(&t);
     let artefact = record.intersect(&ray, &WaldTriangle::prepare(&ray), ray.t_max);
     assert_eq!(artefact.map(|h| h.0), Some(5.89e-42), "Wald's test reports the hit outside the triangle");
-    for intersector in [Intersector::Wald, Intersector::Watertight] {
-        let tree = KdTree::build_soup(&[t], &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
-        let oracle = BruteForce::for_tree(&tree);
-        assert_eq!(tree.intersect(&ray), None);
-        oracle
-            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
-            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
-        assert!(oracle.unreachable(&ray, 0), "x < 0 over the whole segment, the triangle has x > 2.3e-38");
-    }
+    tree_misses_an_unreachable_triangle(&[t], &ray, 0, "x < 0 over the whole segment, the triangle has x > 2.3e-38");
 }
 
 /// `traversal`: a ray along -x whose interval is the single point `t = 0`, its origin at
@@ -227,15 +223,7 @@ fn wald_rounds_a_ray_just_outside_an_edge_into_a_hit() {
     let artefact = record.intersect(&ray, &WaldTriangle::prepare(&ray), ray.t_max);
     assert_eq!(artefact.map(|h| h.0), Some(1.4922872e-9), "Wald's test reports the hit outside the triangle");
     assert!(!kdtree::oracle::segment_meets_triangle(&soup[1], ray.origin, ray.dir, ray.t_min, ray.t_max));
-    for intersector in [Intersector::Wald, Intersector::Watertight] {
-        let tree = KdTree::build_soup(&soup, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
-        let oracle = BruteForce::for_tree(&tree);
-        assert!(oracle.unreachable(&ray, 1));
-        assert_eq!(tree.intersect(&ray), None);
-        oracle
-            .check(&ray, tree.intersect(&ray), tree.occluded(&ray))
-            .unwrap_or_else(|e| panic!("{intersector:?}: {e}"));
-    }
+    tree_misses_an_unreachable_triangle(&soup, &ray, 1, "the segment misses triangle 1 in exact arithmetic");
 }
 
 /// `traversal` (Wald's test): every triangle but one has a vertex exactly at the ray's
@@ -245,7 +233,9 @@ fn wald_rounds_a_ray_just_outside_an_edge_into_a_hit() {
 /// hit at `t = -3.5e-25`. The tree, visiting leaves in exact order, finds triangle 2 first and
 /// then drops the leaves beyond it, triangle 3's among them. The oracle took the f32 distance
 /// -3.6e-8 for "a reachable hit before the reported one"; it now asks exactly whether the ray
-/// meets that triangle before the reported distance (`BruteForce::check`).
+/// meets that triangle before the reported distance (`BruteForce::check`). Since Wald's record
+/// stores vertex `a` instead of the plane offset, triangle 3 is reported at its exact
+/// crossing, t = 0; the oracle's rules are checked on the new answers.
 #[test]
 fn huge_triangle_through_the_origin_is_reported_before_its_exact_crossing() {
     let soup = [
@@ -304,18 +294,25 @@ fn huge_triangle_through_the_origin_is_reported_before_its_exact_crossing() {
     let tree =
         KdTree::build_soup(&soup, &BuildConfig { intersector: Intersector::Wald, ..BuildConfig::default() }).unwrap();
     let oracle = BruteForce::for_tree(&tree);
-    assert_eq!(oracle.all_hits(&ray), vec![(-0.0, 1), (-3.4569297e-25, 2), (-3.640144e-8, 3)]);
+    // Wald's test with the plane offset stored (n_d) reported triangle 3 at t = -3.640144e-8
+    // and triangle 2 at -3.4569297e-25; with vertex `a` stored (subtracted from the origin
+    // first) triangle 3 is reported at its exact crossing, t = 0.
+    assert_eq!(oracle.all_hits(&ray), vec![(-0.0, 1), (-3.4568777e-25, 2), (-0.0, 3)]);
     assert!(oracle.unreachable(&ray, 2) && !oracle.unreachable(&ray, 3));
     assert!(segment_meets_triangle(&soup[3], ray.origin, ray.dir, 0.0, 0.0), "the origin is its vertex");
-    assert!(!segment_meets_triangle(&soup[3], ray.origin, ray.dir, ray.t_min, -3.4569297e-25));
+    assert!(!segment_meets_triangle(&soup[3], ray.origin, ray.dir, ray.t_min, -3.4568777e-25));
     let single = tree.intersect(&ray);
-    assert_eq!(single.map(|h| (h.t, h.prim)), Some((-3.4569297e-25, 2)));
+    assert_eq!(single.map(|h| (h.t, h.prim)), Some((-3.4568777e-25, 2)));
     oracle.check(&ray, single, tree.occluded(&ray)).unwrap();
     assert!(oracle.equivalent_hits(&ray, single, oracle.intersect(&ray)));
-    // Still caught: no hit, and a hit at t = -0.0, where the ray has met triangle 3 (at 0).
-    assert!(oracle.check(&ray, None, false).is_err());
-    let at_zero = kdtree::Hit { t: -0.0, u: 0.0, v: 0.0, prim: 1 };
-    assert!(oracle.check(&ray, Some(at_zero), true).is_err());
+    // Still caught: a hit on triangle 0 or 3 where the ray does not meet it, and an answer
+    // that contradicts itself (a hit, yet not occluded). (No hit at all is an answer the
+    // oracle accepts here: every hit lies within the origin's rounding.)
+    for prim in [0, 3] {
+        let wrong = kdtree::Hit { t: -1.0e30, u: 0.25, v: 0.25, prim };
+        assert!(oracle.check(&ray, Some(wrong), true).is_err(), "prim {prim}");
+    }
+    assert!(oracle.check(&ray, single, false).is_err());
     let tree =
         KdTree::build_soup(&soup, &BuildConfig { intersector: Intersector::Watertight, ..BuildConfig::default() })
             .unwrap();

@@ -56,14 +56,16 @@ impl PacketTest for WaldTriangle {
         let (dk, du, dv) = (r.d[k], r.d[u], r.d[v]);
         let (n_u, n_v) = (Vec4::splat(self.n_u), Vec4::splat(self.n_v));
         let denom = dk + n_u * du + n_v * dv;
-        let t = (Vec4::splat(self.n_d) - ok - n_u * ou - n_v * ov) / denom;
+        // As the scalar test: vertex `a` relative to the origin first.
+        let (ak, au, av) = (Vec4::splat(self.a_k) - ok, Vec4::splat(self.a_u) - ou, Vec4::splat(self.a_v) - ov);
+        let t = (ak + n_u * au + n_v * av) / denom;
         // NaN fails every comparison, as in the scalar test.
         let mut mask = active & t.cmpge(r.t_min) & t.cmple(hit.t) & t.cmplt(Vec4::INFINITY);
         if !mask.any() {
             return mask;
         }
-        let hu = ou + t * du - Vec4::splat(self.a_u);
-        let hv = ov + t * dv - Vec4::splat(self.a_v);
+        let hu = t * du - au;
+        let hv = t * dv - av;
         let beta = Vec4::splat(self.b_nu) * hu + Vec4::splat(self.b_nv) * hv;
         let gamma = Vec4::splat(self.c_nu) * hu + Vec4::splat(self.c_nv) * hv;
         mask &= beta.cmpge(Vec4::ZERO) & gamma.cmpge(Vec4::ZERO) & (beta + gamma).cmple(Vec4::ONE);
