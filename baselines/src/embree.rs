@@ -604,6 +604,14 @@ pub trait Packet: Default + Send {
     /// Puts `ray` in `lane` and makes the lane active (a negative `t_min` moved as
     /// [`EmbreeRay`] does; a ray Embree cannot take is a miss). Panics if `lane >= WIDTH`.
     fn set(&mut self, lane: usize, ray: &Ray);
+    /// Clears the packet, then puts `rays[i]` in lane `i` (see [`Packet::set`]); the lanes
+    /// after them stay inactive. Panics if there are more than `WIDTH` rays.
+    fn load(&mut self, rays: &[Ray]) {
+        self.clear();
+        for (lane, ray) in rays.iter().enumerate() {
+            self.set(lane, ray);
+        }
+    }
     /// Whether `lane` is active.
     fn active(&self, lane: usize) -> bool;
     /// The closest hit of `lane` after [`EmbreeScene::intersect_packet`] (`None` for a miss
@@ -865,9 +873,7 @@ mod tests {
         // Lane 7: the quad at t = -1 from a negative interval that ends before 0.
         let lanes = [behind, above, short[0], short[1], cannot[0], cannot[1], cannot[2], below(-1.5, -0.5)];
         let mut packet = Packet8::default();
-        for (lane, r) in lanes.iter().enumerate() {
-            packet.set(lane, r);
-        }
+        packet.load(&lanes);
         scene.intersect_packet(&mut packet, Coherence::Coherent);
         for (lane, r) in lanes.iter().enumerate() {
             assert!(packet.active(lane));

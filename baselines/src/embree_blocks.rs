@@ -252,10 +252,7 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
     fn soft_point<C: TileCounters>(&self, packet: &mut P, rays: &[Ray; SAMPLES], _: &Cone, _: &mut C) -> u16 {
         let mut mask = 0u16;
         for (c, chunk) in rays.chunks(P::WIDTH).enumerate() {
-            packet.clear();
-            for (lane, ray) in chunk.iter().enumerate() {
-                packet.set(lane, ray);
-            }
+            packet.load(chunk);
             self.scene.occluded_packet(packet, self.coherence);
             for lane in 0..chunk.len() {
                 mask |= u16::from(packet.occluded(lane)) << (c * P::WIDTH + lane);
@@ -267,10 +264,7 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
     /// Each `P::WIDTH` consecutive rays as one packet.
     fn stream<C: TileCounters>(&self, packet: &mut P, rays: &[Ray], out: &mut [Option<Hit>], _: &mut C) {
         for (rays, out) in rays.chunks(P::WIDTH).zip(out.chunks_mut(P::WIDTH)) {
-            packet.clear();
-            for (lane, ray) in rays.iter().enumerate() {
-                packet.set(lane, ray);
-            }
+            packet.load(rays);
             self.scene.intersect_packet(packet, self.coherence);
             for (lane, slot) in out.iter_mut().enumerate() {
                 *slot = packet.hit(lane);
@@ -281,10 +275,7 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
     /// Each `P::WIDTH` consecutive rays as one packet.
     fn stream_occluded<C: TileCounters>(&self, packet: &mut P, rays: &[Ray], out: &mut [bool], _: &mut C) {
         for (rays, out) in rays.chunks(P::WIDTH).zip(out.chunks_mut(P::WIDTH)) {
-            packet.clear();
-            for (lane, ray) in rays.iter().enumerate() {
-                packet.set(lane, ray);
-            }
+            packet.load(rays);
             self.scene.occluded_packet(packet, self.coherence);
             for (lane, slot) in out.iter_mut().enumerate() {
                 *slot = packet.occluded(lane);

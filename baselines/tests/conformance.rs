@@ -64,9 +64,7 @@ fn every_baseline_on_the_builtin_scenes_soups_and_hard_cases() {
     let registry = baselines::registry();
     let mut cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
     cases.extend(conformance::soup_cases(4));
-    let report = conformance::run(&registry, &plan(&registry), &cases);
-    eprintln!("{}", report.summary());
-    report.assert_ok();
+    conformance::assert_conforms(&registry, &plan(&registry), &cases);
     let p = plan(&registry);
     // obvhs finds nothing on the soup scaled by 1e-6 (hits at t ~ 3e-6, coordinates ~ 1e-6:
     // an absolute tolerance in its traversal; see bvh_crates.rs): it sits out that case only.
@@ -76,22 +74,14 @@ fn every_baseline_on_the_builtin_scenes_soups_and_hard_cases() {
     without_obvhs.checks.retain(|c| c.method != "obvhs");
     without_obvhs.oracles.retain(|o| o.method != "obvhs");
     for (plan, cases) in [(&p, &hard), (&without_obvhs, &tiny)] {
-        let report = conformance::run(&registry, plan, cases);
-        eprintln!("{}", report.summary());
+        let report = conformance::assert_conforms(&registry, plan, cases);
         eprintln!("loose disagreements (first of each):\n{}", report.loose_examples.join("\n"));
-        report.assert_ok();
     }
 }
 
 #[test]
 fn every_baseline_on_the_shared_scenes() {
-    let cases = conformance::shared_cases(17, 11);
-    if cases.is_empty() {
-        eprintln!("no shared scenes folder: skipped");
-        return;
-    }
+    let Some(cases) = conformance::shared_cases_or_skip(17, 11) else { return };
     let registry = baselines::registry();
-    let report = conformance::run(&registry, &plan(&registry), &cases);
-    eprintln!("{}", report.summary());
-    report.assert_ok();
+    conformance::assert_conforms(&registry, &plan(&registry), &cases);
 }

@@ -4,26 +4,18 @@
 //! elsewhere in narrow and wide bundles, non-finite lanes and cameras, and cone soft shadows
 //! on two light sizes against the pyramid and single rays.
 
+#[path = "../../packets/tests/common/mod.rs"]
+mod common;
+
+use common::{arena_and_eye, build, same_hit, signed_rng};
 use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
 use cones::{ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
 use glam::Vec3;
-use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use kdtree::{Intersector, KdTree, NoCounters, Ray};
 use packets::{OmniPacket, RayPacket, TileTracer};
 use scenes::{Camera, SphereLight, tiles};
 
 const METHODS: [ConeMethod; 2] = [ConeMethod::Cone, ConeMethod::MftCone];
-
-/// `got` stands for the single ray's hit `want` by the oracle's one rule
-/// ([`BruteForce::equivalent_hits`]: the same hit, a tie at the same distance, or a rounding
-/// artefact on a triangle the ray cannot reach).
-fn same_hit(tree: &KdTree, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
-    got == want || BruteForce::for_tree(tree).equivalent_hits(ray, got, want)
-}
-
-fn build(scene: &scenes::Scene, intersector: Intersector) -> KdTree {
-    let config = BuildConfig { intersector, ..Default::default() };
-    KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap()
-}
 
 /// Soft shadows of the primary hits of `camera` to a spherical light at `centre`: the cone,
 /// the pyramid and single rays agree on every shadow ray. Returns how many points were
@@ -73,16 +65,8 @@ fn cone_soft_shadows_match_single_rays_on_the_builtin_scenes() {
 /// methods give the single rays' hits.
 #[test]
 fn loaded_packets_in_narrow_and_wide_bundles() {
-    let scene = scenes::load_scene("arena").unwrap();
-    let tree = build(&scene, Intersector::Watertight);
-    let origin = scene.default_view().eye;
-    let mut state = 987654321u32;
-    let mut rnd = || {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        (state as f32 / u32::MAX as f32) * 2.0 - 1.0
-    };
+    let (tree, origin) = arena_and_eye(Intersector::Watertight);
+    let mut rnd = signed_rng(987654321);
     let mut tracer = TileTracer::new(8).unwrap();
     for spread in [0.01f32, 0.3, 3.0] {
         for round in 0..20 {

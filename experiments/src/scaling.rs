@@ -133,13 +133,13 @@ pub fn csv(rows: &[ScalingRow]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kdtree::{BuildConfig, KdTree};
+    use kdtree::BuildConfig;
+    use trace::setup::load_and_build;
     use trace::{Options, Registry, Structures};
 
     #[test]
     fn one_row_per_pool_size_and_unit_speedup_at_one() {
-        let scene = scenes::load_scene("touching-boxes").unwrap();
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
+        let (scene, tree, _) = load_and_build("touching-boxes", &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(32, 32).unwrap();
         let (registry, structures) = (Registry::ours(), Structures::new(&tree));
         let mft = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();

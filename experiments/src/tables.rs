@@ -398,6 +398,29 @@ fn pct(new: f64, old: f64) -> f64 {
     100.0 * (new - old) / old
 }
 
+/// The columns of a Table 4.3 or 4.5 row from the tile on: `r` (MFT, a cone or MFT cones)
+/// against the single frustum of the same tile, then the thesis's figures for the same
+/// comparison; `None` where that frustum was not measured.
+fn against_frustum(rows: &[Row], r: &Row) -> Option<String> {
+    let f = find(rows, &r.scene, "frustum", r.tile, true)?;
+    let th = match (thesis(&r.scene, r.method, r.tile), thesis(&r.scene, "frustum", r.tile)) {
+        (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
+        _ => " | | ".into(),
+    };
+    Some(format!(
+        "{}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
+        r.tile,
+        r.tile,
+        r.fps,
+        r.mrays,
+        r.n,
+        r.i,
+        pct(r.fps, f.fps),
+        pct(r.n, f.n),
+        pct(r.i, f.i)
+    ))
+}
+
 fn markdown(rows: &[Row], config: &TablesConfig, threads: usize) -> String {
     let mut scenes: Vec<&str> = Vec::new();
     for r in rows {
@@ -463,25 +486,9 @@ fn markdown(rows: &[Row], config: &TablesConfig, threads: usize) -> String {
     );
     let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in rows.iter().filter(|r| r.method == "mft") {
-        let Some(f) = find(rows, &r.scene, "frustum", r.tile, true) else { continue };
-        let th = match (thesis(&r.scene, "mft", r.tile), thesis(&r.scene, "frustum", r.tile)) {
-            (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
-            _ => " | | ".into(),
-        };
-        let _ = writeln!(
-            out,
-            "| {} | {}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
-            r.scene,
-            r.tile,
-            r.tile,
-            r.fps,
-            r.mrays,
-            r.n,
-            r.i,
-            pct(r.fps, f.fps),
-            pct(r.n, f.n),
-            pct(r.i, f.i)
-        );
+        if let Some(columns) = against_frustum(rows, r) {
+            let _ = writeln!(out, "| {} | {columns}", r.scene);
+        }
     }
 
     let _ = writeln!(out, "\n### Table 4.4: peak MFT against the peak single frustum\n");
@@ -519,26 +526,9 @@ fn markdown(rows: &[Row], config: &TablesConfig, threads: usize) -> String {
     );
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in rows.iter().filter(|r| matches!(r.method, "cone" | "mft-cone")) {
-        let Some(f) = find(rows, &r.scene, "frustum", r.tile, true) else { continue };
-        let th = match (thesis(&r.scene, r.method, r.tile), thesis(&r.scene, "frustum", r.tile)) {
-            (Some(m), Some(f)) => format!("{:+.1}% | {:+.1}% | {:+.1}%", pct(m.0, f.0), pct(m.1, f.1), pct(m.2, f.2)),
-            _ => " | | ".into(),
-        };
-        let _ = writeln!(
-            out,
-            "| {} | {} | {}x{} | {:.1} | {:.2} | {:.2} | {:.2} | {:+.1}% | {:+.1}% | {:+.1}% | {th} |",
-            r.scene,
-            r.method,
-            r.tile,
-            r.tile,
-            r.fps,
-            r.mrays,
-            r.n,
-            r.i,
-            pct(r.fps, f.fps),
-            pct(r.n, f.n),
-            pct(r.i, f.i)
-        );
+        if let Some(columns) = against_frustum(rows, r) {
+            let _ = writeln!(out, "| {} | {} | {columns}", r.scene, r.method);
+        }
     }
     out
 }

@@ -1,6 +1,9 @@
 //! Hand-made build cases: SAH termination, flat and degenerate configurations, huge and tiny
 //! coordinates, and the statistics of a small tree.
 
+mod common;
+
+use common::Rng;
 use glam::Vec3;
 use kdtree::{BuildConfig, KdNode, KdTree};
 
@@ -16,21 +19,6 @@ fn build_with(tris: &[[Vec3; 3]], config: &BuildConfig) -> KdTree {
     let tree = KdTree::build_soup(tris, config).expect("build");
     tree.validate().unwrap_or_else(|e| panic!("invalid tree: {e}"));
     tree
-}
-
-/// A deterministic xorshift generator for the small soups here.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn vec(&mut self) -> Vec3 {
-        v(self.next(), self.next(), self.next())
-    }
 }
 
 #[test]
@@ -58,7 +46,7 @@ fn two_far_clusters_are_split_between_them() {
     let mut tris = Vec::new();
     for c in [v(0.0, 0.0, 0.0), v(100.0, 0.0, 0.0)] {
         for _ in 0..50 {
-            tris.push([c + rng.vec(), c + rng.vec(), c + rng.vec()]);
+            tris.push([c + rng.vec3(), c + rng.vec3(), c + rng.vec3()]);
         }
     }
     let tree = build(&tris);
@@ -100,14 +88,11 @@ fn stats_of_a_hand_built_tree() {
 
 #[test]
 fn all_triangles_in_one_plane() {
-    let mut rng = Rng(11);
-    let tris: Vec<_> = (0..2000)
-        .map(|_| {
-            let c = rng.vec() * 10.0;
-            let s = 0.05 + rng.next();
-            [c, c + v(s, 0.0, 0.0), c + v(0.0, s, 0.0)].map(|p| v(p.x, p.y, 0.5))
-        })
-        .collect();
+    let tris = Rng(11).triangles(2000, |r| {
+        let c = r.vec3() * 10.0;
+        let s = 0.05 + r.f32();
+        [c, c + v(s, 0.0, 0.0), c + v(0.0, s, 0.0)].map(|p| v(p.x, p.y, 0.5))
+    });
     let tree = build(&tris);
     let s = tree.stats();
     assert!(s.leaves > 50, "{s:?}");
@@ -150,24 +135,20 @@ fn triangles_on_split_planes_and_touching_boxes() {
 #[test]
 fn huge_and_tiny_coordinates() {
     for scale in [1e-30f32, 1e-38] {
-        let mut rng = Rng(3);
-        let tris: Vec<_> = (0..500).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| p * scale)).collect();
+        let tris = Rng(3).triangles(500, |r| [r.vec3(), r.vec3(), r.vec3()].map(|p| p * scale));
         build(&tris);
     }
     // A scene mixing both: tiny triangles near the origin and huge ones around them.
     let mut rng = Rng(9);
-    let mut tris: Vec<_> = (0..300).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| p * 1e-18)).collect();
-    tris.extend((0..300).map(|_| [rng.vec(), rng.vec(), rng.vec()].map(|p| (p - Vec3::splat(0.5)) * 1e30)));
+    let mut tris = rng.triangles(300, |r| [r.vec3(), r.vec3(), r.vec3()].map(|p| p * 1e-18));
+    tris.extend(rng.triangles(300, |r| [r.vec3(), r.vec3(), r.vec3()].map(|p| (p - Vec3::splat(0.5)) * 1e30)));
     build(&tris);
     for scale in [1e30f32, 1e-15, 1e38] {
-        let mut rng = Rng(3);
-        let tris: Vec<_> = (0..500)
-            .map(|_| {
-                let c = rng.vec() * 2.0 - Vec3::ONE;
-                let s = rng.next() * 0.2;
-                [c, c + rng.vec() * s, c + rng.vec() * s].map(|p| p * scale)
-            })
-            .collect();
+        let tris = Rng(3).triangles(500, |r| {
+            let c = r.vec3() * 2.0 - Vec3::ONE;
+            let s = r.f32() * 0.2;
+            [c, c + r.vec3() * s, c + r.vec3() * s].map(|p| p * scale)
+        });
         let tree = build(&tris);
         let s = tree.stats();
         assert!(s.sah_cost.is_finite() && s.sah_cost > 0.0, "{scale}: {s:?}");
@@ -178,13 +159,10 @@ fn huge_and_tiny_coordinates() {
 
 #[test]
 fn depth_limit_is_respected() {
-    let mut rng = Rng(5);
-    let tris: Vec<_> = (0..3000)
-        .map(|_| {
-            let c = rng.vec() * 10.0;
-            [c, c + rng.vec() * 0.1, c + rng.vec() * 0.1]
-        })
-        .collect();
+    let tris = Rng(5).triangles(3000, |r| {
+        let c = r.vec3() * 10.0;
+        [c, c + r.vec3() * 0.1, c + r.vec3() * 0.1]
+    });
     for d in [0, 1, 5] {
         let tree = build_with(&tris, &BuildConfig { max_depth: Some(d), ..BuildConfig::default() });
         assert_eq!(tree.stats().depth, d as usize);

@@ -2,31 +2,13 @@
 //! split positions, depth, completeness), whatever the sizes, scales and degenerate
 //! configurations; and the tree is bit-identical across thread counts.
 
+mod common;
+
+use common::Rng;
 use glam::Vec3;
 use kdtree::{BuildConfig, KdTree};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
-
-/// A deterministic xorshift generator.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Rng {
-        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    fn f(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn v(&mut self) -> Vec3 {
-        Vec3::new(self.f(), self.f(), self.f())
-    }
-    fn below(&mut self, n: u32) -> u32 {
-        ((self.f() * n as f32) as u32).min(n - 1)
-    }
-}
 
 /// A soup of `n` triangles in the unit cube times `scale`, mixing: small random triangles,
 /// axis-aligned triangles on a few common planes (x = 0.5, y = 0.25, z = 0.75 and the cube
@@ -44,17 +26,17 @@ fn soup(seed: u64, n: usize, scale: f32, big: u32) -> Vec<[Vec3; 3]> {
         };
         let t = match kind {
             0 => {
-                let c = r.v();
-                let s = 0.001 + 0.05 * r.f();
-                [c, c + (r.v() - 0.5) * s, c + (r.v() - 0.5) * s]
+                let c = r.vec3();
+                let s = 0.001 + 0.05 * r.f32();
+                [c, c + (r.vec3() - 0.5) * s, c + (r.vec3() - 0.5) * s]
             }
-            1 => [r.v(), r.v(), r.v()],
+            1 => [r.vec3(), r.vec3(), r.vec3()],
             2 => {
                 // Lies in an axis plane shared with many others.
                 let axis = r.below(3) as usize;
                 let p = planes[r.below(5) as usize];
-                let mut t = [r.v(), r.v(), r.v()];
-                let s = 0.02 + 0.3 * r.f();
+                let mut t = [r.vec3(), r.vec3(), r.vec3()];
+                let s = 0.02 + 0.3 * r.f32();
                 let c = t[0];
                 for v in &mut t[1..] {
                     *v = c + (*v - 0.5) * s;
@@ -74,9 +56,9 @@ fn soup(seed: u64, n: usize, scale: f32, big: u32) -> Vec<[Vec3; 3]> {
             }
             _ => {
                 // Long thin slivers crossing the whole cube.
-                let a = r.v();
-                let d = r.v() - 0.5;
-                [a - d * 2.0, a + d * 2.0, a + d * 2.0 + r.v() * 0.01]
+                let a = r.vec3();
+                let d = r.vec3() - 0.5;
+                [a - d * 2.0, a + d * 2.0, a + d * 2.0 + r.vec3() * 0.01]
             }
         };
         tris.push(t);

@@ -48,24 +48,21 @@ fn small_builtin_scenes_match_the_oracle() {
     }
 }
 
-#[test]
-fn arena_matches_the_oracle() {
-    check_scene(&scenes::builtin::by_name("arena").unwrap(), 24);
+/// One test per large built-in scene (so they run in parallel): `test: "scene" at grid`.
+macro_rules! builtin_scene_tests {
+    ($($test:ident: $name:literal at $grid:literal;)*) => {$(
+        #[test]
+        fn $test() {
+            check_scene(&scenes::builtin::by_name($name).unwrap(), $grid);
+        }
+    )*};
 }
 
-#[test]
-fn atrium_matches_the_oracle() {
-    check_scene(&scenes::builtin::by_name("atrium").unwrap(), 16);
-}
-
-#[test]
-fn atrium_rotated_matches_the_oracle() {
-    check_scene(&scenes::builtin::by_name("atrium-rotated").unwrap(), 16);
-}
-
-#[test]
-fn grove_matches_the_oracle() {
-    check_scene(&scenes::builtin::by_name("grove").unwrap(), 10);
+builtin_scene_tests! {
+    arena_matches_the_oracle: "arena" at 24;
+    atrium_matches_the_oracle: "atrium" at 16;
+    atrium_rotated_matches_the_oracle: "atrium-rotated" at 16;
+    grove_matches_the_oracle: "grove" at 10;
 }
 
 #[test]

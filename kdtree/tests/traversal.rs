@@ -13,15 +13,20 @@ fn configs() -> [BuildConfig; 2] {
     [BuildConfig::default(), BuildConfig { intersector: Intersector::Watertight, ..BuildConfig::default() }]
 }
 
-fn check_soup(tris: &[[Vec3; 3]], seeds: &[(Vec3, Vec3, usize, u8)], scale: f32) -> Result<(), TestCaseError> {
-    let rays = rays_for(tris, scale, seeds);
+/// Checks `rays` against the oracle on the SAH tree and the median-split tree of `tris`, with
+/// both intersectors.
+fn check_trees(tris: &[[Vec3; 3]], rays: &[Ray]) -> Result<(), String> {
     for config in configs() {
-        let sah = KdTree::build_soup(tris, &config).map_err(|e| TestCaseError::fail(e.to_string()))?;
-        check_rays(&sah, &rays).map_err(|e| TestCaseError::fail(format!("SAH tree: {e}")))?;
+        let sah = KdTree::build_soup(tris, &config).map_err(|e| e.to_string())?;
+        check_rays(&sah, rays).map_err(|e| format!("SAH tree: {e}"))?;
         let median = median_tree(tris, 2, &config);
-        check_rays(&median, &rays).map_err(|e| TestCaseError::fail(format!("median tree: {e}")))?;
+        check_rays(&median, rays).map_err(|e| format!("median tree: {e}"))?;
     }
     Ok(())
+}
+
+fn check_soup(tris: &[[Vec3; 3]], seeds: &[(Vec3, Vec3, usize, u8)], scale: f32) -> Result<(), TestCaseError> {
+    check_trees(tris, &rays_for(tris, scale, seeds)).map_err(TestCaseError::fail)
 }
 
 fn seeds(scale: f32) -> impl Strategy<Value = Vec<(Vec3, Vec3, usize, u8)>> {
@@ -100,11 +105,7 @@ fn planar_scene_rays_through_every_vertex_and_edge() {
             }
         }
     }
-    for config in configs() {
-        let tree = KdTree::build_soup(&tris, &config).unwrap();
-        check_rays(&tree, &rays).unwrap();
-        check_rays(&median_tree(&tris, 2, &config), &rays).unwrap();
-    }
+    check_trees(&tris, &rays).unwrap();
 }
 
 #[test]
@@ -155,11 +156,7 @@ fn axis_parallel_rays_with_signed_zeros_in_a_box_of_boxes() {
             }
         }
     }
-    for config in configs() {
-        let tree = KdTree::build_soup(&tris, &config).unwrap();
-        check_rays(&tree, &rays).unwrap();
-        check_rays(&median_tree(&tris, 2, &config), &rays).unwrap();
-    }
+    check_trees(&tris, &rays).unwrap();
 }
 
 #[test]

@@ -4,22 +4,18 @@
 //! size, MFT never doing more work than the single frustum of the same tile, omni packets in
 //! every direction, non-finite cameras and lanes, NaN frustum bounds.
 
+mod common;
+
+use common::{arena_and_eye, build, same_hit, signed_rng, vertex};
 use glam::Vec3;
 use kdtree::Counts;
-use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::TileMethod;
 use packets::tile::TileTracer;
 use proptest::prelude::*;
 use scenes::{Camera, tiles};
 
 const METHODS: [TileMethod; 4] = [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft];
-
-/// `got` stands for the single ray's hit `want` by the oracle's one rule
-/// ([`BruteForce::equivalent_hits`]: the same hit, a tie at the same distance, or a rounding
-/// artefact on a triangle the ray cannot reach).
-fn same_hit(tree: &KdTree, ray: &Ray, got: Option<Hit>, want: Option<Hit>) -> bool {
-    got == want || BruteForce::for_tree(tree).equivalent_hits(ray, got, want)
-}
 
 /// Checks per tile of `camera`'s image that MFT at `tile_size` does no more work (steps,
 /// triangle tests) than the single frustum of the same tile (thesis 4.1.5).
@@ -55,16 +51,6 @@ fn mft_never_does_more_work_than_the_frustum() {
     }
 }
 
-fn build(scene: &scenes::Scene, intersector: Intersector) -> KdTree {
-    let config = BuildConfig { intersector, ..Default::default() };
-    KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap()
-}
-
-fn vertex() -> impl Strategy<Value = Vec3> {
-    let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
-    (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
-}
-
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
 
@@ -92,16 +78,8 @@ proptest! {
 #[test]
 fn omni_packets_any_direction_and_any_hit() {
     use packets::{OmniPacket, RayPacket, omni};
-    let scene = scenes::load_scene("arena").unwrap();
-    let tree = build(&scene, Intersector::Wald);
-    let origin = scene.default_view().eye;
-    let mut state = 12345u32;
-    let mut rnd = || {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        state as f32 / u32::MAX as f32 * 2.0 - 1.0
-    };
+    let (tree, origin) = arena_and_eye(Intersector::Wald);
+    let mut rnd = signed_rng(12345);
     for _ in 0..2000 {
         let rays: [Ray; 4] = std::array::from_fn(|_| {
             let d = Vec3::new(rnd(), rnd(), rnd());

@@ -250,6 +250,17 @@ pub fn shared_cases(width: u32, height: u32) -> Vec<Case> {
         .collect()
 }
 
+/// [`shared_cases`] for a test of the shared scenes: `None`, after a note on stderr, when the
+/// folder is absent or holds no scene (the test is then skipped).
+pub fn shared_cases_or_skip(width: u32, height: u32) -> Option<Vec<Case>> {
+    let cases = shared_cases(width, height);
+    if cases.is_empty() {
+        eprintln!("no shared scenes folder: skipped");
+        return None;
+    }
+    Some(cases)
+}
+
 /// Random soups (with flat triangles), each seen from outside and from inside with a
 /// 150-degree field of view, checked against the oracle too.
 pub fn soup_cases(count: u64) -> Vec<Case> {
@@ -749,6 +760,15 @@ pub fn run(registry: &Registry, plan: &Plan, cases: &[Case]) -> Report {
             check_case(registry, plan, case, &structures, &judge, &light, &at, &mut report);
         }
     }
+    report
+}
+
+/// [`run`] as a test: prints the report's summary on stderr, then panics if any key fails
+/// ([`Report::assert_ok`]). Returns the report.
+pub fn assert_conforms(registry: &Registry, plan: &Plan, cases: &[Case]) -> Report {
+    let report = run(registry, plan, cases);
+    eprintln!("{}", report.summary());
+    report.assert_ok();
     report
 }
 

@@ -250,13 +250,12 @@ mod tests {
     use super::*;
     use crate::method::{Tracer, primary_ray};
     use crate::registry::{Options, Registry, Structures};
-    use kdtree::KdTree;
+    use crate::setup::load_and_build;
 
     /// The tiled, parallel passes give every pixel the answer of a plain per-pixel loop.
     #[test]
     fn frame_matches_a_per_pixel_loop() {
-        let scene = scenes::load_scene("touching-boxes").unwrap();
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let (scene, tree, _) = load_and_build("touching-boxes", &Default::default()).unwrap();
         let camera = scene.default_view().camera(37, 29).unwrap();
         let structures = Structures::new(&tree);
         let registry = Registry::ours();
@@ -291,8 +290,7 @@ mod tests {
     /// soft-shadow kernel (single rays, pyramid, cone).
     #[test]
     fn soft_shadows_agree_across_kernels() {
-        let scene = scenes::load_scene("atrium").unwrap();
-        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
         let camera = scene.default_view().camera(48, 32).unwrap();
         let light = crate::soft::scene_light(&scene, &tree, 2.0);
         let structures = Structures::new(&tree);

@@ -13,9 +13,7 @@ use trace::conformance::{self, Plan};
 fn every_method_on_the_builtin_scenes() {
     let registry = Registry::ours();
     let cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
-    let report = conformance::run(&registry, &Plan::ours(&registry), &cases);
-    eprintln!("{}", report.summary());
-    report.assert_ok();
+    conformance::assert_conforms(&registry, &Plan::ours(&registry), &cases);
 }
 
 #[test]
@@ -23,39 +21,29 @@ fn every_method_on_soups_and_hard_cases() {
     let registry = Registry::ours();
     let mut cases = conformance::soup_cases(4);
     cases.extend(conformance::hard_cases());
-    let report = conformance::run(&registry, &Plan::ours(&registry), &cases);
-    eprintln!("{}", report.summary());
-    report.assert_ok();
+    conformance::assert_conforms(&registry, &Plan::ours(&registry), &cases);
 }
 
 /// The shared OBJ scenes at their default view, tiny, with Wald's test (the default) only:
 /// their trees take a second each to build (skipped without the shared folder).
 #[test]
 fn every_method_on_the_shared_scenes() {
-    let cases = conformance::shared_cases(17, 11);
-    if cases.is_empty() {
-        eprintln!("no shared scenes folder: skipped");
-        return;
-    }
+    let Some(cases) = conformance::shared_cases_or_skip(17, 11) else { return };
     let registry = Registry::ours();
     let plan = Plan { intersectors: vec![kdtree::Intersector::Wald], ..Plan::ours(&registry) };
-    let report = conformance::run(&registry, &plan, &cases);
-    eprintln!("{}", report.summary());
-    report.assert_ok();
+    conformance::assert_conforms(&registry, &plan, &cases);
 }
 
+#[path = "../../packets/tests/common/mod.rs"]
+mod common;
+
 mod random {
+    use super::common::vertex;
     use glam::Vec3;
     use proptest::prelude::*;
     use scenes::Camera;
     use trace::Registry;
     use trace::conformance::{self, Case, Plan};
-
-    /// A corner: on a grid of quarters (shared vertices, axis planes) or anywhere in [-1, 1].
-    fn vertex() -> impl Strategy<Value = Vec3> {
-        let c = || prop_oneof![(-4i32..=4).prop_map(|k| k as f32 * 0.25), -1.0f32..1.0];
-        (c(), c(), c()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
-    }
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]

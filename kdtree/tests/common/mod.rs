@@ -125,3 +125,37 @@ pub fn rays_for(tris: &[[Vec3; 3]], scale: f32, seeds: &[(Vec3, Vec3, usize, u8)
     }
     rays
 }
+
+/// A deterministic xorshift generator for fixed seeded soups (the same triangles every run,
+/// unlike proptest's).
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// A generator from any seed (scrambled, never zero).
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
+    /// A number in `[0, 1)`.
+    pub fn f32(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// A point in the unit cube.
+    pub fn vec3(&mut self) -> Vec3 {
+        Vec3::new(self.f32(), self.f32(), self.f32())
+    }
+
+    /// A whole number below `n`.
+    pub fn below(&mut self, n: u32) -> u32 {
+        ((self.f32() * n as f32) as u32).min(n - 1)
+    }
+
+    /// `n` triangles, each made by `make` from this generator.
+    pub fn triangles(&mut self, n: usize, mut make: impl FnMut(&mut Rng) -> [Vec3; 3]) -> Vec<[Vec3; 3]> {
+        (0..n).map(|_| make(self)).collect()
+    }
+}
