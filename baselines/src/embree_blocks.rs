@@ -14,7 +14,7 @@ use cones::shadows::SAMPLES;
 use kdtree::{Hit, Ray};
 use scenes::{Camera, Scene, Tile};
 use trace::frame::{Driven, FrameTracer};
-use trace::method::{hard_shadow_ray, primary_ray};
+use trace::method::{ShadowJob, hard_shadow_ray, primary_ray};
 use trace::registry::{Entry, Options, StructureEntry, Structures};
 use trace::{Error, Method, Registry, SingleRays, TileCounters, Tracer};
 
@@ -219,13 +219,11 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
     fn shadow_tile<C: TileCounters>(
         &self,
         packet: &mut P,
-        scene: &Scene,
-        camera: &Camera,
-        tile: &Tile,
-        hits: &[Option<Hit>],
+        job: &ShadowJob<'_>,
         out: &mut [bool],
         _: &mut C,
     ) -> (u64, u64) {
+        let (scene, camera, tile, hits) = (job.scene, job.camera, job.tile, job.hits);
         let shape = block_shape(P::WIDTH);
         let (mut rays, mut blocked) = (0u64, 0u64);
         for (bx, by) in blocks(tile, shape) {

@@ -341,6 +341,7 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut shadow_rays = vec![0u64; shadows.kernels.len()];
     let mut soft_rays = vec![0u64; softs.kernels.len()];
     let mut occluded = vec![false; frame.layout.pixel_count()];
+    let frame_view = trace::frame::View { layout: &frame.layout, scene: &scene, camera: &camera };
     let mut visible = vec![0.0f32; frame.layout.pixel_count()];
     for _ in 0..config.rounds {
         for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
@@ -349,17 +350,15 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         }
         for (i, &(_, by)) in shadows.kernels.iter().enumerate() {
             let tracer = &contenders[by].method.tracer;
-            let (secs, (rays, _)) =
-                timed(|| tracer.shadow(&frame.layout, &scene, &camera, &frame.reference_tiles, &mut occluded, None));
+            let (secs, (rays, _)) = timed(|| tracer.shadow(&frame_view, &frame.reference_tiles, &mut occluded, None));
             shadow_secs[i].push(secs);
             shadow_rays[i] = rays;
             bar.inc();
         }
         for (i, &(_, by)) in softs.kernels.iter().enumerate() {
             let tracer = &contenders[by].method.tracer;
-            let (secs, stats) = timed(|| {
-                tracer.soft(&frame.layout, &scene, &camera, &frame.reference_tiles, &frame.light, &mut visible, None)
-            });
+            let (secs, stats) =
+                timed(|| tracer.soft(&frame_view, &frame.reference_tiles, &frame.light, &mut visible, None));
             soft_secs[i].push(secs);
             soft_rays[i] = stats.rays;
             bar.inc();

@@ -226,6 +226,7 @@ fn measure_soft(
     let (w, h) = config.size;
     let (camera, _) = view_camera(scene, None, w, h)?;
     let layout = TileLayout::new(w, h, trace::registry::TILE_SIZE);
+    let view = trace::frame::View { layout: &layout, scene, camera: &camera };
     let mono = registry.bind(&registry.select("mono", Options::default())?, structures)?;
     let mut hits = vec![None; layout.pixel_count()];
     mono.tracer.primary(&layout, &camera, &mut hits, None);
@@ -243,7 +244,7 @@ fn measure_soft(
             let mut stats = Default::default();
             for _ in 0..frames {
                 let start = Instant::now();
-                stats = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible, None);
+                stats = tracer.soft(&view, &hits, &light, &mut visible, None);
                 best = best.min(start.elapsed().as_secs_f64());
             }
             match &reference {
@@ -258,7 +259,7 @@ fn measure_soft(
                 Some(_) => {}
             }
             let mut counts = kdtree::Counts::default();
-            let counted = tracer.soft(&layout, scene, &camera, &hits, &light, &mut visible, Some(&mut counts));
+            let counted = tracer.soft(&view, &hits, &light, &mut visible, Some(&mut counts));
             let points = counted.points.max(1) as f64;
             let tests = if method == ShadowMethod::Single { counts.tests as f64 / 4.0 } else { counts.tests as f64 };
             rows.push(SoftRow {

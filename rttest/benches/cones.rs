@@ -21,6 +21,7 @@ fn soft_shadows(c: &mut Criterion) {
     for (name, scene, tree, camera) in trace::setup::packet_workloads(256) {
         let structures = Structures::new(&tree);
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
+        let view = trace::frame::View { layout: &layout, scene: &scene, camera: &camera };
         let bind = |m: &str| registry.bind(&registry.select(m, Options::default()).expect("registered"), &structures);
         let mono = bind("mono").expect("mono binds");
         let mut hits = vec![None; layout.pixel_count()];
@@ -32,13 +33,13 @@ fn soft_shadows(c: &mut Criterion) {
             g.sample_size(10)
                 .warm_up_time(std::time::Duration::from_secs(1))
                 .measurement_time(std::time::Duration::from_secs(3));
-            let rays = mono.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible, None).rays;
+            let rays = mono.tracer.soft(&view, &hits, &light, &mut visible, None).rays;
             g.throughput(Throughput::Elements(rays));
             // One method per soft-shadow kernel: single rays, the pyramid, the cone.
             for (kernel, method) in [("single", "mono"), ("pyramid", "packet"), ("cone", "cone")] {
                 let bound = bind(method).expect("registered methods bind");
                 g.bench_function(kernel, |b| {
-                    b.iter(|| bound.tracer.soft(&layout, &scene, &camera, &hits, &light, &mut visible, None).blocked)
+                    b.iter(|| bound.tracer.soft(&view, &hits, &light, &mut visible, None).blocked)
                 });
             }
             g.finish();

@@ -31,7 +31,7 @@ use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, Ray};
 use scenes::{Camera, Material, Mesh, Scene, SphereLight};
 
-use crate::frame::{SoftStats, TileLayout};
+use crate::frame::{SoftStats, TileLayout, View};
 use crate::method::{hard_shadow_ray, primary_ray};
 use crate::registry::{KDTREE, Options, Registry, Structures};
 use crate::soft;
@@ -881,18 +881,20 @@ fn check_case(
                 let mut hits = vec![None; layout.pixel_count()];
                 reference.tracer.primary(&layout, camera, &mut hits, None);
                 let mut shadow = vec![false; layout.pixel_count()];
-                let shadow_counts = reference.tracer.shadow(&layout, scene, camera, &hits, &mut shadow, None);
+                let shadow_counts =
+                    reference.tracer.shadow(&View { layout: &layout, scene, camera }, &hits, &mut shadow, None);
                 let mut visible = vec![0.0; layout.pixel_count()];
-                let soft = reference.tracer.soft(&layout, scene, camera, &hits, light, &mut visible, None);
+                let soft =
+                    reference.tracer.soft(&View { layout: &layout, scene, camera }, &hits, light, &mut visible, None);
                 Frame { hits, shadow, shadow_counts, visible, soft }
             });
             let n = layout.pixel_count();
             let (mut hits, mut shadow, mut visible) = (vec![None; n], vec![false; n], vec![0.0; n]);
             m.tracer.primary(&layout, camera, &mut hits, None);
             // Shadows from the reference's hits, so that both trace the same rays.
-            let counts = m.tracer.shadow(&layout, scene, camera, &want.hits, &mut shadow, None);
+            let counts = m.tracer.shadow(&View { layout: &layout, scene, camera }, &want.hits, &mut shadow, None);
             let stats = if soft {
-                m.tracer.soft(&layout, scene, camera, &want.hits, light, &mut visible, None)
+                m.tracer.soft(&View { layout: &layout, scene, camera }, &want.hits, light, &mut visible, None)
             } else {
                 want.soft
             };
@@ -973,7 +975,7 @@ mod tests {
 
     use super::*;
     use crate::frame::Driven;
-    use crate::method::{Method, SingleRays, TileCounters};
+    use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
     use crate::registry::Entry;
 
     /// Single rays with one query deliberately wrong on some rays: `K` = 0 primary, 1 hard
@@ -995,16 +997,13 @@ mod tests {
         fn shadow_tile<C: TileCounters>(
             &self,
             s: &mut (),
-            scene: &Scene,
-            camera: &Camera,
-            tile: &Tile,
-            hits: &[Option<Hit>],
+            job: &ShadowJob<'_>,
             out: &mut [bool],
             n: &mut C,
         ) -> (u64, u64) {
-            let counts = self.0.shadow_tile(s, scene, camera, tile, hits, out, n);
+            let counts = self.0.shadow_tile(s, job, out, n);
             if K == 1 {
-                out.iter_mut().zip(hits).filter(|(_, h)| h.is_some()).step_by(5).for_each(|(b, _)| *b = !*b);
+                out.iter_mut().zip(job.hits).filter(|(_, h)| h.is_some()).step_by(5).for_each(|(b, _)| *b = !*b);
             }
             counts
         }

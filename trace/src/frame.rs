@@ -20,7 +20,7 @@ use kdtree::{Hit, NoCounters, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
-use crate::method::{Method, TileCounters};
+use crate::method::{Method, ShadowJob, TileCounters};
 use crate::soft;
 
 /// An image split into tiles, with each tile's offset into tile-ordered per-pixel buffers.
@@ -193,7 +193,7 @@ pub fn shadow_pass<M: Method, C: TileCounters>(
 ) -> (u64, u64, C) {
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(occluded)).collect();
     let ((rays, blocked), counts) = over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
-        method.shadow_tile(scratch, scene, camera, tile, hits, out, counts)
+        method.shadow_tile(scratch, &ShadowJob { scene, camera, tile, hits }, out, counts)
     });
     (rays, blocked, counts)
 }
@@ -249,6 +249,17 @@ pub fn stream_occluded_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [bool
         .for_each_init(|| method.scratch(), |s, (out, rays)| method.stream_occluded(s, rays, out, &mut NoCounters));
 }
 
+/// One view of a scene in tiles: what the shadow passes trace over.
+#[derive(Clone, Copy, Debug)]
+pub struct View<'a> {
+    /// The tiles of the image and of its tile-ordered buffers.
+    pub layout: &'a TileLayout,
+    /// The scene (mesh and point light).
+    pub scene: &'a Scene,
+    /// The camera of the primary rays.
+    pub camera: &'a Camera,
+}
+
 /// The passes of one method behind a `dyn`: what the registry hands out. One virtual call per
 /// pass; inside, the generic passes above run monomorphic. Each pass counts into `counts`
 /// when given one (slower: not for timing), and with `None` counting compiles away.
@@ -262,26 +273,20 @@ pub trait FrameTracer: Sync {
         counts: Option<&mut Counts>,
     ) -> u64;
     /// [`shadow_pass`] from `hits`: (rays traced, rays blocked).
-    #[allow(clippy::too_many_arguments)]
     fn shadow(
         &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
+        view: &View<'_>,
         hits: &[Option<Hit>],
         out: &mut [bool],
         counts: Option<&mut Counts>,
     ) -> (u64, u64);
     /// [`soft_pass`] from `hits` to `light`.
-    #[allow(clippy::too_many_arguments)]
     fn soft(
         &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
+        view: &View<'_>,
         hits: &[Option<Hit>],
         light: &SphereLight,
-        visible: &mut [f32],
+        out: &mut [f32],
         counts: Option<&mut Counts>,
     ) -> SoftStats;
     /// [`stream_pass`].
@@ -312,23 +317,15 @@ impl<M: Method> FrameTracer for Driven<M> {
         }
     }
 
-    fn shadow(
-        &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
-        hits: &[Option<Hit>],
-        out: &mut [bool],
-        counts: Option<&mut Counts>,
-    ) -> (u64, u64) {
+    fn shadow(&self, v: &View<'_>, hits: &[Option<Hit>], out: &mut [bool], counts: Option<&mut Counts>) -> (u64, u64) {
         let m = &self.0;
         match counts {
             None => {
-                let (rays, blocked, NoCounters) = shadow_pass(m, layout, scene, camera, hits, out);
+                let (rays, blocked, NoCounters) = shadow_pass(m, v.layout, v.scene, v.camera, hits, out);
                 (rays, blocked)
             }
             Some(c) => {
-                let (rays, blocked, k) = shadow_pass::<M, Counts>(m, layout, scene, camera, hits, out);
+                let (rays, blocked, k) = shadow_pass::<M, Counts>(m, v.layout, v.scene, v.camera, hits, out);
                 *c += k;
                 (rays, blocked)
             }
@@ -337,19 +334,17 @@ impl<M: Method> FrameTracer for Driven<M> {
 
     fn soft(
         &self,
-        layout: &TileLayout,
-        scene: &Scene,
-        camera: &Camera,
+        v: &View<'_>,
         hits: &[Option<Hit>],
         light: &SphereLight,
-        visible: &mut [f32],
+        out: &mut [f32],
         counts: Option<&mut Counts>,
     ) -> SoftStats {
         let m = &self.0;
         match counts {
-            None => soft_pass::<M, NoCounters>(m, layout, scene, camera, hits, light, visible).0,
+            None => soft_pass::<M, NoCounters>(m, v.layout, v.scene, v.camera, hits, light, out).0,
             Some(c) => {
-                let (stats, k) = soft_pass::<M, Counts>(m, layout, scene, camera, hits, light, visible);
+                let (stats, k) = soft_pass::<M, Counts>(m, v.layout, v.scene, v.camera, hits, light, out);
                 *c += k;
                 stats
             }

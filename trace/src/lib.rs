@@ -40,6 +40,6 @@ pub mod timing;
 
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
-pub use method::{Method, SingleRays, TileCounters, Tracer};
+pub use method::{Method, ShadowJob, SingleRays, TileCounters, Tracer};
 pub use registry::{Bound, Options, Registry, Structures};
 pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

@@ -101,17 +101,13 @@ pub trait Method: Sync {
         counters: &mut C,
     );
 
-    /// The hard shadow rays of the hits `hits` (row-major inside `tile`; rays from
-    /// [`hard_shadow_ray`]) into `out`: `true` where blocked, `false` where lit or where no
-    /// ray is cast. Returns (rays traced, rays blocked).
-    #[allow(clippy::too_many_arguments)]
+    /// The hard shadow rays of one tile ([`ShadowJob`]: rays from [`hard_shadow_ray`] at its
+    /// primary hits) into `out`: `true` where blocked, `false` where lit or where no ray is
+    /// cast. Returns (rays traced, rays blocked).
     fn shadow_tile<C: TileCounters>(
         &self,
         scratch: &mut Self::Scratch,
-        scene: &Scene,
-        camera: &Camera,
-        tile: &Tile,
-        hits: &[Option<Hit>],
+        job: &ShadowJob<'_>,
         out: &mut [bool],
         counters: &mut C,
     ) -> (u64, u64);
@@ -170,17 +166,14 @@ impl<T: Tracer> Method for SingleRays<T> {
     fn shadow_tile<C: TileCounters>(
         &self,
         _: &mut (),
-        scene: &Scene,
-        camera: &Camera,
-        tile: &Tile,
-        hits: &[Option<Hit>],
+        job: &ShadowJob<'_>,
         out: &mut [bool],
         counters: &mut C,
     ) -> (u64, u64) {
         let (mut rays, mut blocked) = (0, 0);
-        for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+        for ((x, y, hit), slot) in job.pixels().zip(out) {
             *slot = false;
-            let Some(ray) = hard_shadow_ray(scene, camera, x, y, hit) else { continue };
+            let Some(ray) = hard_shadow_ray(job.scene, job.camera, x, y, hit) else { continue };
             rays += 1;
             *slot = self.0.occluded_counted(&ray, counters);
             blocked += u64::from(*slot);
@@ -206,6 +199,27 @@ impl<T: Tracer> Method for SingleRays<T> {
         for (ray, slot) in rays.iter().zip(out) {
             *slot = self.0.occluded_counted(ray, counters);
         }
+    }
+}
+
+/// The hard-shadow work of one tile: the scene and camera its rays come from, the tile, and
+/// the tile's primary hits (row-major inside the tile) that the shadow rays start at.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowJob<'a> {
+    /// The scene (its mesh and point light).
+    pub scene: &'a Scene,
+    /// The camera of the primary rays.
+    pub camera: &'a Camera,
+    /// The tile.
+    pub tile: &'a Tile,
+    /// The tile's primary hits, row-major inside the tile.
+    pub hits: &'a [Option<Hit>],
+}
+
+impl ShadowJob<'_> {
+    /// Each pixel of the tile with its primary hit: `(x, y, hit)`.
+    pub fn pixels(&self) -> impl Iterator<Item = (u32, u32, &Option<Hit>)> {
+        self.tile.pixels().zip(self.hits).map(|((x, y), h)| (x, y, h))
     }
 }
 

@@ -14,9 +14,9 @@ use cones::shadows::SAMPLES;
 use cones::{Cone, ConeMethod, ShadowMethod, SoftShadowTracer};
 use kdtree::{Hit, KdTree, Ray};
 use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
-use scenes::{Camera, Scene, Tile};
+use scenes::{Camera, Tile};
 
-use crate::method::{Method, SingleRays, TileCounters};
+use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
 
 /// Single rays through our kd-tree (thesis 2.2.1).
 pub type Mono<'a> = SingleRays<&'a KdTree>;
@@ -124,14 +124,11 @@ impl Method for Tiled<'_> {
     fn shadow_tile<C: TileCounters>(
         &self,
         _: &mut TiledScratch,
-        scene: &Scene,
-        camera: &Camera,
-        tile: &Tile,
-        hits: &[Option<Hit>],
+        job: &ShadowJob<'_>,
         out: &mut [bool],
-        counters: &mut C,
+        c: &mut C,
     ) -> (u64, u64) {
-        SingleRays(self.tree).shadow_tile(&mut (), scene, camera, tile, hits, out, counters)
+        SingleRays(self.tree).shadow_tile(&mut (), job, out, c)
     }
 
     fn soft_point<C: TileCounters>(

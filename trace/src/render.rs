@@ -18,7 +18,7 @@ use kdtree::Hit;
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
-use crate::frame::{SoftStats, TileLayout};
+use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
 use crate::shade;
 
@@ -177,12 +177,12 @@ impl<'a> Renderer<'a> {
                 buf.occluded.fill(false);
                 buf.visible.resize(layout.pixel_count(), 0.0);
                 let SoftStats { rays, blocked, .. } =
-                    tracer.soft(layout, scene, camera, &buf.hits, &light, &mut buf.visible, counts);
+                    tracer.soft(&View { layout, scene, camera }, &buf.hits, &light, &mut buf.visible, counts);
                 (rays, blocked)
             }
             (Shadows::Hard | Shadows::Soft16, _) => {
                 buf.visible.clear();
-                tracer.shadow(layout, scene, camera, &buf.hits, &mut buf.occluded, counts)
+                tracer.shadow(&View { layout, scene, camera }, &buf.hits, &mut buf.occluded, counts)
             }
         };
         let shadow_secs = if self.shadows == Shadows::None { 0.0 } else { start.elapsed().as_secs_f64() };
