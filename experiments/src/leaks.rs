@@ -158,14 +158,9 @@ pub fn sphere_mesh() -> Mesh {
 /// The Stanford bunny in the shared scenes folder (the first file whose name contains
 /// `bunny`), if there is one.
 pub fn bunny_path() -> Option<std::path::PathBuf> {
-    let dir = scenes::shared_scenes_dir()?;
-    let mut files: Vec<_> = std::fs::read_dir(dir)
-        .ok()?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.contains("bunny")))
-        .collect();
-    files.sort();
-    files.into_iter().next()
+    scenes::shared_scene_files()
+        .into_iter()
+        .find(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.contains("bunny")))
 }
 
 /// Every mesh name [`mesh_by_name`] knows, in report order.

@@ -72,11 +72,14 @@ pub struct TileTracer {
 }
 
 impl TileTracer {
+    /// Whether a tracer can take tiles of `size` pixels: a multiple of 4 in `4..=64`.
+    pub fn check_size(size: u32) -> Result<(), TileError> {
+        if (4..=MAX_TILE).contains(&size) && size.is_multiple_of(4) { Ok(()) } else { Err(TileError::BadSize(size)) }
+    }
+
     /// A tracer for tiles of `size x size` pixels (a multiple of 4 in `4..=64`).
     pub fn new(size: u32) -> Result<TileTracer, TileError> {
-        if !(4..=MAX_TILE).contains(&size) || !size.is_multiple_of(4) {
-            return Err(TileError::BadSize(size));
-        }
+        TileTracer::check_size(size)?;
         let packets = (size as usize / 2).pow(2);
         Ok(TileTracer {
             size,

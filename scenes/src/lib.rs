@@ -26,5 +26,5 @@ pub use image::{Image, ScalarImage};
 pub use light::{PointLight, RectLight, SphereLight};
 pub use mesh::{Material, Mesh};
 pub use obj::{LoadReport, load_obj};
-pub use scene::{Scene, View, load_scene, shared_scenes_dir};
+pub use scene::{Scene, View, load_scene, shared_scene_files, shared_scenes_dir};
 pub use tile::{Tile, tiles};

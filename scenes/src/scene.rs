@@ -143,6 +143,23 @@ pub fn shared_scenes_dir() -> Option<PathBuf> {
     candidates.into_iter().find(|p| p.is_dir())
 }
 
+/// The `.obj` and `.obj.gz` files of the shared scenes folder ([`shared_scenes_dir`]),
+/// sorted; empty when the folder is absent or unreadable.
+pub fn shared_scene_files() -> Vec<PathBuf> {
+    let Some(dir) = shared_scenes_dir() else { return Vec::new() };
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    let mut files: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
+            p.is_file() && (name.ends_with(".obj") || name.ends_with(".obj.gz"))
+        })
+        .collect();
+    files.sort();
+    files
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -29,6 +29,7 @@ use std::fmt::Write as _;
 use cones::shadows::{SAMPLES, light_samples, shadow_rays};
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, Ray};
+use scenes::builtin::shapes::Rng;
 use scenes::{Camera, Material, Mesh, Scene, SphereLight};
 
 use crate::frame::{SoftStats, TileLayout, View};
@@ -47,31 +48,14 @@ pub const INTERSECTORS: [Intersector; 2] = [Intersector::Wald, Intersector::Wate
 /// Soft-shadow light radius in Sponza units (thesis Table 4.6's larger light).
 pub const LIGHT_RADIUS: f32 = 2.0;
 
-/// A small seeded generator (a 64-bit LCG), so that cases need no new dependency.
-#[derive(Clone, Debug)]
-pub struct Lcg(u64);
+/// Uniform in `[-1, 1)`.
+fn signed(rng: &mut Rng) -> f32 {
+    rng.range(-1.0, 1.0)
+}
 
-impl Lcg {
-    /// A generator from `seed`.
-    pub fn new(seed: u64) -> Lcg {
-        Lcg(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x2545_f491_4f6c_dd1d)
-    }
-
-    /// A uniform `f32` in `[-1, 1)`.
-    pub fn signed(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-    }
-
-    /// A uniform integer in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        (((self.signed() + 1.0) * 0.5 * n as f32) as usize).min(n - 1)
-    }
-
-    /// A vector with components in `[-1, 1)`.
-    pub fn vec3(&mut self) -> Vec3 {
-        Vec3::new(self.signed(), self.signed(), self.signed())
-    }
+/// A vector with components in `[-1, 1)`.
+fn vec3(rng: &mut Rng) -> Vec3 {
+    Vec3::new(signed(rng), signed(rng), signed(rng))
 }
 
 /// One scene with its cameras and ray stream.
@@ -116,7 +100,7 @@ impl Case {
 /// - runs of 70 rays from one point (the box centre, then a point on a triangle) in the six
 ///   axis directions (with signed zeros) and random ones: runs longer than a frustum's 64.
 pub fn ray_list(scene: &Scene, camera: Option<&Camera>, seed: u64) -> Vec<Ray> {
-    let mut rng = Lcg::new(seed);
+    let mut rng = Rng::new(seed);
     let (lo, hi) = scene.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
     let (centre, half) = (0.5 * (lo + hi), 0.5 * (hi - lo).max(Vec3::splat(1e-3 * (hi - lo).max_element())));
     let diag = 2.0 * half.length();
@@ -128,35 +112,35 @@ pub fn ray_list(scene: &Scene, camera: Option<&Camera>, seed: u64) -> Vec<Ray> {
     }
     let nonzero = |d: Vec3| if d == Vec3::ZERO { Vec3::X } else { d };
     for i in 0..300 {
-        let o = centre + rng.vec3() * half * 1.2;
+        let o = centre + vec3(&mut rng) * half * 1.2;
         let d = match i % 6 {
-            0 => Vec3::new(rng.signed(), 0.0, -0.0),
-            2 => Vec3::new(-0.0, 0.0, rng.signed()),
-            4 => Vec3::new(0.0, rng.signed(), -0.0),
-            _ => rng.vec3(),
+            0 => Vec3::new(signed(&mut rng), 0.0, -0.0),
+            2 => Vec3::new(-0.0, 0.0, signed(&mut rng)),
+            4 => Vec3::new(0.0, signed(&mut rng), -0.0),
+            _ => vec3(&mut rng),
         };
         let t_min = if i % 5 == 0 { -0.3 * diag } else { 0.0 };
         let t_max = if i % 7 == 0 { f32::INFINITY } else { 1.5 * diag };
         rays.push(Ray::new(o, nonzero(d), t_min, t_max));
     }
     let tris = scene.mesh.triangle_count();
-    let on_surface = |rng: &mut Lcg| {
+    let on_surface = |rng: &mut Rng| {
         if tris == 0 {
             return centre;
         }
-        let t = scene.mesh.triangle(rng.below(tris));
-        let (u, v) = (0.5 * (rng.signed() + 1.0), 0.5 * (rng.signed() + 1.0));
+        let t = scene.mesh.triangle((rng.next_u64() % tris as u64) as usize);
+        let (u, v) = (0.5 * (signed(rng) + 1.0), 0.5 * (signed(rng) + 1.0));
         let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
         t[0] + u * (t[1] - t[0]) + v * (t[2] - t[0])
     };
     for _ in 0..200 {
         let o = on_surface(&mut rng);
-        rays.push(Ray::new(o, nonzero(rng.vec3()), 0.0, f32::INFINITY));
+        rays.push(Ray::new(o, nonzero(vec3(&mut rng)), 0.0, f32::INFINITY));
     }
     for o in [centre, on_surface(&mut rng)] {
         let axes = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z, Vec3::new(-0.0, 1.0, -0.0)];
         for i in 0..70 {
-            let d = axes.get(i % 10).copied().unwrap_or_else(|| nonzero(rng.vec3()));
+            let d = axes.get(i % 10).copied().unwrap_or_else(|| nonzero(vec3(&mut rng)));
             rays.push(Ray::new(o, d, 0.0, f32::INFINITY));
         }
     }
@@ -182,10 +166,10 @@ pub fn soup_scene(name: &str, tris: &[[Vec3; 3]]) -> Scene {
 /// (shared vertices, triangles in axis planes), and flat triangles among them: collinear
 /// corners, repeated corners, a zero-width sliver.
 pub fn random_soup(seed: u64, n: usize) -> Vec<[Vec3; 3]> {
-    let mut rng = Lcg::new(seed);
-    let vertex = |rng: &mut Lcg| {
-        let v = rng.vec3();
-        if rng.signed() < 0.0 { (v * 4.0).round() * 0.25 } else { v }
+    let mut rng = Rng::new(seed);
+    let vertex = |rng: &mut Rng| {
+        let v = vec3(rng);
+        if signed(rng) < 0.0 { (v * 4.0).round() * 0.25 } else { v }
     };
     (0..n)
         .map(|i| {
@@ -232,14 +216,7 @@ pub fn builtin_cases(width: u32, height: u32, skip: &[&str], default_only: &[&st
 /// The scenes of the shared folder (`scenes::shared_scenes_dir`), each at its default view,
 /// `width` x `height`; none when the folder is absent.
 pub fn shared_cases(width: u32, height: u32) -> Vec<Case> {
-    let Some(dir) = scenes::shared_scenes_dir() else { return Vec::new() };
-    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
-    let mut files: Vec<_> = entries
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.to_string_lossy().ends_with(".obj") || p.to_string_lossy().ends_with(".obj.gz"))
-        .collect();
-    files.sort();
+    let files = scenes::shared_scene_files();
     files
         .iter()
         .map(|f| {

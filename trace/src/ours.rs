@@ -80,7 +80,7 @@ impl<'a> Tiled<'a> {
     /// `kernel` on `tree`, tiles of `tile` pixels (a multiple of 4 in `4..=64`), with
     /// packet/leaf culling (thesis 4.1.4) on or off.
     pub fn new(tree: &'a KdTree, kernel: Kernel, tile: u32, culling: bool) -> Result<Self, packets::tile::TileError> {
-        TileTracer::new(tile)?;
+        TileTracer::check_size(tile)?;
         Ok(Tiled { tree, kernel, tile, culling })
     }
 

@@ -20,7 +20,7 @@ use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
-use crate::shade;
+use crate::{shade, soft};
 
 /// Which shadow rays a frame traces.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -104,20 +104,24 @@ pub struct Renderer<'a> {
     camera: Camera,
     layout: TileLayout,
     shadows: Shadows,
-    light: Option<SphereLight>,
+    light: SphereLight,
 }
 
 impl<'a> Renderer<'a> {
     /// A renderer of `scene` seen by `camera` with `method`, in the method's tiles. Soft
-    /// shadows need [`Renderer::with_light`] (without it they are traced as hard ones).
+    /// shadows go to the light of radius 1 Sponza unit at the point light
+    /// ([`soft::light_in_bounds`] of the mesh's bounds) unless [`Renderer::with_light`]
+    /// gives another.
     pub fn new(scene: &'a Scene, method: &'a Bound<'a>, camera: Camera, shadows: Shadows) -> Self {
         let layout = TileLayout::new(camera.width, camera.height, method.options.tile.max(1));
-        Renderer { scene, method, camera, layout, shadows, light: None }
+        let (lo, hi) = scene.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        let light = soft::light_in_bounds(scene, lo, hi, 1.0);
+        Renderer { scene, method, camera, layout, shadows, light }
     }
 
     /// The same renderer with the spherical light of soft shadows.
     pub fn with_light(mut self, light: SphereLight) -> Self {
-        self.light = Some(light);
+        self.light = light;
         self
     }
 
@@ -168,19 +172,19 @@ impl<'a> Renderer<'a> {
         let primary_secs = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let counts = counted.then_some(&mut shadow_counts);
-        let (shadow_rays, occluded) = match (self.shadows, self.light) {
-            (Shadows::None, _) => {
+        let (shadow_rays, occluded) = match self.shadows {
+            Shadows::None => {
                 buf.occluded.fill(false);
                 (0, 0)
             }
-            (Shadows::Soft16, Some(light)) => {
+            Shadows::Soft16 => {
                 buf.occluded.fill(false);
                 buf.visible.resize(layout.pixel_count(), 0.0);
                 let SoftStats { rays, blocked, .. } =
-                    tracer.soft(&View { layout, scene, camera }, &buf.hits, &light, &mut buf.visible, counts);
+                    tracer.soft(&View { layout, scene, camera }, &buf.hits, &self.light, &mut buf.visible, counts);
                 (rays, blocked)
             }
-            (Shadows::Hard | Shadows::Soft16, _) => {
+            Shadows::Hard => {
                 buf.visible.clear();
                 tracer.shadow(&View { layout, scene, camera }, &buf.hits, &mut buf.occluded, counts)
             }

@@ -192,8 +192,9 @@ pub struct RenderReport {
     pub shade_secs: f64,
     /// Seconds to write the image file.
     pub write_secs: f64,
-    /// The image file written.
-    pub out: String,
+    /// The image file written (`None`: traced only, nothing written).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub out: Option<String>,
     /// Traversal work per ray, with `--counters` (flattened into the JSON object).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub traversal: Option<TraversalReport>,
@@ -346,10 +347,13 @@ impl fmt::Display for RenderReport {
                 }
             }
         }
-        write!(
-            f,
-            "output       {} ({}: shade {:.4} s, write {:.4} s)",
-            self.out, self.aov, self.shade_secs, self.write_secs
-        )
+        match &self.out {
+            Some(out) => write!(
+                f,
+                "output       {out} ({}: shade {:.4} s, write {:.4} s)",
+                self.aov, self.shade_secs, self.write_secs
+            ),
+            None => write!(f, "output       none (traced only)"),
+        }
     }
 }

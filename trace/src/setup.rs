@@ -41,21 +41,7 @@ pub fn view_camera(scene: &Scene, name: Option<&str>, w: u32, h: u32) -> Result<
 /// thesis's scenes and every `.obj` / `.obj.gz` in the shared scenes folder, sorted.
 pub fn default_scenes() -> Vec<String> {
     let mut list: Vec<String> = ["atrium", "arena", "atrium-rotated", "grove"].map(String::from).to_vec();
-    if let Some(dir) = scenes::shared_scenes_dir()
-        && let Ok(entries) = std::fs::read_dir(dir)
-    {
-        let mut files: Vec<String> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                let name = p.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
-                name.ends_with(".obj") || name.ends_with(".obj.gz")
-            })
-            .map(|p| p.display().to_string())
-            .collect();
-        files.sort();
-        list.extend(files);
-    }
+    list.extend(scenes::shared_scene_files().iter().map(|p| p.display().to_string()));
     list
 }
 

@@ -38,10 +38,14 @@ pub fn shadow_start(scene: &Scene, light: &SphereLight, hit: &Hit, dir: Vec3) ->
 /// The spherical light of soft shadows for `scene`: at its point light, radius `radius` in
 /// Sponza units scaled by the diagonal of `tree`'s bounds ([`scaled_radius`]), as Table 4.6.
 pub fn scene_light(scene: &Scene, tree: &KdTree, radius: f32) -> SphereLight {
-    let diag = (tree.bounds().max - tree.bounds().min).length();
+    light_in_bounds(scene, tree.bounds().min, tree.bounds().max, radius)
+}
+
+/// The light of [`scene_light`] for a scene whose bounding box is `lo..hi`.
+pub fn light_in_bounds(scene: &Scene, lo: Vec3, hi: Vec3, radius: f32) -> SphereLight {
     SphereLight {
         center: scene.point_light.position,
-        radius: scaled_radius(radius, diag),
+        radius: scaled_radius(radius, (hi - lo).length()),
         intensity: scene.point_light.intensity,
     }
 }

@@ -20,14 +20,10 @@ pub const BEST: &str = "mft-8";
 pub fn run(global: &GlobalArgs) -> Result<(), Error> {
     let best_args = render_args(&["--method", BEST, "--shadows", "soft16", "--counters"])?;
     let built = load_and_build(global, &best_args.scene, 1)?;
-    let best = render(global, &built, &best_args)?;
-    // Single rays on the same frame, for the side-by-side; no image.
-    let mono_args = render_args(&["--method", "mono", "--shadows", "soft16", "--counters", "--aov", "depth"])?;
-    let mono_out = std::env::temp_dir().join(format!("rttest-{}-mono-depth.pfm", std::process::id()));
-    let mono_args = super::RenderArgs { out: Some(mono_out.clone()), ..mono_args };
-    let mono = render(global, &built, &mono_args);
-    let _ = std::fs::remove_file(&mono_out);
-    let mono = mono?;
+    let best = render(global, &built, &best_args, true)?;
+    // Single rays on the same frame, for the side-by-side; traced only, no image.
+    let mono_args = render_args(&["--method", "mono", "--shadows", "soft16", "--counters"])?;
+    let mono = render(global, &built, &mono_args, false)?;
     if global.json {
         emit(global, &mono)?;
         return emit(global, &best);
@@ -55,7 +51,7 @@ fn summary(build: &trace::report::BuildReport, scene: &SceneArgs, mono: &RenderR
         out,
         "\nN = traversal steps, I = ray-triangle tests, per 2x2 packet of primary rays (single rays: per 4 rays)."
     );
-    let _ = writeln!(out, "Wrote {}.\n", best.out);
+    let _ = writeln!(out, "Wrote {}.\n", best.out.as_deref().unwrap_or("nothing"));
     let _ = writeln!(out, "Next:");
     for (what, cmd) in [
         (

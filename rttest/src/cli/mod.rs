@@ -473,9 +473,9 @@ fn write_image(renderer: &Renderer<'_>, buffers: &FrameBuffers, aov: Aov, out: &
     Ok((shade_secs, start.elapsed().as_secs_f64()))
 }
 
-/// Renders `built` with `args` (method, view, size, shadows, frames, counters) and writes
-/// the image; returns the report.
-pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs) -> Result<RenderReport, Error> {
+/// Renders `built` with `args` (method, view, size, shadows, frames, counters) and, with
+/// `write`, shades and writes the image; returns the report.
+pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool) -> Result<RenderReport, Error> {
     if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
         return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
     }
@@ -499,7 +499,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs) -> Result<R
         let packets = method.entry.packets.then(|| renderer.packet_count());
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
-    let (shade_secs, write_secs) = write_image(&renderer, &buffers, args.aov, &out)?;
+    let (shade_secs, write_secs) = if write { write_image(&renderer, &buffers, args.aov, &out)? } else { (0.0, 0.0) };
 
     Ok(RenderReport {
         scene: built.scene.name.clone(),
@@ -529,7 +529,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs) -> Result<R
         shadow_mrays_per_s: mrays_per_s(stats.shadow_rays, timing.shadow_secs),
         shade_secs,
         write_secs,
-        out: out.display().to_string(),
+        out: write.then(|| out.display().to_string()),
         traversal,
     })
 }
@@ -538,7 +538,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs) -> Result<R
 /// build time and triangle count only (`rttest build` has the rest).
 fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
     let built = load_and_build(global, &args.scene, 1)?;
-    let report = render(global, &built, args)?;
+    let report = render(global, &built, args, true)?;
     // Nothing goes to stdout before everything has succeeded.
     if !global.json {
         emit(global, &built.report)?;
