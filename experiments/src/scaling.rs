@@ -12,10 +12,9 @@
 //! and 16x16 tiles a frame has 1024 tiles).
 
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use scenes::{Camera, Scene};
-use trace::timing::median;
+use trace::timing::{interleaved, median, timed};
 use trace::{Bound, Error, Renderer, Shadows};
 
 /// One pool size of one scene.
@@ -53,11 +52,10 @@ pub fn measure(
 ) -> Result<Vec<ScalingRow>, Error> {
     let tile = method.options.tile;
     let renderer = Renderer::new(scene, method, camera, Shadows::None);
-    let pools = (1..=max_threads.max(1))
+    let mut pools = (1..=max_threads.max(1))
         .map(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build())
         .collect::<Result<Vec<_>, _>>()?;
     let mut buffers = renderer.buffers();
-    let mut times = vec![Vec::new(); pools.len()];
     // One untimed frame per pool: its threads started, the caches warm.
     for pool in &pools {
         pool.install(|| {
@@ -65,16 +63,20 @@ pub fn measure(
             renderer.color(&buffers)
         });
     }
-    for _ in 0..rounds.max(1) {
-        for (pool, t) in pools.iter().zip(&mut times) {
-            let start = Instant::now();
-            pool.install(|| {
-                renderer.trace(&mut buffers);
-                std::hint::black_box(renderer.color(&buffers));
-            });
-            t.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-    }
+    let times: Vec<Vec<f64>> = interleaved(
+        rounds.max(1),
+        &mut pools,
+        |pool| {
+            timed(|| {
+                pool.install(|| {
+                    renderer.trace(&mut buffers);
+                    std::hint::black_box(renderer.color(&buffers));
+                })
+            })
+            .0 * 1e3
+        },
+        || {},
+    );
     let one = median(&times[0]);
     Ok(times
         .iter()

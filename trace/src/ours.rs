@@ -84,11 +84,6 @@ impl<'a> Tiled<'a> {
         Ok(Tiled { tree, kernel, tile, culling })
     }
 
-    /// The kernel.
-    pub fn kernel(&self) -> Kernel {
-        self.kernel
-    }
-
     fn tile_tracer<'s>(&self, scratch: &'s mut TiledScratch) -> &'s mut TileTracer {
         scratch.tile.get_or_insert_with(|| {
             // The size was checked by `new`.

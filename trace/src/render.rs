@@ -130,16 +130,6 @@ impl<'a> Renderer<'a> {
         &self.layout
     }
 
-    /// The camera.
-    pub fn camera(&self) -> &Camera {
-        &self.camera
-    }
-
-    /// The method.
-    pub fn method(&self) -> &Bound<'a> {
-        self.method
-    }
-
     /// Buffers of the right size for [`Renderer::trace`].
     pub fn buffers(&self) -> FrameBuffers {
         FrameBuffers::new(self.layout.pixel_count())
