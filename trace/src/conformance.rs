@@ -319,7 +319,8 @@ pub enum Rule {
     /// and holding both hit points (two faces hit at one `t`: the traversal order picks one); or, where the reference's
     /// hit (or the method's) lies on an edge of its triangle (a barycentric within 1e-6 of
     /// 0: a ray grazing a silhouette edge, as axis-parallel rays along the touching boxes'
-    /// and the scaled arena's faces), a farther hit or a miss. Any-hit answers that differ
+    /// and the scaled arena's faces) or within the origin's rounding (64 ulps of its
+    /// coordinates: a ray starting on a surface), a farther hit or a miss. Any-hit answers that differ
     /// (the same grazing rays) count against `Plan::loose_per_10k`.
     Ties,
     /// Another tracer's triangle test against ours: the same triangle, or another within
@@ -550,7 +551,13 @@ impl Judge<'_> {
             // A grazing ray: the reference's hit on an edge of its triangle (a barycentric
             // within 1e-6 of 0), which the other kernel rounds out, seeing what lies behind.
             let grazing = |h: Hit| on_edge(h) || self.grazes(ray, h);
+            // A hit at the origin's rounding (within 64 ulps of its coordinates, the oracle's
+            // window): a ray starting on a surface may or may not see it.
+            let window = 64.0 * f32::EPSILON * ray.origin.abs().max_element() / ray.dir.length();
+            let at_origin = |h: Hit| h.t.abs() <= window;
             return match (got, want) {
+                (g, Some(w)) if at_origin(w) && g.is_none_or(|g| g.t > w.t) => Outcome::Tie,
+                (Some(g), w) if at_origin(g) && w.is_none_or(|w| w.t > g.t) => Outcome::Tie,
                 (Some(g), Some(w)) if self.edge_tie(ray, g, w) => Outcome::Tie,
                 (g, Some(w)) if grazing(w) && g.is_none_or(|g| g.t > w.t) => Outcome::Tie,
                 (Some(g), w) if grazing(g) && w.is_none_or(|w| w.t > g.t) => Outcome::Tie,
@@ -1131,6 +1138,12 @@ mod tests {
         assert_eq!(judge.hit(Rule::Ties, &near_edge, Some(hit(1.01, 1)), Some(w)), Outcome::Refused);
         assert_eq!(judge.hit(Rule::Ties, &near_edge, Some(hit(1.0, 2)), Some(w)), Outcome::Refused);
         assert_eq!(judge.hit(Rule::Ties, &near_edge, None, Some(w)), Outcome::Refused);
+        // Within the origin's rounding (a ray starting on a surface): a farther hit or a miss
+        // ties; just outside the window it does not.
+        let at_origin = Hit { t: 1e-7, ..w };
+        assert_eq!(judge.hit(Rule::Ties, &inside, Some(hit(1.0, 1)), Some(at_origin)), Outcome::Tie);
+        assert_eq!(judge.hit(Rule::Ties, &inside, None, Some(at_origin)), Outcome::Tie);
+        assert_eq!(judge.hit(Rule::Ties, &inside, None, Some(Hit { t: 1e-4, ..w })), Outcome::Refused);
         // Exactly through the edge: a farther hit or a miss is the other side of the edge.
         assert_eq!(judge.hit(Rule::Ties, &on_edge, Some(hit(1.01, 1)), Some(w)), Outcome::Tie);
         assert_eq!(judge.hit(Rule::Ties, &on_edge, None, Some(w)), Outcome::Tie);
