@@ -9,10 +9,12 @@
 //!   primary, hard-shadow and soft-shadow Mrays/s, primitive mismatches classified);
 //! - [`shadows`]: edge-width against sampled soft shadows (images, errors, a plot drawn by
 //!   [`shadow_plot`]);
-//! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices.
+//! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices;
+//! - [`sah_sweep`]: the SAH cost model chosen by measurement (tree shape against speed).
 
 pub mod compare;
 pub mod leaks;
+pub mod sah_sweep;
 pub mod scaling;
 pub mod shadow_plot;
 pub mod shadows;

@@ -18,7 +18,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use cones::ShadowMethod;
-use kdtree::{BuildConfig, Intersector, KdTree};
+use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
 use scenes::Scene;
 use trace::progress::Progress;
 use trace::setup::view_camera;
@@ -36,6 +36,8 @@ pub struct TablesConfig {
     pub frames: u32,
     /// The ray-triangle test of the trees.
     pub intersector: Intersector,
+    /// The SAH cost model of the trees (`CostModel::Thesis` for the thesis's own trees).
+    pub cost_model: CostModel,
     /// CSV instead of markdown: one table of the primary-ray rows, then (after a blank line)
     /// one of the soft-shadow rows of Table 4.6.
     pub csv: bool,
@@ -52,6 +54,7 @@ impl Default for TablesConfig {
             size: (512, 512),
             frames: 5,
             intersector: Intersector::Wald,
+            cost_model: CostModel::default(),
             csv: false,
             no_soft_shadows: false,
             no_scaling: false,
@@ -297,7 +300,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
     let mut scaling_rows = Vec::new();
-    let build = BuildConfig { intersector: config.intersector, ..BuildConfig::default() };
+    let build = BuildConfig { intersector: config.intersector, ..config.cost_model.config() };
     for spec in scene_list(config) {
         let scene = scenes::load_scene(&spec)?;
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &build)?;

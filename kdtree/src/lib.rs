@@ -7,6 +7,8 @@
 //!   contiguous triangle-reference array.
 //! - [`triangle`]: Wald's projected-barycentric test (thesis 4.2) and the watertight test of
 //!   Woop, Benthin and Wald 2013, selectable per tree.
+//! - [`leaf`]: SIMD leaves, each leaf's triangle records stored inline in groups of four
+//!   (structure-of-arrays) and tested four at a time against one ray.
 //! - [`traverse`]: iterative single-ray traversal with a fixed stack, closest hit
 //!   ([`KdTree::intersect`]) and any hit ([`KdTree::occluded`]).
 //! - [`oracle`]: a brute-force intersector over all triangles, the reference every traversal
@@ -19,6 +21,7 @@
 pub mod aabb;
 pub mod build;
 pub mod counters;
+pub mod leaf;
 pub mod node;
 pub mod oracle;
 pub mod ray;
@@ -29,7 +32,7 @@ pub mod triangle;
 mod validate;
 
 pub use aabb::Aabb;
-pub use build::{BuildConfig, BuildError, first_phase_bytes, human_bytes};
+pub use build::{BuildConfig, BuildError, CostModel, first_phase_bytes, human_bytes};
 pub use counters::{Counters, Counts, NoCounters};
 pub use node::KdNode;
 pub use oracle::BruteForce;

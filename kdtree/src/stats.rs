@@ -32,14 +32,48 @@ pub struct TreeStats {
     /// The tree's SAH cost: `C_trav` per inner node plus `C_isect * count` per leaf, each
     /// weighted by its box's surface area over the root's.
     pub sah_cost: f64,
-    /// Memory: 8 bytes per node, 4 per reference, plus the intersection records.
+    /// Memory: 8 bytes per node, 4 per reference slot (leaf padding included), the
+    /// per-triangle intersection records and the SIMD leaf groups ([`crate::leaf`]).
     pub bytes: usize,
 }
 
 impl KdTree {
     /// Statistics of this tree, with the SAH cost under the tree's own [`crate::BuildConfig`].
     pub fn stats(&self) -> TreeStats {
-        let (c_trav, c_isect) = (f64::from(self.config.c_trav), f64::from(self.config.c_isect));
+        let (inner, leaves, empty, depth, sah) =
+            self.walk(f64::from(self.config.c_trav), f64::from(self.config.c_isect));
+        let in_tree = self.tris.iter().filter(|t| !is_degenerate(t)).count();
+        let refs: usize = self.nodes.iter().filter(|n| n.is_leaf()).map(|n| n.prim_count()).sum();
+        let nonempty = leaves - empty;
+        TreeStats {
+            triangles: self.tris.len(),
+            triangles_in_tree: in_tree,
+            nodes: self.nodes.len(),
+            inner_nodes: inner,
+            leaves,
+            empty_leaves: empty,
+            depth,
+            refs,
+            refs_per_triangle: if in_tree > 0 { refs as f64 / in_tree as f64 } else { 0.0 },
+            avg_tris_per_nonempty_leaf: if nonempty > 0 { refs as f64 / nonempty as f64 } else { 0.0 },
+            sah_cost: sah,
+            bytes: std::mem::size_of_val(self.nodes.as_slice())
+                + std::mem::size_of_val(self.prim_refs.as_slice())
+                + std::mem::size_of_val(self.wald.as_slice())
+                + std::mem::size_of_val(self.watertight.as_slice())
+                + std::mem::size_of_val(self.wald4.as_slice())
+                + std::mem::size_of_val(self.watertight4.as_slice()),
+        }
+    }
+
+    /// The tree's SAH cost (thesis 2.2.1) under the cost model `c_trav`, `c_isect`, whatever
+    /// model it was built with, so that trees built with different models can be compared.
+    pub fn sah_cost(&self, c_trav: f64, c_isect: f64) -> f64 {
+        self.walk(c_trav, c_isect).4
+    }
+
+    /// Inner nodes, leaves, empty leaves, depth and SAH cost under `c_trav`, `c_isect`.
+    fn walk(&self, c_trav: f64, c_isect: f64) -> (usize, usize, usize, usize, f64) {
         let sa_root = surface_area64(&self.bounds);
         let weight = |b: &Aabb| if sa_root > 0.0 { surface_area64(b) / sa_root } else { 1.0 };
         let (mut inner, mut leaves, mut empty, mut depth, mut sah) = (0, 0, 0, 0, 0.0);
@@ -61,25 +95,6 @@ impl KdTree {
                 stack.push((n.left_child() + 1, r, d + 1));
             }
         }
-        let in_tree = self.tris.iter().filter(|t| !is_degenerate(t)).count();
-        let refs = self.prim_refs.len();
-        let nonempty = leaves - empty;
-        TreeStats {
-            triangles: self.tris.len(),
-            triangles_in_tree: in_tree,
-            nodes: self.nodes.len(),
-            inner_nodes: inner,
-            leaves,
-            empty_leaves: empty,
-            depth,
-            refs,
-            refs_per_triangle: if in_tree > 0 { refs as f64 / in_tree as f64 } else { 0.0 },
-            avg_tris_per_nonempty_leaf: if nonempty > 0 { refs as f64 / nonempty as f64 } else { 0.0 },
-            sah_cost: sah,
-            bytes: std::mem::size_of_val(self.nodes.as_slice())
-                + std::mem::size_of_val(self.prim_refs.as_slice())
-                + std::mem::size_of_val(self.wald.as_slice())
-                + std::mem::size_of_val(self.watertight.as_slice()),
-        }
+        (inner, leaves, empty, depth, sah)
     }
 }

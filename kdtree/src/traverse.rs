@@ -31,7 +31,10 @@
 //!   interval, stop" test would be wrong for the in-plane case, whose two children share one
 //!   interval.)
 
+use std::mem::MaybeUninit;
+
 use crate::counters::{Counters, NoCounters};
+use crate::leaf::{LANES, LeafGroup};
 use crate::triangle::{Intersector, TriangleTest};
 use crate::{Aabb, Hit, KdTree, Ray, STACK_SIZE};
 
@@ -64,8 +67,10 @@ impl KdTree {
     #[inline]
     pub fn intersect_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
         match self.intersector {
-            Intersector::Wald => traverse::<_, C, false>(self, &self.wald, ray, counters),
-            Intersector::Watertight => traverse::<_, C, false>(self, &self.watertight, ray, counters),
+            Intersector::Wald => traverse::<_, C, false, true>(self, &self.wald4, &self.wald, ray, counters),
+            Intersector::Watertight => {
+                traverse::<_, C, false, true>(self, &self.watertight4, &self.watertight, ray, counters)
+            }
         }
     }
 
@@ -73,8 +78,35 @@ impl KdTree {
     #[inline]
     pub fn occluded_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
         match self.intersector {
-            Intersector::Wald => traverse::<_, C, true>(self, &self.wald, ray, counters).is_some(),
-            Intersector::Watertight => traverse::<_, C, true>(self, &self.watertight, ray, counters).is_some(),
+            Intersector::Wald => traverse::<_, C, true, true>(self, &self.wald4, &self.wald, ray, counters).is_some(),
+            Intersector::Watertight => {
+                traverse::<_, C, true, true>(self, &self.watertight4, &self.watertight, ray, counters).is_some()
+            }
+        }
+    }
+
+    /// [`KdTree::intersect`] with the scalar twin of the SIMD leaves: each leaf's triangles
+    /// tested one by one through the reference array and the per-triangle records. Gives
+    /// the same answer, bit for bit ([`crate::leaf`]); for tests and measurements.
+    pub fn intersect_scalar_leaves(&self, ray: &Ray) -> Option<Hit> {
+        match self.intersector {
+            Intersector::Wald => traverse::<_, _, false, false>(self, &self.wald4, &self.wald, ray, &mut NoCounters),
+            Intersector::Watertight => {
+                traverse::<_, _, false, false>(self, &self.watertight4, &self.watertight, ray, &mut NoCounters)
+            }
+        }
+    }
+
+    /// [`KdTree::occluded`] with the scalar twin of the SIMD leaves (see
+    /// [`KdTree::intersect_scalar_leaves`]).
+    pub fn occluded_scalar_leaves(&self, ray: &Ray) -> bool {
+        match self.intersector {
+            Intersector::Wald => {
+                traverse::<_, _, true, false>(self, &self.wald4, &self.wald, ray, &mut NoCounters).is_some()
+            }
+            Intersector::Watertight => {
+                traverse::<_, _, true, false>(self, &self.watertight4, &self.watertight, ray, &mut NoCounters).is_some()
+            }
         }
     }
 }
@@ -104,11 +136,46 @@ pub fn clip_to_box(ray: &Ray, bounds: &Aabb) -> Option<(f32, f32)> {
 }
 
 /// One deferred back voxel: node index and its interval.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct StackEntry {
     node: u32,
     t0: f32,
     t1: f32,
+}
+
+/// The traversal stack of deferred back voxels: [`STACK_SIZE`] slots left uninitialised,
+/// because zeroing its 768 bytes took about 1.5% of a primary ray's time on Sponza (`perf`:
+/// `memset` under `intersect`). A push past the last slot wraps around and overwrites the
+/// oldest entry, as the other kernels' `sp % STACK_SIZE` does; the builder's depth limit
+/// ([`crate::MAX_DEPTH`] < `STACK_SIZE`) keeps that from happening in a valid tree.
+struct Stack {
+    slots: [MaybeUninit<StackEntry>; STACK_SIZE],
+    len: usize,
+}
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Stack {
+        Stack { slots: [const { MaybeUninit::uninit() }; STACK_SIZE], len: 0 }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, entry: StackEntry) {
+        self.slots[self.len % STACK_SIZE].write(entry);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<StackEntry> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: `len` changes only by `push` (+1, after writing slot `len % STACK_SIZE`)
+        // and `pop` (-1). The last time `len` went from `L` to `L + 1` (here `L` is the new
+        // `len`), that push wrote slot `L % STACK_SIZE`; so the slot read here is initialised.
+        Some(unsafe { self.slots[self.len % STACK_SIZE].assume_init() })
+    }
 }
 
 /// `t` moved outward by [`WIDEN`]: `t + |t| W` (towards +inf) or `t - |t| W` (towards -inf).
@@ -122,17 +189,22 @@ fn widen_down(t: f32) -> f32 {
     t - t.abs() * WIDEN
 }
 
-/// The traversal kernel, generic over the triangle test, the counters and the query kind
-/// (`ANY_HIT`: stop at the first hit). Never allocates.
+/// The traversal kernel, generic over the triangle test (its SIMD leaf groups `groups` and
+/// per-triangle `records`), the counters, the query kind (`ANY_HIT`: a dedicated any-hit
+/// path, which returns at the first hit without ordering the leaf's hits) and the leaf kernel
+/// (`SIMD`: the groups of [`crate::leaf`]; else the scalar twin over `records`). Never
+/// allocates.
 #[inline(always)]
-fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
+fn traverse<G: LeafGroup, C: Counters, const ANY_HIT: bool, const SIMD: bool>(
     tree: &KdTree,
-    records: &[T],
+    groups: &[G],
+    records: &[G::Record],
     ray: &Ray,
     counters: &mut C,
 ) -> Option<Hit> {
     let (mut t0, mut t1) = clip_to_box(ray, &tree.bounds)?;
-    let prepared = T::prepare(ray);
+    let prepared = <G::Record as TriangleTest>::prepare(ray);
+    let prepared4 = G::prepare(ray);
     // Per-axis ray data as 4-lane arrays: an axis `& 3` indexes them without bounds checks.
     let origin = ray.origin.extend(0.0).to_array();
     let inv_dir = ray.inv_dir.extend(0.0).to_array();
@@ -141,8 +213,7 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
     // memory load (the traversal step is bound by this dependency chain).
     let upper_first = ray.dir.is_negative_bitmask() as usize;
     let nodes = tree.nodes.as_slice();
-    let mut stack = [StackEntry::default(); STACK_SIZE];
-    let mut sp = 0usize;
+    let mut stack = Stack::new();
     let mut best: Option<Hit> = None;
     let mut t_hit = ray.t_max;
     let mut index = 0usize;
@@ -167,8 +238,7 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
                 // Both (NaN lands here too: a ray lying in the split plane, 0 * inf, visits
                 // both children over the whole interval).
                 let t_split = if t_plane.is_nan() { t0 } else { t_plane };
-                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_split, t1 };
-                sp += 1;
+                stack.push(StackEntry { node: back as u32, t0: t_split, t1 });
                 index = front;
                 if !t_plane.is_nan() {
                     t1 = t_plane;
@@ -178,28 +248,51 @@ fn traverse<T: TriangleTest, C: Counters, const ANY_HIT: bool>(
             continue;
         }
 
-        // Leaf: test its triangles against the closest hit so far.
+        // Leaf: test its triangles against the closest hit so far (I counts triangles, not
+        // groups, so that it stays the thesis's measure).
         counters.leaf();
-        let refs = &tree.prim_refs[node.prim_range()];
-        counters.tests(refs.len() as u64);
-        for &prim in refs {
-            if let Some((t, u, v)) = records[prim as usize].intersect(ray, &prepared, t_hit) {
-                let hit = Hit { t, u, v, prim };
-                if ANY_HIT {
-                    return Some(hit);
+        counters.tests(node.prim_count() as u64);
+        if SIMD {
+            // The leaf's references start at a multiple of 4: its groups are `first / 4 ..`.
+            let first = node.first_ref() / LANES;
+            let count = node.prim_count().div_ceil(LANES);
+            for (g, group) in groups[first..first + count].iter().enumerate() {
+                let hits = group.intersect(ray, &prepared4, t_hit);
+                let lane = if ANY_HIT {
+                    let bits = hits.mask.bitmask();
+                    if bits == 0 { None } else { Some(bits.trailing_zeros() as usize) }
+                } else {
+                    hits.closest()
+                };
+                if let Some(lane) = lane {
+                    let prim = tree.prim_refs[(first + g) * LANES + lane];
+                    let (t, u, v) = (hits.t.to_array()[lane], hits.u.to_array()[lane], hits.v.to_array()[lane]);
+                    let hit = Hit { t, u, v, prim };
+                    if ANY_HIT {
+                        return Some(hit);
+                    }
+                    best = Some(hit);
+                    t_hit = t;
                 }
-                best = Some(hit);
-                t_hit = t;
+            }
+        } else {
+            for &prim in &tree.prim_refs[node.prim_range()] {
+                if let Some((t, u, v)) = records[prim as usize].intersect(ray, &prepared, t_hit) {
+                    let hit = Hit { t, u, v, prim };
+                    if ANY_HIT {
+                        return Some(hit);
+                    }
+                    best = Some(hit);
+                    t_hit = t;
+                }
             }
         }
 
         // Next voxel: pop, skipping those that start beyond the closest hit.
         loop {
-            if sp == 0 {
+            let Some(entry) = stack.pop() else {
                 return best;
-            }
-            sp -= 1;
-            let entry = stack[sp % STACK_SIZE];
+            };
             if entry.t0 <= t_hit {
                 index = entry.node as usize;
                 t0 = entry.t0;

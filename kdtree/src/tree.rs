@@ -3,18 +3,26 @@
 use glam::Vec3;
 
 use crate::build::{self, BuildConfig, BuildError, Meter};
+use crate::leaf::{GAP, LANES, LeafGroup, Wald4, Watertight4};
 use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle, is_degenerate};
 use crate::{Aabb, KdNode};
 
 /// A perfect-split SAH kd-tree over a triangle soup (thesis 3.2.1).
 ///
 /// Memory layout: `nodes` (8 bytes each, root at 0, children adjacent), `prim_refs` (one
-/// `u32` triangle index per leaf reference, each leaf's references contiguous), and one
-/// precomputed intersection record per triangle for the tree's [`Intersector`].
+/// `u32` triangle index per leaf reference, each leaf's references contiguous and starting at
+/// a multiple of 4, in node order, the gaps holding [`GAP`]), one precomputed intersection
+/// record per triangle for the tree's [`Intersector`] (the packet, frustum, cone and
+/// edge-width kernels read them through `prim_refs`), and the SIMD leaves: group `g` of
+/// [`crate::leaf`] holds the records of references `4g .. 4g + 4` (what single rays read).
 #[derive(Clone, Debug)]
 pub struct KdTree {
     pub(crate) nodes: Vec<KdNode>,
     pub(crate) prim_refs: Vec<u32>,
+    /// Wald groups of [`crate::leaf`] (empty unless the tree is built for Wald's test).
+    pub(crate) wald4: Vec<Wald4>,
+    /// Watertight groups of [`crate::leaf`] (empty unless built for the watertight test).
+    pub(crate) watertight4: Vec<Watertight4>,
     pub(crate) bounds: Aabb,
     pub(crate) intersector: Intersector,
     pub(crate) wald: Vec<WaldTriangle>,
@@ -114,7 +122,16 @@ impl KdTree {
             Intersector::Watertight => std::mem::size_of::<WatertightTriangle>(),
         };
         meter.take(record as u64 * tris.len() as u64, "the intersection records")?;
-        let mut tree = KdTree::assemble(tris, built.nodes, built.prim_refs, bounds, config);
+        let refs = built.prim_refs.len() as u64;
+        let mut tree =
+            KdTree::assemble(tris, built.nodes, built.prim_refs, bounds, config).map_err(BuildError::TooLarge)?;
+        // The aligned references and the SIMD groups replace the builder's references.
+        let group = match config.intersector {
+            Intersector::Wald => std::mem::size_of::<Wald4>(),
+            Intersector::Watertight => std::mem::size_of::<Watertight4>(),
+        } as u64;
+        let slots = tree.prim_refs.len() as u64;
+        meter.take((4 * slots + group * slots / LANES as u64).saturating_sub(4 * refs), "the SIMD leaf groups")?;
         tree.build_peak_bytes = Some(meter.peak());
         Ok(tree)
     }
@@ -145,8 +162,15 @@ impl KdTree {
         if let Some(i) = nodes.iter().position(|n| !n.is_leaf() && !n.split().is_finite()) {
             return Err(format!("node {i} has the split plane {}, which is not finite", nodes[i].split()));
         }
-        if let Some(r) = prim_refs.iter().find(|&&r| r as usize >= tris.len()) {
-            return Err(format!("reference to triangle {r} of {}", tris.len()));
+        // Every leaf, reachable or not (all are laid out again): references in range. Outside
+        // the leaves' ranges the array may hold anything (the gaps of an aligned tree).
+        for (i, n) in nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()) {
+            let refs = prim_refs.get(n.prim_range()).ok_or_else(|| {
+                format!("leaf {i} references {:?}, past the end ({})", n.prim_range(), prim_refs.len())
+            })?;
+            if let Some(r) = refs.iter().find(|&&r| r as usize >= tris.len()) {
+                return Err(format!("leaf {i} references triangle {r} of {}", tris.len()));
+            }
         }
         // Depth-first walk with depths: children in range, depth within the stack.
         let mut todo = vec![(0usize, 0usize)];
@@ -157,11 +181,7 @@ impl KdTree {
                 return Err(format!("node {i} is at depth {depth}: a cycle or a tree too deep"));
             }
             let n = nodes[i];
-            if n.is_leaf() {
-                if n.first_ref() + n.prim_count() > prim_refs.len() {
-                    return Err(format!("leaf {i} references past the end"));
-                }
-            } else {
+            if !n.is_leaf() {
                 if n.left_child() + 1 >= nodes.len() {
                     return Err(format!("node {i} has child {} of {}", n.left_child(), nodes.len()));
                 }
@@ -169,24 +189,37 @@ impl KdTree {
                 todo.push((n.left_child() + 1, depth + 1));
             }
         }
-        Ok(KdTree::assemble(tris, nodes, prim_refs, bounds, config))
+        KdTree::assemble(tris, nodes, prim_refs, bounds, config)
     }
 
-    /// The tree from its arrays, with the intersection records of `config.intersector`.
+    /// The tree from its arrays, with the intersection records of `config.intersector`: the
+    /// references are laid out again in node order, each non-empty leaf's starting at a
+    /// multiple of 4 (so that its SIMD groups are `first / 4 ..`), and the groups are made.
+    /// Laying out an already laid-out tree again changes nothing.
     fn assemble(
         tris: Vec<[Vec3; 3]>,
-        nodes: Vec<KdNode>,
+        mut nodes: Vec<KdNode>,
         prim_refs: Vec<u32>,
         bounds: Aabb,
         config: &BuildConfig,
-    ) -> KdTree {
-        let (wald, watertight) = match config.intersector {
-            Intersector::Wald => (tris.iter().map(WaldTriangle::new).collect(), Vec::new()),
-            Intersector::Watertight => (Vec::new(), tris.iter().map(WatertightTriangle::new).collect()),
-        };
-        KdTree {
+    ) -> Result<KdTree, String> {
+        let prim_refs = align_leaves(&mut nodes, &prim_refs)?;
+        let (mut wald, mut watertight, mut wald4, mut watertight4) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        match config.intersector {
+            Intersector::Wald => {
+                wald = tris.iter().map(WaldTriangle::new).collect();
+                wald4 = groups(&prim_refs, &wald);
+            }
+            Intersector::Watertight => {
+                watertight = tris.iter().map(WatertightTriangle::new).collect();
+                watertight4 = groups(&prim_refs, &watertight);
+            }
+        }
+        Ok(KdTree {
             nodes,
             prim_refs,
+            wald4,
+            watertight4,
             bounds,
             intersector: config.intersector,
             wald,
@@ -194,7 +227,7 @@ impl KdTree {
             tris,
             config: config.clone(),
             build_peak_bytes: None,
-        }
+        })
     }
 
     /// The nodes, root at index 0.
@@ -207,7 +240,8 @@ impl KdTree {
         &self.prim_refs[leaf.prim_range()]
     }
 
-    /// The whole triangle-reference array (leaves index into it).
+    /// The whole triangle-reference array (leaves index into it; between leaves, padding to a
+    /// multiple of 4 holds [`GAP`]).
     pub fn prim_refs(&self) -> &[u32] {
         &self.prim_refs
     }
@@ -222,6 +256,16 @@ impl KdTree {
     /// for [`Intersector::Watertight`]).
     pub fn watertight_records(&self) -> &[WatertightTriangle] {
         &self.watertight
+    }
+
+    /// The SIMD leaf groups of a Wald tree ([`crate::leaf`]; empty for a watertight tree).
+    pub fn wald_groups(&self) -> &[Wald4] {
+        &self.wald4
+    }
+
+    /// The SIMD leaf groups of a watertight tree ([`crate::leaf`]; empty for a Wald tree).
+    pub fn watertight_groups(&self) -> &[Watertight4] {
+        &self.watertight4
     }
 
     /// The bounds of all non-degenerate triangles (the root's box).
@@ -269,4 +313,36 @@ impl KdTree {
         }
         out
     }
+}
+
+/// The references of `nodes`' leaves laid out in node order, each non-empty leaf's starting
+/// at a multiple of [`LANES`] (gaps hold [`GAP`]); the leaves are rewritten to point there.
+/// A layout whose first references do not fit a node's 32 bits is an error (the caller has
+/// checked every leaf's range).
+fn align_leaves(nodes: &mut [KdNode], prim_refs: &[u32]) -> Result<Vec<u32>, String> {
+    let slots: usize = nodes.iter().filter(|n| n.is_leaf()).map(|n| n.prim_count().next_multiple_of(LANES)).sum();
+    let mut out = Vec::with_capacity(slots);
+    for node in nodes.iter_mut().filter(|n| n.is_leaf()) {
+        let first = u32::try_from(out.len())
+            .map_err(|_| format!("{} references with leaf padding do not fit 32-bit indices", out.len()))?;
+        out.extend_from_slice(&prim_refs[node.prim_range()]);
+        out.resize(out.len().next_multiple_of(LANES), GAP);
+        *node = KdNode::leaf(first, node.prim_count() as u32);
+    }
+    Ok(out)
+}
+
+/// The SIMD groups of an aligned reference array: group `g` holds the records of references
+/// `4g .. 4g + 4` (padding lanes for the gaps).
+fn groups<G: LeafGroup>(prim_refs: &[u32], records: &[G::Record]) -> Vec<G>
+where
+    G::Record: Copy,
+{
+    prim_refs
+        .chunks(LANES)
+        .map(|refs| {
+            let lanes: Vec<G::Record> = refs.iter().take_while(|&&r| r != GAP).map(|&r| records[r as usize]).collect();
+            G::new(&lanes)
+        })
+        .collect()
 }

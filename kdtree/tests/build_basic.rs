@@ -11,8 +11,9 @@ fn v(x: f32, y: f32, z: f32) -> Vec3 {
     Vec3::new(x, y, z)
 }
 
+/// The thesis's SAH terms: the expected shapes below are worked out with them.
 fn build(tris: &[[Vec3; 3]]) -> KdTree {
-    build_with(tris, &BuildConfig::default())
+    build_with(tris, &BuildConfig::thesis())
 }
 
 fn build_with(tris: &[[Vec3; 3]], config: &BuildConfig) -> KdTree {
@@ -61,7 +62,8 @@ fn two_far_clusters_are_split_between_them() {
 }
 
 /// Root splits x = 1 (ties keep the first plane), its right child cuts the empty space off at
-/// x = 9: root(x=1) -> [leaf T0, inner(x=9) -> [empty leaf, leaf T1]].
+/// x = 9: root(x=1) -> [leaf T0, inner(x=9) -> [empty leaf, leaf T1]]. Each non-empty leaf's
+/// references start at a multiple of 4 (the SIMD leaf layout of `kdtree::leaf`).
 #[test]
 fn stats_of_a_hand_built_tree() {
     let t0 = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
@@ -73,8 +75,8 @@ fn stats_of_a_hand_built_tree() {
             KdNode::inner(0, 1.0, 1),
             KdNode::leaf(0, 1),
             KdNode::inner(0, 9.0, 3),
-            KdNode::leaf(1, 0),
-            KdNode::leaf(1, 1)
+            KdNode::leaf(4, 0),
+            KdNode::leaf(4, 1)
         ]
     );
     let s = tree.stats();
@@ -83,7 +85,21 @@ fn stats_of_a_hand_built_tree() {
     assert_eq!((s.refs_per_triangle, s.avg_tris_per_nonempty_leaf), (1.0, 1.0));
     // 1 (root) + 18/20 (right inner) + 2 * 5 * 2/20 (the two triangle leaves).
     assert!((s.sah_cost - 2.9).abs() < 1e-9, "{}", s.sah_cost);
-    assert_eq!(s.bytes, 5 * 8 + 2 * 4 + 2 * 40);
+    assert_eq!(
+        tree.prim_refs(),
+        &[
+            0,
+            kdtree::leaf::GAP,
+            kdtree::leaf::GAP,
+            kdtree::leaf::GAP,
+            1,
+            kdtree::leaf::GAP,
+            kdtree::leaf::GAP,
+            kdtree::leaf::GAP
+        ]
+    );
+    // Nodes, 8 reference slots, two 40-byte records and two 160-byte groups.
+    assert_eq!(s.bytes, 5 * 8 + 8 * 4 + 2 * 40 + 2 * 160);
 }
 
 #[test]
@@ -123,9 +139,13 @@ fn triangles_on_split_planes_and_touching_boxes() {
             tris.push([v(x + 0.25, y + 0.25, 0.0), v(x + 0.75, y + 0.5, 0.5), v(x + 0.5, y + 0.75, 1.0)]);
         }
     }
-    for config in [BuildConfig::default(), BuildConfig { empty_bonus: 0.8, ..BuildConfig::default() }] {
+    for config in
+        [BuildConfig::thesis(), BuildConfig::default(), BuildConfig { empty_bonus: 0.8, ..BuildConfig::thesis() }]
+    {
         let tree = build_with(&tris, &config);
-        assert!(tree.stats().leaves > 64);
+        // At least one leaf per grid cell (the default terms give exactly the 64 cells, 4
+        // triangles each; the thesis's split further).
+        assert!(tree.stats().leaves >= 64, "{config:?}: {:?}", tree.stats());
     }
 }
 

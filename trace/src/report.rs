@@ -129,6 +129,12 @@ pub struct BuildReport {
     pub threads: usize,
     /// The ray-triangle test the tree was built for (`wald` or `watertight`).
     pub intersector: String,
+    /// The SAH terms: `C_trav`, `C_isect` and the empty bonus.
+    pub c_trav: f32,
+    /// See `c_trav`.
+    pub c_isect: f32,
+    /// See `c_trav`.
+    pub empty_bonus: f32,
     /// The tree's statistics (flattened into the JSON object).
     #[serde(flatten)]
     pub tree: TreeSummary,
@@ -278,8 +284,8 @@ impl fmt::Display for BuildReport {
         writeln!(f, "load         {:.1} ms", self.load_ms)?;
         writeln!(
             f,
-            "build        {:.1} ms ({} threads, {} intersector)",
-            self.build_ms, self.threads, self.intersector
+            "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {})",
+            self.build_ms, self.threads, self.intersector, self.c_trav, self.c_isect, self.empty_bonus
         )?;
         writeln!(
             f,

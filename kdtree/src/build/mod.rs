@@ -44,14 +44,16 @@ use sah::{Costs, Split, find_split};
 use small::{Item, SMALL, items_from_lists, small_partition, small_split};
 use split::{SplitScratch, child_boxes, split_lists};
 
-/// Build parameters: the SAH terms with the thesis's defaults.
+/// Build parameters: the SAH terms (by default [`CostModel::WaldHavran`], chosen by
+/// measurement: `docs/results/sah-terms.md`; [`BuildConfig::thesis`] for the thesis's).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildConfig {
     /// Cost of one traversal step, `C_trav`.
     pub c_trav: f32,
-    /// Cost of one ray-triangle test, `C_isect` (thesis: 5 x `C_trav`).
+    /// Cost of one ray-triangle test, `C_isect` (thesis: 5 x `C_trav`; default 20/15).
     pub c_isect: f32,
-    /// Fraction of the cost taken off a split that leaves one side empty (0 = off).
+    /// Fraction of the cost taken off a split that leaves one side empty (0 = off; default
+    /// 0.2).
     pub empty_bonus: f32,
     /// Maximum depth; `None` means `8 + log2 N` (see [`BuildConfig::depth_limit`]). Capped at [`crate::MAX_DEPTH`].
     pub max_depth: Option<u32>,
@@ -67,10 +69,45 @@ pub struct BuildConfig {
 
 impl Default for BuildConfig {
     fn default() -> Self {
+        CostModel::default().config()
+    }
+}
+
+/// A named SAH cost model (thesis 2.2.1: `C_trav` per traversal step, `C_isect` per
+/// triangle test, and the empty-space bonus).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CostModel {
+    /// The thesis's terms (3.2.1): `C_trav = 1`, `C_isect = 5`, no empty-space bonus. Its
+    /// trees are the deepest: 3.7-6.5 references per triangle and 2-4 triangles per leaf.
+    Thesis,
+    /// Wald & Havran 2006 (section 4): `C_trav = 15`, `C_isect = 20` (kept here as the
+    /// ratio `1 : 4/3`, so SAH costs stay in traversal steps) and `lambda = 0.8` on a split
+    /// with an empty side (an empty bonus of 0.2). The default: `rttest sah-sweep` measures
+    /// it at 1.0-1.5x the thesis's single-ray and 1.15-1.65x its MFT speed with 30% fewer
+    /// references and 25% shorter builds (`docs/results/sah-terms.md`).
+    #[default]
+    WaldHavran,
+}
+
+impl CostModel {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            CostModel::Thesis => "thesis",
+            CostModel::WaldHavran => "wald-havran",
+        }
+    }
+
+    /// The default build configuration with this model's terms.
+    pub fn config(self) -> BuildConfig {
+        let (c_trav, c_isect, empty_bonus) = match self {
+            CostModel::Thesis => (1.0, 5.0, 0.0),
+            CostModel::WaldHavran => (1.0, 20.0 / 15.0, 0.2),
+        };
         BuildConfig {
-            c_trav: 1.0,
-            c_isect: 5.0,
-            empty_bonus: 0.0,
+            c_trav,
+            c_isect,
+            empty_bonus,
             max_depth: None,
             intersector: Intersector::Wald,
             memory_budget: None,
@@ -79,6 +116,11 @@ impl Default for BuildConfig {
 }
 
 impl BuildConfig {
+    /// The thesis's terms ([`CostModel::Thesis`]), for its tables.
+    pub fn thesis() -> BuildConfig {
+        CostModel::Thesis.config()
+    }
+
     /// The maximum depth for `n` triangles: `max_depth`, or by default `8 + log2 N`.
     ///
     /// pbrt's `8 + 1.3 log2 N` was measured here and found too deep for perfect splits with

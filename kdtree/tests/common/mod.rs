@@ -11,9 +11,19 @@ pub fn cases(default: u32) -> u32 {
     std::env::var("PROPTEST_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }
 
-/// Compares tree and oracle on one ray (see [`BruteForce::check`]).
+/// Compares tree and oracle on one ray (see [`BruteForce::check`]), and the SIMD leaves
+/// against their scalar twin (bit for bit, any hit too).
 pub fn check_ray(tree: &KdTree, oracle: &BruteForce, ray: &Ray) -> Result<(), String> {
-    oracle.check(ray, tree.intersect(ray), tree.occluded(ray))
+    let (hit, twin) = (tree.intersect(ray), tree.intersect_scalar_leaves(ray));
+    let bits = |h: Option<kdtree::Hit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+    if bits(hit) != bits(twin) {
+        return Err(format!("{ray:?}: SIMD leaves {hit:?}, scalar leaves {twin:?}"));
+    }
+    let occluded = tree.occluded(ray);
+    if occluded != tree.occluded_scalar_leaves(ray) {
+        return Err(format!("{ray:?}: SIMD leaves occluded {occluded}, scalar leaves not"));
+    }
+    oracle.check(ray, hit, occluded)
 }
 
 /// Checks every ray, reporting the first disagreement and the number of them.

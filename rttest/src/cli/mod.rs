@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
-use kdtree::{BuildConfig, Intersector, KdTree};
+use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
 use trace::registry::{KDTREE, Selected, TILE_SIZE};
@@ -24,6 +24,7 @@ pub mod compare;
 pub mod leaks;
 pub mod main_job;
 pub mod raycast;
+pub mod sah_sweep;
 pub mod shadows;
 pub mod tables;
 
@@ -80,6 +81,9 @@ pub enum Command {
     /// Every registered method, ours and the baselines, on the same rays (build, primary,
     /// shadow and soft-shadow Mrays/s, primitive mismatches).
     Compare(compare::CompareArgs),
+    /// Sweep the SAH cost model (C_trav:C_isect, empty bonus, depth limit): tree shape, N, I,
+    /// build time and single-ray / MFT Mrays/s in one table per scene.
+    SahSweep(sah_sweep::SahSweepArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -95,16 +99,65 @@ pub struct SceneArgs {
     /// Maximum tree depth (default: 8 + log2 N; at most 60).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=60))]
     pub max_depth: Option<u32>,
-    /// SAH cost of a ray-triangle test, with a traversal step costing 1 (thesis: 5).
-    #[arg(long, value_name = "X", default_value_t = 5.0)]
-    pub c_isect: f32,
-    /// SAH empty-space bonus in [0, 1): the fraction taken off a split with an empty side.
-    #[arg(long, value_name = "X", default_value_t = 0.0)]
-    pub empty_bonus: f32,
+    /// The SAH cost model: Wald & Havran's 15:20 with an empty bonus of 0.2 (the default,
+    /// chosen by `rttest sah-sweep`), or the thesis's 1:5 without one (for its tables).
+    #[arg(long, value_enum, default_value_t = CostModelArg::WaldHavran)]
+    pub cost_model: CostModelArg,
+    /// SAH cost of a ray-triangle test, with a traversal step costing 1 (overrides the cost
+    /// model's: 4/3 for wald-havran, 5 for thesis).
+    #[arg(long, value_name = "X")]
+    pub c_isect: Option<f32>,
+    /// SAH empty-space bonus in [0, 1): the fraction taken off a split with an empty side
+    /// (overrides the cost model's: 0.2 for wald-havran, 0 for thesis).
+    #[arg(long, value_name = "X")]
+    pub empty_bonus: Option<f32>,
     /// Stop the build with an error before its buffers (tree included, the scene not) would
     /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
     #[arg(long, value_name = "BYTES", value_parser = trace::report::parse_bytes)]
     pub memory_budget: Option<u64>,
+}
+
+/// `--cost-model` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CostModelArg {
+    /// Wald & Havran 2006: C_trav:C_isect = 15:20, empty bonus 0.2.
+    WaldHavran,
+    /// The thesis (3.2.1): C_trav:C_isect = 1:5, no empty bonus.
+    Thesis,
+}
+
+impl From<CostModelArg> for CostModel {
+    fn from(a: CostModelArg) -> CostModel {
+        match a {
+            CostModelArg::WaldHavran => CostModel::WaldHavran,
+            CostModelArg::Thesis => CostModel::Thesis,
+        }
+    }
+}
+
+impl SceneArgs {
+    /// The build configuration these options ask for: the cost model's terms, overridden by
+    /// `--c-isect` and `--empty-bonus`. A NaN, infinite or out-of-range term is a usage
+    /// error naming its option (before the scene is loaded).
+    pub fn build_config(&self) -> Result<BuildConfig, Error> {
+        let model = CostModel::from(self.cost_model).config();
+        let c_isect = self.c_isect.unwrap_or(model.c_isect);
+        let empty_bonus = self.empty_bonus.unwrap_or(model.empty_bonus);
+        if !(c_isect.is_finite() && c_isect > 0.0) {
+            return Err(Error::Usage(format!("--c-isect {c_isect} must be a finite number > 0")));
+        }
+        if !(0.0..1.0).contains(&empty_bonus) {
+            return Err(Error::Usage(format!("--empty-bonus {empty_bonus} must be in [0, 1)")));
+        }
+        Ok(BuildConfig {
+            intersector: self.intersector.into(),
+            max_depth: self.max_depth,
+            c_isect,
+            empty_bonus,
+            memory_budget: self.memory_budget,
+            ..model
+        })
+    }
 }
 
 /// `--intersector` values.
@@ -294,6 +347,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Tables(args)) => tables::run(&global, &args),
         Some(Command::Shadows(args)) => shadows::run(&global, &args),
         Some(Command::Compare(args)) => compare::run(&global, &args),
+        Some(Command::SahSweep(args)) => sah_sweep::run(&global, &args),
         None => main_job::run(&global),
     })
 }
@@ -335,13 +389,9 @@ pub fn structures_for<'a>(registry: &Registry, selected: &Selected, built: &'a B
 
 /// Loads the scene and builds its tree `repeat` times, keeping the fastest build.
 pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Result<Built, Error> {
-    // The builder checks these too; here they fail before the scene is loaded, naming the option.
-    if !(args.c_isect.is_finite() && args.c_isect > 0.0) {
-        return Err(Error::Usage(format!("--c-isect {} must be a finite number > 0", args.c_isect)));
-    }
-    if !(0.0..1.0).contains(&args.empty_bonus) {
-        return Err(Error::Usage(format!("--empty-bonus {} must be in [0, 1)", args.empty_bonus)));
-    }
+    // The builder checks the terms too; here they fail before the scene is loaded, naming
+    // the option.
+    let config = args.build_config()?;
     let show = progress::enabled(global.json);
     let start = Instant::now();
     let loading = Bar::spinner(&format!("loading {}", args.scene), show);
@@ -349,14 +399,6 @@ pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Res
     loading.finish();
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
 
-    let config = BuildConfig {
-        intersector: args.intersector.into(),
-        max_depth: args.max_depth,
-        c_isect: args.c_isect,
-        empty_bonus: args.empty_bonus,
-        memory_budget: args.memory_budget,
-        ..BuildConfig::default()
-    };
     let message = format!("building {}", scene.name);
     let building =
         if repeat > 1 { Bar::steps(u64::from(repeat), &message, show) } else { Bar::spinner(&message, show) };
@@ -378,6 +420,9 @@ pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Res
         load_ms,
         threads: rayon::current_num_threads(),
         intersector: tree.intersector().name().to_string(),
+        c_trav: tree.config().c_trav,
+        c_isect: tree.config().c_isect,
+        empty_bonus: tree.config().empty_bonus,
         tree: TreeSummary::of(&tree),
     };
     Ok(Built { scene, tree, report })

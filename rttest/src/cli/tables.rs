@@ -4,7 +4,7 @@ use clap::Args;
 use experiments::tables::{self, TablesConfig};
 use trace::Error;
 
-use super::{GlobalArgs, IntersectorArg, parse_size};
+use super::{CostModelArg, GlobalArgs, IntersectorArg, parse_size};
 use crate::progress::{self, Bars};
 
 /// `rttest tables` options.
@@ -23,6 +23,9 @@ pub struct TablesArgs {
     /// The ray-triangle test.
     #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
     pub intersector: IntersectorArg,
+    /// The trees' SAH cost model (`thesis` builds the thesis's own trees).
+    #[arg(long, value_enum, default_value_t = CostModelArg::WaldHavran)]
+    pub cost_model: CostModelArg,
     /// Print the rows as CSV instead of the markdown tables: one table of the primary-ray
     /// rows, then (after a blank line) one of the soft-shadow rows of Table 4.6.
     #[arg(long)]
@@ -42,6 +45,7 @@ impl From<&TablesArgs> for TablesConfig {
             size: a.size,
             frames: a.frames,
             intersector: a.intersector.into(),
+            cost_model: a.cost_model.into(),
             csv: a.csv,
             no_soft_shadows: a.no_soft_shadows,
             no_scaling: a.no_scaling,
