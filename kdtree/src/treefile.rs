@@ -7,14 +7,14 @@
 //! ```text
 //! header   magic "RTKDTREE" (8 bytes)  version u32  intersector u32 (0 wald, 1 watertight)
 //!          c_trav f32  c_isect f32  empty_bonus f32  max_depth u32 (0: the default 8 + log2 N)
-//!          triangle count u64  scene hash u64 (scene_hash: FNV-1a 64 of positions and indices)
+//!          triangle count u64  scene hash u64 (scene_hash: FNV-1a 64 over words of positions and indices)
 //!          bounds: min x y z, max x y z (6 f32)
 //! arrays   one section each: tag (4 bytes)  element size u32  count u64  count * size bytes
 //!          "NODE" the nodes (8 bytes: word0 u32, word1 u32; see [`crate::node`])
 //!          "PREF" the leaves' triangle references (u32)
 //!          "WALD" or "WTRI" the intersection records of the header's intersector
 //!                 (Wald: kuv u32 then 9 f32, 40 bytes; watertight: 9 f32, 36 bytes)
-//! footer   checksum u64: FNV-1a 64 of every byte before it
+//! footer   checksum u64 (checksum: word-wise FNV-1a 64 of every byte before it)
 //! ```
 //!
 //! Each array is one contiguous run of fixed-size elements, so a reader needs one read per
@@ -176,38 +176,58 @@ const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 /// FNV-1a 64 prime.
 const FNV_PRIME: u64 = 0x0100_0000_01b3;
 
-/// FNV-1a 64 (Fowler, Noll, Vo) of `bytes`, continuing from `hash`.
-fn fnv1a(mut hash: u64, bytes: &[u8]) -> u64 {
-    for &b in bytes {
-        hash ^= u64::from(b);
-        hash = hash.wrapping_mul(FNV_PRIME);
+/// One FNV-1a step over a 64-bit word: `(hash ^ word) * prime`. Both operations are
+/// bijections of the hash, so changing any one word always changes the result.
+#[inline(always)]
+fn mix(hash: u64, word: u64) -> u64 {
+    (hash ^ word).wrapping_mul(FNV_PRIME)
+}
+
+/// FNV-1a 64 taken over 64-bit words instead of bytes (8 times fewer multiplications: the
+/// 8 MB of Sponza's tree in a few milliseconds): the little-endian words of `bytes`, the
+/// last one zero-padded, then the byte length.
+pub fn checksum(bytes: &[u8]) -> u64 {
+    let mut chunks = bytes.chunks_exact(8);
+    let mut h = FNV_OFFSET;
+    for c in &mut chunks {
+        let mut w = [0u8; 8];
+        w.copy_from_slice(c);
+        h = mix(h, u64::from_le_bytes(w));
+    }
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        let mut w = [0u8; 8];
+        w[..rest.len()].copy_from_slice(rest);
+        h = mix(h, u64::from_le_bytes(w));
+    }
+    mix(h, bytes.len() as u64)
+}
+
+/// The 32-bit values of `values` hashed in pairs as 64-bit words (`first | second << 32`,
+/// the last one alone when the count is odd), from `hash`.
+fn mix_u32s(mut hash: u64, values: impl Iterator<Item = u32>) -> u64 {
+    let mut pending: Option<u32> = None;
+    for v in values {
+        match pending.take() {
+            Some(lo) => hash = mix(hash, u64::from(lo) | u64::from(v) << 32),
+            None => pending = Some(v),
+        }
+    }
+    if let Some(lo) = pending {
+        hash = mix(hash, u64::from(lo));
     }
     hash
 }
 
-/// FNV-1a 64 of `bytes`: the footer's checksum.
-pub fn checksum(bytes: &[u8]) -> u64 {
-    fnv1a(FNV_OFFSET, bytes)
-}
-
-/// The scene hash of the header: FNV-1a 64 over the vertex count (u64), the positions
-/// (3 f32 each), the triangle count (u64) and the indices (3 u32 each), all little-endian
-/// bytes. Stable across platforms and runs; any change to a coordinate bit or an index
-/// changes it (up to 64-bit collisions).
+/// The scene hash of the header, word-wise FNV-1a 64 as [`checksum`]: the vertex count, the
+/// positions' coordinate bits (x, y, z per vertex, in pairs of 32-bit values), the triangle
+/// count, then the indices (three per triangle, in pairs). Stable across platforms and runs;
+/// changing any coordinate bit or index changes it.
 pub fn scene_hash(positions: &[Vec3], triangles: &[[u32; 3]]) -> u64 {
-    let mut h = fnv1a(FNV_OFFSET, &(positions.len() as u64).to_le_bytes());
-    for p in positions {
-        for c in p.to_array() {
-            h = fnv1a(h, &c.to_le_bytes());
-        }
-    }
-    h = fnv1a(h, &(triangles.len() as u64).to_le_bytes());
-    for t in triangles {
-        for i in t {
-            h = fnv1a(h, &i.to_le_bytes());
-        }
-    }
-    h
+    let mut h = mix(FNV_OFFSET, positions.len() as u64);
+    h = mix_u32s(h, positions.iter().flat_map(|p| p.to_array().map(f32::to_bits)));
+    h = mix(h, triangles.len() as u64);
+    mix_u32s(h, triangles.iter().flatten().copied())
 }
 
 /// Recomputes the footer checksum of a tree file in place (no-op on fewer than 8 bytes), so
