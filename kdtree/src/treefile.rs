@@ -25,7 +25,8 @@
 //! before anything is allocated, the header must match the scene (hash and triangle count),
 //! the intersector and the SAH terms asked for, every child index and reference must be in
 //! range, every split plane and the bounds finite, the records and bounds equal to those
-//! recomputed from the scene, the checksum right, and then [`KdTree::validate`] runs. Each
+//! recomputed from the scene, the checksum right, and then [`KdTree::validate`] runs (unless
+//! [`Checks::File`] is asked for: the same checks without the validate walk). Each
 //! refusal is a [`TreeFileError`] saying what is wrong; nothing here panics on any input.
 
 use glam::Vec3;
@@ -559,16 +560,33 @@ enum Records {
     Watertight(Vec<WatertightTriangle>),
 }
 
+/// How much [`from_bytes`] checks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Checks {
+    /// Every check of the file, then [`KdTree::validate`] (which costs about as much as the
+    /// build: it clips every triangle down the tree).
+    #[default]
+    Full,
+    /// Every check of the file (lengths, header against the scene and configuration, ranges,
+    /// finiteness, checksum, records and bounds against the scene, tree structure), not
+    /// [`KdTree::validate`]'s completeness walk. What the file cannot then guarantee is only
+    /// that a deliberately altered file, with its checksum recomputed, still references every
+    /// triangle in every leaf it enters: a wrong image, never a panic or an out-of-bounds read.
+    File,
+}
+
 /// Loads the tree of a tree file for the scene `positions` / `triangles`, asking for the
 /// intersector and SAH terms of `expected` (its `memory_budget` is kept in the loaded tree's
 /// configuration, not compared). Every check of the module docs runs, [`KdTree::validate`]
-/// last; the first that fails is the error. The loaded tree equals the saved one in every
-/// array, bit for bit; its [`KdTree::build_peak_bytes`] is `None` (nothing was built).
+/// last with [`Checks::Full`]; the first that fails is the error. The loaded tree equals the
+/// saved one in every array, bit for bit; its [`KdTree::build_peak_bytes`] is `None`
+/// (nothing was built).
 pub fn from_bytes(
     bytes: &[u8],
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     expected: &BuildConfig,
+    checks: Checks,
 ) -> Result<KdTree, TreeFileError> {
     let mut r = Reader { bytes, pos: 0 };
     let magic = r.take(8, "the magic").map_err(|e| match e {
@@ -703,6 +721,8 @@ pub fn from_bytes(
             }
         }
     }
-    tree.validate().map_err(TreeFileError::Invalid)?;
+    if checks == Checks::Full {
+        tree.validate().map_err(TreeFileError::Invalid)?;
+    }
     Ok(tree)
 }

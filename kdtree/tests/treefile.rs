@@ -1,7 +1,7 @@
 //! Tree files (`kdtree::treefile`): build -> save -> load gives the same tree bit for bit, and
 //! every kind of damage is refused with its own error, without a panic.
 
-use kdtree::treefile::{self, TreeFileError};
+use kdtree::treefile::{self, Checks, TreeFileError};
 use kdtree::{BuildConfig, Intersector, KdTree};
 use scenes::Mesh;
 
@@ -40,7 +40,7 @@ fn save(mesh: &Mesh, tree: &KdTree) -> Vec<u8> {
 }
 
 fn load(bytes: &[u8], mesh: &Mesh, config: &BuildConfig) -> Result<KdTree, TreeFileError> {
-    treefile::from_bytes(bytes, &mesh.positions, &mesh.triangles, config)
+    treefile::from_bytes(bytes, &mesh.positions, &mesh.triangles, config, Checks::Full)
 }
 
 fn bits<T: Copy, const N: usize>(v: &[T], f: impl Fn(&T) -> [u32; N]) -> Vec<[u32; N]> {
@@ -318,6 +318,13 @@ fn damage_behind_the_structure_checks_is_caught_by_checksum_records_and_validate
     treefile::reseal(&mut b);
     let e = load(&b, &mesh, &config).unwrap_err();
     assert!(matches!(e, TreeFileError::Invalid(_)), "{e}");
+    // Checks::File leaves exactly this to validate(): the file loads, and validate refuses it.
+    let tree = treefile::from_bytes(&b, &mesh.positions, &mesh.triangles, &config, Checks::File).unwrap();
+    assert!(tree.validate().is_err());
+    // Everything else is still refused without validate().
+    let mut c = bytes.clone();
+    c[bytes.len() / 2] ^= 4;
+    assert!(treefile::from_bytes(&c, &mesh.positions, &mesh.triangles, &config, Checks::File).is_err());
 }
 
 #[test]

@@ -54,9 +54,25 @@ fn a_saved_tree_loads_as_the_same_tree_and_renders_the_same_image() {
         &["build", "--scene", "sphere", "--intersector", "watertight", "--tree", "sphere.tree", "--json"],
     ));
     assert_eq!(loaded["build_ms"], 0.0);
+    let file_checks = json(rttest(
+        &dir,
+        &[
+            "build",
+            "--scene",
+            "sphere",
+            "--intersector",
+            "watertight",
+            "--tree",
+            "sphere.tree",
+            "--tree-checks",
+            "file",
+            "--json",
+        ],
+    ));
     assert!(loaded["load_tree_ms"].as_f64().unwrap() > 0.0);
     for key in ["nodes", "leaves", "empty_leaves", "depth", "refs", "sah_cost", "bytes", "triangles_in_tree"] {
         assert_eq!(built[key], loaded[key], "{key}");
+        assert_eq!(built[key], file_checks[key], "{key}");
     }
     // The same images, colour and primitive ids, from the built and the loaded tree.
     for (aov, ext) in [("color", "png"), ("prim", "pfm")] {
@@ -90,8 +106,10 @@ fn damaged_and_mismatched_tree_files_are_refused_naming_the_file() {
     let middle = flipped.len() / 2;
     flipped[middle] ^= 0x10;
     std::fs::write(dir.join("flipped.tree"), &flipped).unwrap();
-    let e = load("flipped.tree", &[]);
-    assert!(e.contains("flipped.tree") && e.contains("cannot load the tree"), "{e}");
+    for checks in ["full", "file"] {
+        let e = load("flipped.tree", &["--tree-checks", checks]);
+        assert!(e.contains("flipped.tree") && e.contains("cannot load the tree"), "{e}");
+    }
 
     std::fs::write(dir.join("short.tree"), &bytes[..bytes.len() - 3]).unwrap();
     let e = load("short.tree", &[]);

@@ -124,9 +124,9 @@ pub struct BuildReport {
     /// Milliseconds to build the tree (the best of `--repeat` builds); 0 when the tree was
     /// loaded from a file (`--tree`) instead.
     pub build_ms: f64,
-    /// Milliseconds to load the tree file and check it, [`kdtree::KdTree::validate`] included:
-    /// the `--tree` file (the best of `--repeat` loads), or the file `rttest build --save`
-    /// just wrote, read back; `None` when no tree file was read.
+    /// Milliseconds to load the tree file and check it ([`kdtree::KdTree::validate`] included
+    /// unless `--tree-checks file`): the `--tree` file (the best of `--repeat` loads), or the
+    /// file `rttest build --save` just wrote, read back; `None` when no tree file was read.
     pub load_tree_ms: Option<f64>,
     /// Of `load_tree_ms`, the part [`kdtree::KdTree::validate`] takes, timed alone on the
     /// loaded tree (`rttest build` only).

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use kdtree::treefile::Checks;
 use kdtree::{BuildConfig, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
@@ -65,11 +66,12 @@ pub fn save_tree(path: &Path, tree: &KdTree, scene: &Scene) -> Result<(), Error>
 
 /// Reads the tree file `path` (one read) and loads its tree for `scene`, asking for the
 /// intersector and SAH terms of `config`: every check of [`kdtree::treefile::from_bytes`]
-/// runs, [`KdTree::validate`] last. Errors name the file and the problem.
-pub fn load_tree(path: &Path, scene: &Scene, config: &BuildConfig) -> Result<KdTree, Error> {
+/// runs, [`KdTree::validate`] last with [`Checks::Full`]. Errors name the file and the
+/// problem.
+pub fn load_tree(path: &Path, scene: &Scene, config: &BuildConfig, checks: Checks) -> Result<KdTree, Error> {
     let file_error = |message: String| Error::File { path: path.to_path_buf(), message };
     let bytes = std::fs::read(path).map_err(|e| file_error(format!("cannot read the tree file: {e}")))?;
-    kdtree::treefile::from_bytes(&bytes, &scene.mesh.positions, &scene.mesh.triangles, config)
+    kdtree::treefile::from_bytes(&bytes, &scene.mesh.positions, &scene.mesh.triangles, config, checks)
         .map_err(|e| file_error(format!("cannot load the tree for scene '{}': {e}", scene.name)))
 }
 

@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
+use kdtree::treefile::Checks;
 use kdtree::{BuildConfig, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
@@ -110,6 +111,30 @@ pub struct SceneArgs {
     /// --c-isect, --empty-bonus and --max-depth; it is checked in full before use.
     #[arg(long, value_name = "FILE")]
     pub tree: Option<PathBuf>,
+    /// How a tree file is checked when loaded: `full` (every check of the file, then the
+    /// tree's validate(), which costs about a build) or `file` (every check of the file:
+    /// lengths, header against scene and options, ranges, NaN, checksum, records; not
+    /// validate()).
+    #[arg(long, value_enum, default_value_t = TreeChecksArg::Full, value_name = "CHECKS")]
+    pub tree_checks: TreeChecksArg,
+}
+
+/// `--tree-checks` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TreeChecksArg {
+    /// Every check of the file, then `KdTree::validate()`.
+    Full,
+    /// Every check of the file, without `KdTree::validate()`.
+    File,
+}
+
+impl From<TreeChecksArg> for Checks {
+    fn from(a: TreeChecksArg) -> Checks {
+        match a {
+            TreeChecksArg::Full => Checks::Full,
+            TreeChecksArg::File => Checks::File,
+        }
+    }
 }
 
 /// `--intersector` values.
@@ -370,7 +395,7 @@ pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Res
         let mut best: Option<(KdTree, f64)> = None;
         for _ in 0..repeat {
             let start = Instant::now();
-            let tree = trace::setup::load_tree(path, &scene, &config)?;
+            let tree = trace::setup::load_tree(path, &scene, &config, args.tree_checks.into())?;
             let ms = start.elapsed().as_secs_f64() * 1e3;
             if best.as_ref().is_none_or(|(_, b)| ms < *b) {
                 best = Some((tree, ms));
@@ -421,15 +446,15 @@ fn build_report(scene: &Scene, tree: &KdTree, build_ms: f64, load_ms: f64) -> Bu
 /// `rttest build`.
 ///
 /// With `--save FILE`, the tree is written to FILE and read back from it, timed: that load
-/// (file read, every check, `validate()` included) is `load_tree_ms`, and `validate_ms` is
-/// one more `validate()` of the loaded tree timed alone. The loaded tree must give the same
+/// (file read, every check, `validate()` included unless `--tree-checks file`) is
+/// `load_tree_ms`, and `validate_ms` is one more `validate()` of the loaded tree timed alone. The loaded tree must give the same
 /// bytes as the built one, or the command fails.
 fn build_command(global: &GlobalArgs, args: &BuildArgs) -> Result<(), Error> {
     let mut built = load_and_build(global, &args.scene, args.repeat)?;
     if let Some(path) = &args.save {
         trace::setup::save_tree(path, &built.tree, &built.scene)?;
         let start = Instant::now();
-        let loaded = trace::setup::load_tree(path, &built.scene, built.tree.config())?;
+        let loaded = trace::setup::load_tree(path, &built.scene, built.tree.config(), args.scene.tree_checks.into())?;
         let load_tree_ms = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
         loaded.validate().map_err(|e| Error::Usage(format!("the loaded tree does not validate: {e}")))?;
