@@ -28,6 +28,7 @@ pub mod ray;
 pub mod stats;
 pub mod traverse;
 pub mod tree;
+pub mod treefile;
 pub mod triangle;
 mod validate;
 
@@ -39,6 +40,7 @@ pub use oracle::BruteForce;
 pub use ray::{Hit, Ray, RayError};
 pub use stats::TreeStats;
 pub use tree::KdTree;
+pub use treefile::TreeFileError;
 pub use triangle::Intersector;
 
 /// Depth of the fixed traversal stack. The builder never makes a tree deeper than

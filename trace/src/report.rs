@@ -121,8 +121,18 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
 pub struct BuildReport {
     /// Scene name.
     pub scene: String,
-    /// Milliseconds to build the tree (the best of `--repeat` builds).
+    /// Milliseconds to build the tree (the best of `--repeat` builds); 0 when the tree was
+    /// loaded from a file (`--tree`) instead.
     pub build_ms: f64,
+    /// Milliseconds to load the tree file and check it ([`kdtree::KdTree::validate`] included
+    /// unless `--tree-checks file`): the `--tree` file (the best of `--repeat` loads), or the
+    /// file `rttest build --save` just wrote, read back; `None` when no tree file was read.
+    pub load_tree_ms: Option<f64>,
+    /// Of `load_tree_ms`, the part [`kdtree::KdTree::validate`] takes, timed alone on the
+    /// loaded tree (`rttest build` only).
+    pub validate_ms: Option<f64>,
+    /// The tree file loaded (`--tree`) or saved (`--save`).
+    pub tree_file: Option<String>,
     /// Milliseconds to load or generate the scene.
     pub load_ms: f64,
     /// Threads in the pool the build ran on.
@@ -282,11 +292,23 @@ impl fmt::Display for BuildReport {
         let t = &self.tree;
         writeln!(f, "scene        {} ({} triangles, {} in tree)", self.scene, t.triangles, t.triangles_in_tree)?;
         writeln!(f, "load         {:.1} ms", self.load_ms)?;
-        writeln!(
-            f,
-            "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {})",
-            self.build_ms, self.threads, self.intersector, self.c_trav, self.c_isect, self.empty_bonus
-        )?;
+        match &self.tree_file {
+            Some(file) if self.build_ms == 0.0 => {
+                writeln!(f, "tree         loaded from {file}, not built ({} intersector)", self.intersector)?
+            }
+            _ => writeln!(
+                f,
+                "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {})",
+                self.build_ms, self.threads, self.intersector, self.c_trav, self.c_isect, self.empty_bonus
+            )?,
+        }
+        if let Some(ms) = self.load_tree_ms {
+            let file = self.tree_file.as_deref().unwrap_or("?");
+            match self.validate_ms {
+                Some(v) => writeln!(f, "load tree    {ms:.1} ms ({file}; of which validate {v:.1} ms)")?,
+                None => writeln!(f, "load tree    {ms:.1} ms ({file})")?,
+            }
+        }
         writeln!(
             f,
             "nodes        {} ({} inner, {} leaves of which {} empty)",

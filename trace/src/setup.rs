@@ -4,9 +4,10 @@
 //! Everything here runs *outside* the timed loops: a bench loads a [`Workload`] once, then
 //! times only [`trace_closest`] or [`trace_any`] over its precomputed rays.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use kdtree::treefile::Checks;
 use kdtree::{BuildConfig, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
@@ -52,6 +53,26 @@ pub fn load_and_build(spec: &str, config: &BuildConfig) -> Result<(Scene, KdTree
     let start = Instant::now();
     let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, config)?;
     Ok((scene, tree, start.elapsed().as_secs_f64() * 1e3))
+}
+
+/// Writes `tree`, built over `scene`'s mesh, to the tree file `path`
+/// ([`kdtree::treefile`]). Errors name the file.
+pub fn save_tree(path: &Path, tree: &KdTree, scene: &Scene) -> Result<(), Error> {
+    let file_error = |message: String| Error::File { path: path.to_path_buf(), message };
+    let bytes = kdtree::treefile::to_bytes(tree, &scene.mesh.positions, &scene.mesh.triangles)
+        .map_err(|e| file_error(format!("cannot save the tree of scene '{}': {e}", scene.name)))?;
+    std::fs::write(path, bytes).map_err(|e| file_error(format!("cannot write the tree file: {e}")))
+}
+
+/// Reads the tree file `path` (one read) and loads its tree for `scene`, asking for the
+/// intersector and SAH terms of `config`: every check of [`kdtree::treefile::from_bytes`]
+/// runs, [`KdTree::validate`] last with [`Checks::Full`]. Errors name the file and the
+/// problem.
+pub fn load_tree(path: &Path, scene: &Scene, config: &BuildConfig, checks: Checks) -> Result<KdTree, Error> {
+    let file_error = |message: String| Error::File { path: path.to_path_buf(), message };
+    let bytes = std::fs::read(path).map_err(|e| file_error(format!("cannot read the tree file: {e}")))?;
+    kdtree::treefile::from_bytes(&bytes, &scene.mesh.positions, &scene.mesh.triangles, config, checks)
+        .map_err(|e| file_error(format!("cannot load the tree for scene '{}': {e}", scene.name)))
 }
 
 /// A scene with its tree and the rays of one frame: the primary rays of a camera and the

@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
+use kdtree::treefile::Checks;
 use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
@@ -115,6 +116,35 @@ pub struct SceneArgs {
     /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
     #[arg(long, value_name = "BYTES", value_parser = trace::report::parse_bytes)]
     pub memory_budget: Option<u64>,
+    /// Load the tree from this file (written by `rttest build --save`) instead of building
+    /// it. The file must have been built for this scene with the same --intersector,
+    /// --c-isect, --empty-bonus and --max-depth; it is checked in full before use.
+    #[arg(long, value_name = "FILE")]
+    pub tree: Option<PathBuf>,
+    /// How a tree file is checked when loaded: `full` (every check of the file, then the
+    /// tree's validate(), which costs about a build) or `file` (every check of the file:
+    /// lengths, header against scene and options, ranges, NaN, checksum, records; not
+    /// validate()).
+    #[arg(long, value_enum, default_value_t = TreeChecksArg::Full, value_name = "CHECKS")]
+    pub tree_checks: TreeChecksArg,
+}
+
+/// `--tree-checks` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TreeChecksArg {
+    /// Every check of the file, then `KdTree::validate()`.
+    Full,
+    /// Every check of the file, without `KdTree::validate()`.
+    File,
+}
+
+impl From<TreeChecksArg> for Checks {
+    fn from(a: TreeChecksArg) -> Checks {
+        match a {
+            TreeChecksArg::Full => Checks::Full,
+            TreeChecksArg::File => Checks::File,
+        }
+    }
 }
 
 /// `--cost-model` values.
@@ -184,9 +214,12 @@ pub struct BuildArgs {
     /// The scene.
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Build this many times and report the fastest.
+    /// Build (or with --tree, load) this many times and report the fastest.
     #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub repeat: u32,
+    /// Save the tree to this file (for --tree), then read it back, timed (load_tree_ms).
+    #[arg(long, value_name = "FILE")]
+    pub save: Option<PathBuf>,
 }
 
 /// `rttest render` options.
@@ -399,6 +432,24 @@ pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Res
     loading.finish();
     let load_ms = start.elapsed().as_secs_f64() * 1e3;
 
+    if let Some(path) = &args.tree {
+        let loading = Bar::spinner(&format!("loading the tree {}", path.display()), show);
+        let mut best: Option<(KdTree, f64)> = None;
+        for _ in 0..repeat {
+            let start = Instant::now();
+            let tree = trace::setup::load_tree(path, &scene, &config, args.tree_checks.into())?;
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            if best.as_ref().is_none_or(|(_, b)| ms < *b) {
+                best = Some((tree, ms));
+            }
+        }
+        loading.finish();
+        let (tree, load_tree_ms) = best.ok_or_else(|| Error::Usage("no load was run".into()))?;
+        let mut report = build_report(&scene, &tree, 0.0, load_ms);
+        report.load_tree_ms = Some(load_tree_ms);
+        report.tree_file = Some(path.display().to_string());
+        return Ok(Built { scene, tree, report });
+    }
     let message = format!("building {}", scene.name);
     let building =
         if repeat > 1 { Bar::steps(u64::from(repeat), &message, show) } else { Bar::spinner(&message, show) };
@@ -414,23 +465,56 @@ pub fn load_and_build(global: &GlobalArgs, args: &SceneArgs, repeat: u32) -> Res
     }
     building.finish();
     let (tree, build_ms) = best.ok_or_else(|| Error::Usage("no build was run".into()))?;
-    let report = BuildReport {
+    let report = build_report(&scene, &tree, build_ms, load_ms);
+    Ok(Built { scene, tree, report })
+}
+
+/// The build report of `tree`, built in `build_ms` (0 when loaded) over `scene`, loaded in
+/// `load_ms`; no tree file.
+fn build_report(scene: &Scene, tree: &KdTree, build_ms: f64, load_ms: f64) -> BuildReport {
+    BuildReport {
         scene: scene.name.clone(),
         build_ms,
+        load_tree_ms: None,
+        validate_ms: None,
+        tree_file: None,
         load_ms,
         threads: rayon::current_num_threads(),
         intersector: tree.intersector().name().to_string(),
         c_trav: tree.config().c_trav,
         c_isect: tree.config().c_isect,
         empty_bonus: tree.config().empty_bonus,
-        tree: TreeSummary::of(&tree),
-    };
-    Ok(Built { scene, tree, report })
+        tree: TreeSummary::of(tree),
+    }
 }
 
 /// `rttest build`.
+///
+/// With `--save FILE`, the tree is written to FILE and read back from it, timed: that load
+/// (file read, every check, `validate()` included unless `--tree-checks file`) is
+/// `load_tree_ms`, and `validate_ms` is one more `validate()` of the loaded tree timed alone. The loaded tree must give the same
+/// bytes as the built one, or the command fails.
 fn build_command(global: &GlobalArgs, args: &BuildArgs) -> Result<(), Error> {
-    let built = load_and_build(global, &args.scene, args.repeat)?;
+    let mut built = load_and_build(global, &args.scene, args.repeat)?;
+    if let Some(path) = &args.save {
+        trace::setup::save_tree(path, &built.tree, &built.scene)?;
+        let start = Instant::now();
+        let loaded = trace::setup::load_tree(path, &built.scene, built.tree.config(), args.scene.tree_checks.into())?;
+        let load_tree_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        loaded.validate().map_err(|e| Error::Usage(format!("the loaded tree does not validate: {e}")))?;
+        let validate_ms = start.elapsed().as_secs_f64() * 1e3;
+        let same = |t: &KdTree| kdtree::treefile::to_bytes(t, &built.scene.mesh.positions, &built.scene.mesh.triangles);
+        if same(&loaded).ok() != same(&built.tree).ok() {
+            return Err(Error::File {
+                path: path.clone(),
+                message: "the tree read back differs from the tree saved".into(),
+            });
+        }
+        built.report.load_tree_ms = Some(load_tree_ms);
+        built.report.validate_ms = Some(validate_ms);
+        built.report.tree_file = Some(path.display().to_string());
+    }
     emit(global, &built.report)
 }
 
