@@ -18,6 +18,7 @@ use kdtree::Hit;
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
+use crate::aov::{Attribution, CostFrame, PixelCost};
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
 use crate::{shade, soft};
@@ -151,6 +152,24 @@ impl<'a> Renderer<'a> {
     /// primary and the shadow pass apart. Slower: not for timing.
     pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, Counts, Counts) {
         self.trace_with(buf, true)
+    }
+
+    /// The primary pass counted for cost images ([`crate::aov`]): hits into `buf.hits` (the
+    /// shadow buffers are left alone), and each pixel's share of the traversal counts, per
+    /// ray for single-ray methods and per tile for packets, frusta and cones
+    /// ([`Attribution::for_entry`]). Slower than [`Renderer::trace`]: not for timing.
+    pub fn trace_costs(&self, buf: &mut FrameBuffers) -> CostFrame {
+        let attribution = Attribution::for_entry(&self.method.entry);
+        let mut costs = vec![PixelCost::default(); self.layout.pixel_count()];
+        let totals =
+            self.method.tracer.primary_costs(&self.layout, &self.camera, attribution, &mut buf.hits, &mut costs);
+        CostFrame {
+            width: self.camera.width,
+            height: self.camera.height,
+            pixels: self.layout.to_row_major(&costs),
+            totals,
+            attribution,
+        }
     }
 
     fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, Counts, Counts) {
