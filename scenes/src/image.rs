@@ -32,6 +32,63 @@ pub struct ScalarImage {
     pub values: Vec<f32>,
 }
 
+/// An 8-bit sRGB image for display (heat maps, legends, strips), row-major, row 0 at the
+/// top; unlike [`Image`] it is written to PNG as it is, without gamma.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgb8Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major pixels, three bytes each.
+    pub rgb: Vec<u8>,
+}
+
+impl Rgb8Image {
+    /// A `width` x `height` image filled with `color`.
+    pub fn filled(width: u32, height: u32, color: [u8; 3]) -> Rgb8Image {
+        let rgb = color.repeat(width as usize * height as usize);
+        Rgb8Image { width, height, rgb }
+    }
+
+    /// The colour of pixel `(x, y)`. Panics outside the image.
+    pub fn get(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = 3 * index(self.width, self.height, x, y);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// Sets pixel `(x, y)`; pixels outside the image are ignored (drawing clips).
+    pub fn put(&mut self, x: i64, y: i64, color: [u8; 3]) {
+        if x >= 0 && y >= 0 && x < i64::from(self.width) && y < i64::from(self.height) {
+            let i = 3 * (y as usize * self.width as usize + x as usize);
+            self.rgb[i..i + 3].copy_from_slice(&color);
+        }
+    }
+
+    /// Fills the rectangle `[x, x + w) x [y, y + h)`, clipped to the image.
+    pub fn fill_rect(&mut self, x: i64, y: i64, w: u32, h: u32, color: [u8; 3]) {
+        for yy in y..y + i64::from(h) {
+            for xx in x..x + i64::from(w) {
+                self.put(xx, yy, color);
+            }
+        }
+    }
+
+    /// Copies `other` with its top left corner at `(x, y)`, clipped to the image.
+    pub fn blit(&mut self, other: &Rgb8Image, x: i64, y: i64) {
+        for yy in 0..other.height {
+            for xx in 0..other.width {
+                self.put(x + i64::from(xx), y + i64::from(yy), other.get(xx, yy));
+            }
+        }
+    }
+
+    /// Writes an 8-bit RGB PNG.
+    pub fn save_png(&self, path: &Path) -> Result<(), SceneError> {
+        write_png(path, self.width, self.height, &self.rgb)
+    }
+}
+
 impl Image {
     /// A black `width` x `height` image.
     pub fn new(width: u32, height: u32) -> Image {
