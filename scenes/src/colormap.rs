@@ -75,12 +75,13 @@ const TICKS: u32 = 4;
 pub fn strip(panels: &[Panel<'_>], max: f32, title: &str) -> Rgb8Image {
     let panel_h = panels.iter().map(|p| p.image.height).max().unwrap_or(0).max(32);
     let s = if panel_h >= 256 { 2 } else { 1 };
-    let band = GLYPH_H * s + MARGIN;
+    // Room for the labels, and for half a tick label above the bar's top.
+    let band = GLYPH_H * s * 3 / 2 + MARGIN;
     let panels_w: u32 = panels.iter().map(|p| p.image.width.max(text_width(p.label, s)) + MARGIN).sum();
     let bar_w = 12 * s;
     let ticks: Vec<String> = (0..=TICKS).map(|k| tick_label(max * k as f32 / TICKS as f32)).collect();
     let ticks_w = ticks.iter().map(|t| text_width(t, s)).max().unwrap_or(0);
-    let legend_w = (bar_w + 3 * s + ticks_w).max(text_width(title, s));
+    let legend_w = (bar_w + 5 * s + ticks_w).max(text_width(title, s));
     let width = MARGIN + panels_w + legend_w + MARGIN;
     let height = band + panel_h + MARGIN + GLYPH_H * s / 2;
     let mut out = Rgb8Image::filled(width, height, BACKGROUND);
@@ -100,7 +101,7 @@ pub fn strip(panels: &[Panel<'_>], max: f32, title: &str) -> Rgb8Image {
         let y = top + i64::from(rows - rows * k as u32 / TICKS);
         out.fill_rect(x + i64::from(bar_w), y, 2 * s, 1, TEXT);
         let text_y = y - i64::from(GLYPH_H * s / 2);
-        draw_text(&mut out, x + i64::from(bar_w + 3 * s), text_y, label, s, TEXT);
+        draw_text(&mut out, x + i64::from(bar_w + 5 * s), text_y, label, s, TEXT);
     }
     out
 }
@@ -147,7 +148,7 @@ mod tests {
         let a = ScalarImage { width: 40, height: 30, values: vec![1.0; 1200] };
         let b = ScalarImage { width: 40, height: 30, values: vec![2.0; 1200] };
         let out = strip(&[Panel { label: "MONO", image: &a }, Panel { label: "MFT-16", image: &b }], 2.0, "NODES");
-        let top = GLYPH_H + MARGIN;
+        let top = GLYPH_H * 3 / 2 + MARGIN;
         assert_eq!(out.height, top + 32 + MARGIN + GLYPH_H / 2);
         assert_eq!(out.get(MARGIN + 5, top + 5), viridis(0.5));
         assert_eq!(out.get(2 * MARGIN + 40 + 5, top + 5), viridis(1.0));
