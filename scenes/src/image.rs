@@ -109,8 +109,14 @@ impl Image {
     /// Writes an 8-bit sRGB-style PNG: each channel clamped to [0, 1] (NaN as 0, `+inf` as
     /// 1, `-inf` as 0) and encoded with gamma 2.2.
     pub fn save_png(&self, path: &Path) -> Result<(), SceneError> {
-        let bytes: Vec<u8> = self.pixels.iter().flat_map(|p| p.to_array()).map(encode_gamma).collect();
-        write_png(path, self.width, self.height, &bytes)
+        self.to_rgb8().save_png(path)
+    }
+
+    /// The 8-bit image [`Image::save_png`] writes: each channel clamped to [0, 1] (NaN as 0)
+    /// and encoded with gamma 2.2.
+    pub fn to_rgb8(&self) -> Rgb8Image {
+        let rgb = self.pixels.iter().flat_map(|p| p.to_array()).map(encode_gamma).collect();
+        Rgb8Image { width: self.width, height: self.height, rgb }
     }
 
     /// Writes a little-endian colour PFM (`PF`, scale -1.0), rows stored bottom to top as the

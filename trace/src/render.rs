@@ -126,6 +126,11 @@ impl<'a> Renderer<'a> {
         self
     }
 
+    /// The camera of the primary rays.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
     /// The tile layout of the per-pixel buffers.
     pub fn layout(&self) -> &TileLayout {
         &self.layout
