@@ -91,7 +91,8 @@ fn run(args: &Args) -> Result<(), String> {
     if let Some(path) = &args.headless {
         let mut frames = frames;
         let mut out = Vec::new();
-        let change = Change { camera: true, settings: true };
+        // A camera at rest: N and I are counted.
+        let change = Change { camera: false, settings: true };
         let info = frames.render(&state, change, width, height, &mut out).map_err(|e| e.to_string())?;
         let info = info.ok_or("no frame")?;
         let rgb = out.iter().flat_map(|p| [(p >> 16) as u8, (p >> 8) as u8, *p as u8]).collect();
@@ -198,6 +199,10 @@ fn window_loop(
             dt,
         };
         let change = state.apply(&input);
+        if change.settings {
+            let overlay = state.overlay.map_or("none", |c| c.name());
+            eprintln!("viewer: method {} shadows {} overlay {overlay}", state.method_name(), state.shadows.name());
+        }
         pending.camera |= change.camera;
         pending.settings |= change.settings;
         if let Ok(answer) = done.try_recv() {
