@@ -36,7 +36,8 @@ pub struct FrameInfo {
     pub rays: u64,
     /// Seconds spent tracing them.
     pub trace_secs: f64,
-    /// Seconds for the whole frame (tracing, shading, drawing).
+    /// Seconds for the whole frame (tracing, shading, drawing; not the counted pass of N and
+    /// I).
     pub frame_secs: f64,
     /// Rayon threads.
     pub threads: usize,
@@ -160,6 +161,7 @@ impl<'a> FrameLoop<'a> {
             passes: 0,
             overlay_max: None,
         };
+        let mut counting_secs = 0.0;
         let image = if let Some(cost) = state.overlay {
             let renderer = Renderer::new(self.scene, &bound, camera, Shadows::None);
             let t = Instant::now();
@@ -193,17 +195,20 @@ impl<'a> FrameLoop<'a> {
                 self.done = state.shadows != ShadowMode::Soft;
             }
             if resting {
+                // Counted apart: its time is left out of the frame's.
+                let t = Instant::now();
                 let mut counts = Counts::default();
                 let mut hits = vec![None; renderer.layout().pixel_count()];
                 bound.tracer.primary(renderer.layout(), &camera, &mut hits, Some(&mut counts));
                 self.n_i = Some(per_packet(&counts, &renderer, bound.entry.packets));
+                counting_secs = t.elapsed().as_secs_f64();
             }
             renderer.color(&self.buffers).to_rgb8()
         };
         info.passes = self.soft.passes;
         info.n_i = self.n_i;
         let mut image = image;
-        info.frame_secs = start.elapsed().as_secs_f64();
+        info.frame_secs = start.elapsed().as_secs_f64() - counting_secs;
         draw_status(&mut image, &info.status(state));
         out.clear();
         out.extend(image.rgb.chunks_exact(3).map(|c| u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2])));

@@ -37,6 +37,10 @@ struct Args {
     /// Render the first frame without a window into this PNG and exit.
     #[arg(long, value_name = "FILE")]
     headless: Option<PathBuf>,
+    /// With --headless: trace this many frames of a moving camera first (nothing counted) and
+    /// print the median frame time, fps and Mrays/s.
+    #[arg(long, default_value_t = 0, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=10000))]
+    frames: u32,
     /// Close the window after this many seconds (for scripted runs).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
@@ -91,6 +95,27 @@ fn run(args: &Args) -> Result<(), String> {
     if let Some(path) = &args.headless {
         let mut frames = frames;
         let mut out = Vec::new();
+        if args.frames > 0 {
+            let moving = Change { camera: true, settings: false };
+            let mut timed = Vec::new();
+            for _ in 0..args.frames {
+                let info = frames.render(&state, moving, width, height, &mut out).map_err(|e| e.to_string())?;
+                timed.extend(info.map(|i| (i.frame_secs, i.trace_secs, i.rays)));
+            }
+            timed.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some(&(frame, trace, rays)) = timed.get(timed.len() / 2) {
+                println!(
+                    "{} frames of {width}x{height}, {}, {} threads: median frame {:.2} ms ({:.1} fps), its tracing {:.2} ms ({:.2} Mrays/s)",
+                    timed.len(),
+                    state.method_name(),
+                    rayon::current_num_threads(),
+                    frame * 1e3,
+                    1.0 / frame,
+                    trace * 1e3,
+                    rays as f64 / trace / 1e6
+                );
+            }
+        }
         // A camera at rest: N and I are counted.
         let change = Change { camera: false, settings: true };
         let info = frames.render(&state, change, width, height, &mut out).map_err(|e| e.to_string())?;
