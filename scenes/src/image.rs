@@ -200,8 +200,9 @@ fn index(width: u32, height: u32, x: u32, y: u32) -> usize {
     y as usize * width as usize + x as usize
 }
 
-/// Clamps to [0, 1] (NaN as 0) and applies gamma 1/2.2.
-fn encode_gamma(v: f32) -> u8 {
+/// One channel of linear radiance as the PNG byte [`Image::save_png`] writes: clamped to
+/// [0, 1] (NaN as 0), gamma 1/2.2, rounded.
+pub fn encode_gamma(v: f32) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (v.powf(1.0 / 2.2) * 255.0).round() as u8
 }

@@ -5,14 +5,14 @@
 //! tests) per ray or per 2x2 packet (Tables 4.1-4.3) and the share of packets culled at
 //! leaves (4.1.4, Table 4.2). This module spreads those counts over the image:
 //!
-//! - a method that traces rays one by one ([`Attribution::Ray`]: `mono`, and the single-ray
-//!   baselines) is run one pixel at a time, so each pixel holds exactly what its own ray
-//!   counted;
-//! - a method that traces groups ([`Attribution::Tile`]: 2x2 packets, frusta, MFT, cones,
-//!   Embree's packets) is counted per render tile (the unit of one `Method::primary_tile`
-//!   call, which for the frustum and cone methods is the frustum), and every pixel of the
-//!   tile holds the tile's counts divided by its rays. The image of a frustum method is
-//!   therefore constant over each tile: what the tile paid, per ray.
+//! - a registry entry that is neither `tiled` nor `packets` ([`Attribution::Ray`]: `mono`,
+//!   and the baselines) is run one pixel at a time (a 1x1 tile), so each pixel holds exactly
+//!   what its own ray counted (the baselines count nothing: their images are 0);
+//! - our methods that trace groups ([`Attribution::Tile`]: 2x2 packets, frusta, MFT, cones)
+//!   are counted per render tile (the unit of one `Method::primary_tile` call, which for the
+//!   frustum and cone methods is the frustum), and every pixel of the tile holds the tile's
+//!   counts divided by its rays. The image of a frustum method is therefore constant over
+//!   each tile: what the tile paid, per ray.
 //!
 //! So a pixel's value is always "work per ray", and summing a cost image gives the total the
 //! counters report for the frame (tested below). Only primary rays are counted. The pass that
@@ -65,8 +65,8 @@ impl Cost {
 /// How a method's counts are attributed to pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Attribution {
-    /// Each pixel's ray is traced alone (a 1x1 tile): only for methods that trace rays one by
-    /// one (registry entries neither `tiled` nor `packets`).
+    /// Each pixel's ray is traced alone (a 1x1 tile): for registry entries neither `tiled`
+    /// nor `packets`, whose `primary_tile` takes any tile (single rays, the baselines).
     Ray,
     /// Each render tile is traced whole; its counts are shared equally by its pixels.
     Tile,

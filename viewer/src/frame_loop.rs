@@ -162,7 +162,7 @@ impl<'a> FrameLoop<'a> {
             overlay_max: None,
         };
         let mut counting_secs = 0.0;
-        let image = if let Some(cost) = state.overlay {
+        if let Some(cost) = state.overlay {
             let renderer = Renderer::new(self.scene, &bound, camera, Shadows::None);
             let t = Instant::now();
             let frame = renderer.trace_costs(&mut self.buffers);
@@ -173,7 +173,7 @@ impl<'a> FrameLoop<'a> {
             let max = common_max([&values]);
             info.overlay_max = Some(max);
             self.done = true;
-            heatmap(&values, max)
+            pack(&heatmap(&values, max), out);
         } else {
             let shadows = match state.shadows {
                 ShadowMode::None => Shadows::None,
@@ -203,15 +203,12 @@ impl<'a> FrameLoop<'a> {
                 self.n_i = Some(per_packet(&counts, &renderer, bound.entry.packets));
                 counting_secs = t.elapsed().as_secs_f64();
             }
-            renderer.color(&self.buffers).to_rgb8()
-        };
+            renderer.color_packed(&self.buffers, out);
+        }
         info.passes = self.soft.passes;
         info.n_i = self.n_i;
-        let mut image = image;
         info.frame_secs = start.elapsed().as_secs_f64() - counting_secs;
-        draw_status(&mut image, &info.status(state));
-        out.clear();
-        out.extend(image.rgb.chunks_exact(3).map(|c| u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2])));
+        draw_status(out, width, height, &info.status(state));
         Ok(Some(info))
     }
 }
@@ -273,18 +270,33 @@ fn per_packet(counts: &Counts, renderer: &Renderer<'_>, packets: bool) -> (f64, 
     (counts.steps_per_packet(groups), counts.tests_per_packet(groups))
 }
 
-/// Draws `text` on a dark band at the top of `image`, twice as large from 1024 pixels wide.
-fn draw_status(image: &mut Rgb8Image, text: &str) {
-    let s = if image.width >= 1024 { 2 } else { 1 };
-    let h = GLYPH_H * s + 4 * s;
-    let w = (text_width(text, s) + 6 * s).min(image.width);
-    for y in 0..h.min(image.height) {
+/// `image` packed as `0x00RRGGBB` into `out`.
+fn pack(image: &Rgb8Image, out: &mut Vec<u32>) {
+    out.clear();
+    out.extend(image.rgb.chunks_exact(3).map(|c| u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2])));
+}
+
+/// Draws `text` on a dark band at the top of the `width` x `height` packed image `out`, twice
+/// as large from 1024 pixels wide.
+fn draw_status(out: &mut [u32], width: u32, height: u32, text: &str) {
+    let s = if width >= 1024 { 2 } else { 1 };
+    let h = (GLYPH_H * s + 4 * s).min(height);
+    let w = (text_width(text, s) + 6 * s).min(width);
+    let mut band = Rgb8Image::filled(w, h, [0; 3]);
+    for y in 0..h {
         for x in 0..w {
-            let c = image.get(x, y);
-            image.put(i64::from(x), i64::from(y), [c[0] / 3, c[1] / 3, c[2] / 3]);
+            let p = out[(y * width + x) as usize];
+            let c = [(p >> 16) as u8, (p >> 8) as u8, p as u8];
+            band.put(i64::from(x), i64::from(y), c.map(|v| v / 3));
         }
     }
-    draw_text(image, i64::from(3 * s), i64::from(2 * s), text, s, [255, 255, 255]);
+    draw_text(&mut band, i64::from(3 * s), i64::from(2 * s), text, s, [255, 255, 255]);
+    for y in 0..h {
+        for x in 0..w {
+            let [r, g, b] = band.get(x, y).map(u32::from);
+            out[(y * width + x) as usize] = r << 16 | g << 8 | b;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 //! (with rayon's pool), which gets the latest state whenever it is free, so the window stays
 //! responsive whatever a frame costs. A minimised (zero-sized) window traces nothing.
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -104,7 +105,8 @@ fn run(args: &Args) -> Result<(), String> {
             }
             timed.sort_by(|a, b| a.0.total_cmp(&b.0));
             if let Some(&(frame, trace, rays)) = timed.get(timed.len() / 2) {
-                println!(
+                let _ = writeln!(
+                    std::io::stdout(),
                     "{} frames of {width}x{height}, {}, {} threads: median frame {:.2} ms ({:.1} fps), its tracing {:.2} ms ({:.2} Mrays/s)",
                     timed.len(),
                     state.method_name(),
@@ -122,7 +124,7 @@ fn run(args: &Args) -> Result<(), String> {
         let info = info.ok_or("no frame")?;
         let rgb = out.iter().flat_map(|p| [(p >> 16) as u8, (p >> 8) as u8, *p as u8]).collect();
         scenes::Rgb8Image { width, height, rgb }.save_png(path).map_err(|e| e.to_string())?;
-        println!("{}", info.status(&state));
+        let _ = writeln!(std::io::stdout(), "{}", info.status(&state));
         return Ok(());
     }
     drop(frames);
