@@ -359,6 +359,18 @@ mod tests {
             state.apply(&Input { pressed: vec![Action::NextMethod], ..Input::default() });
         }
         assert!(frames.render(&state, Change::default(), w, h, &mut out).unwrap().is_none(), "nothing new");
+        let status = FrameInfo {
+            method: "mft-16".into(),
+            rays: 3_000_000,
+            trace_secs: 0.5,
+            frame_secs: 0.25,
+            threads: 2,
+            n_i: Some((4.56, 6.1)),
+            passes: 0,
+            overlay_max: None,
+        }
+        .status(&state);
+        assert!(status.starts_with("4.0 FPS  6.00 MRAYS/S  mft-16  2 THREADS  N 4.6 I 6.1"), "{status}");
         state.apply(&Input { pressed: vec![Action::NextOverlay], ..Input::default() });
         let info = frames.render(&state, Change { settings: true, camera: false }, w, h, &mut out).unwrap().unwrap();
         assert!(info.overlay_max.is_some_and(|m| m > 0.0));
