@@ -32,6 +32,63 @@ pub struct ScalarImage {
     pub values: Vec<f32>,
 }
 
+/// An 8-bit sRGB image for display (heat maps, legends, strips), row-major, row 0 at the
+/// top; unlike [`Image`] it is written to PNG as it is, without gamma.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgb8Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major pixels, three bytes each.
+    pub rgb: Vec<u8>,
+}
+
+impl Rgb8Image {
+    /// A `width` x `height` image filled with `color`.
+    pub fn filled(width: u32, height: u32, color: [u8; 3]) -> Rgb8Image {
+        let rgb = color.repeat(width as usize * height as usize);
+        Rgb8Image { width, height, rgb }
+    }
+
+    /// The colour of pixel `(x, y)`. Panics outside the image.
+    pub fn get(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = 3 * index(self.width, self.height, x, y);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// Sets pixel `(x, y)`; pixels outside the image are ignored (drawing clips).
+    pub fn put(&mut self, x: i64, y: i64, color: [u8; 3]) {
+        if x >= 0 && y >= 0 && x < i64::from(self.width) && y < i64::from(self.height) {
+            let i = 3 * (y as usize * self.width as usize + x as usize);
+            self.rgb[i..i + 3].copy_from_slice(&color);
+        }
+    }
+
+    /// Fills the rectangle `[x, x + w) x [y, y + h)`, clipped to the image.
+    pub fn fill_rect(&mut self, x: i64, y: i64, w: u32, h: u32, color: [u8; 3]) {
+        for yy in y..y + i64::from(h) {
+            for xx in x..x + i64::from(w) {
+                self.put(xx, yy, color);
+            }
+        }
+    }
+
+    /// Copies `other` with its top left corner at `(x, y)`, clipped to the image.
+    pub fn blit(&mut self, other: &Rgb8Image, x: i64, y: i64) {
+        for yy in 0..other.height {
+            for xx in 0..other.width {
+                self.put(x + i64::from(xx), y + i64::from(yy), other.get(xx, yy));
+            }
+        }
+    }
+
+    /// Writes an 8-bit RGB PNG.
+    pub fn save_png(&self, path: &Path) -> Result<(), SceneError> {
+        write_png(path, self.width, self.height, &self.rgb)
+    }
+}
+
 impl Image {
     /// A black `width` x `height` image.
     pub fn new(width: u32, height: u32) -> Image {
@@ -52,8 +109,14 @@ impl Image {
     /// Writes an 8-bit sRGB-style PNG: each channel clamped to [0, 1] (NaN as 0, `+inf` as
     /// 1, `-inf` as 0) and encoded with gamma 2.2.
     pub fn save_png(&self, path: &Path) -> Result<(), SceneError> {
-        let bytes: Vec<u8> = self.pixels.iter().flat_map(|p| p.to_array()).map(encode_gamma).collect();
-        write_png(path, self.width, self.height, &bytes)
+        self.to_rgb8().save_png(path)
+    }
+
+    /// The 8-bit image [`Image::save_png`] writes: each channel clamped to [0, 1] (NaN as 0)
+    /// and encoded with gamma 2.2.
+    pub fn to_rgb8(&self) -> Rgb8Image {
+        let rgb = self.pixels.iter().flat_map(|p| p.to_array()).map(encode_gamma).collect();
+        Rgb8Image { width: self.width, height: self.height, rgb }
     }
 
     /// Writes a little-endian colour PFM (`PF`, scale -1.0), rows stored bottom to top as the
@@ -137,8 +200,9 @@ fn index(width: u32, height: u32, x: u32, y: u32) -> usize {
     y as usize * width as usize + x as usize
 }
 
-/// Clamps to [0, 1] (NaN as 0) and applies gamma 1/2.2.
-fn encode_gamma(v: f32) -> u8 {
+/// One channel of linear radiance as the PNG byte [`Image::save_png`] writes: clamped to
+/// [0, 1] (NaN as 0), gamma 1/2.2, rounded.
+pub fn encode_gamma(v: f32) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     (v.powf(1.0 / 2.2) * 255.0).round() as u8
 }

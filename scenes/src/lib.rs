@@ -2,16 +2,18 @@
 //!
 //! Everything that touches files lives here: meshes and their OBJ loader, the built-in
 //! procedural scenes that mirror the thesis's benchmark scenes (Tsakok 2008, Figure 4.1),
-//! pinhole cameras, lights, floating-point images with PNG/PFM output, error metrics and
-//! tile iteration. The kd-tree and traversal crates never read files; they take the
-//! positions and triangles of a [`Mesh`].
+//! pinhole cameras, lights, floating-point images with PNG/PFM output, heat maps with a
+//! legend (`colormap`, `font`), error metrics and tile iteration. The kd-tree and traversal
+//! crates never read files; they take the positions and triangles of a [`Mesh`].
 //!
 //! One camera convention serves every tracer (see [`Camera`]), so that other tracers can
 //! reproduce our rays exactly.
 
 pub mod builtin;
 pub mod camera;
+pub mod colormap;
 pub mod error;
+pub mod font;
 pub mod image;
 pub mod light;
 pub mod mesh;
@@ -21,8 +23,9 @@ pub mod scene;
 pub mod tile;
 
 pub use camera::Camera;
+pub use colormap::{Panel, heatmap, strip, viridis};
 pub use error::SceneError;
-pub use image::{Image, ScalarImage};
+pub use image::{Image, Rgb8Image, ScalarImage};
 pub use light::{PointLight, RectLight, SphereLight};
 pub use mesh::{Material, Mesh};
 pub use obj::{LoadReport, load_obj};

@@ -20,6 +20,7 @@ use kdtree::{Hit, NoCounters, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
+use crate::aov::{Attribution, PixelCost};
 use crate::method::{Method, ShadowJob, TileCounters};
 use crate::soft;
 
@@ -117,6 +118,10 @@ pub struct SoftStats {
 /// What a tile's pass returns, summed over tiles.
 trait Sum: Default + Send {
     fn sum(self, other: Self) -> Self;
+}
+
+impl Sum for () {
+    fn sum(self, _: ()) {}
 }
 
 impl Sum for u64 {
@@ -230,6 +235,42 @@ pub fn soft_pass<M: Method, C: TileCounters>(
     })
 }
 
+/// The primary pass counted for cost images ([`crate::aov`]): the closest hits into `out` as
+/// [`primary_pass`], and each pixel's share of the counts into `costs` (both in tile order of
+/// `layout`). With [`Attribution::Ray`] each pixel is traced as a 1x1 tile and keeps its own
+/// ray's counts (only for methods that trace rays one by one); with [`Attribution::Tile`]
+/// each tile's counts are divided by its pixels. Returns the frame's summed counts, equal to
+/// those of a counted [`primary_pass`]. Not timed, and never run by a timed frame.
+pub fn cost_pass<M: Method>(
+    method: &M,
+    layout: &TileLayout,
+    camera: &Camera,
+    attribution: Attribution,
+    out: &mut [Option<Hit>],
+    costs: &mut [PixelCost],
+) -> Counts {
+    let chunks: Vec<_> = layout.chunks_mut(out).into_iter().zip(layout.chunks_mut(costs)).collect();
+    let ((), counts) =
+        over_tiles(method, layout, chunks, |scratch, tile, (out, costs), total: &mut Counts| match attribution {
+            Attribution::Tile => {
+                let mut c = Counts::default();
+                method.primary_tile(scratch, camera, tile, out, &mut c);
+                costs.fill(PixelCost::share(&c, tile.pixel_count()));
+                *total += c;
+            }
+            Attribution::Ray => {
+                for (i, (x, y)) in tile.pixels().enumerate() {
+                    let pixel = Tile { x0: x, y0: y, x1: x + 1, y1: y + 1 };
+                    let mut c = Counts::default();
+                    method.primary_tile(scratch, camera, &pixel, &mut out[i..=i], &mut c);
+                    costs[i] = PixelCost::share(&c, 1);
+                    *total += c;
+                }
+            }
+        });
+    counts
+}
+
 /// Rays per parallel chunk of a ray stream.
 pub const STREAM_CHUNK: usize = 4096;
 
@@ -289,6 +330,15 @@ pub trait FrameTracer: Sync {
         out: &mut [f32],
         counts: Option<&mut Counts>,
     ) -> SoftStats;
+    /// [`cost_pass`]: the primary pass with each pixel's share of the counts (cost images).
+    fn primary_costs(
+        &self,
+        layout: &TileLayout,
+        camera: &Camera,
+        attribution: Attribution,
+        out: &mut [Option<Hit>],
+        costs: &mut [PixelCost],
+    ) -> Counts;
     /// [`stream_pass`].
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]);
     /// [`stream_occluded_pass`].
@@ -349,6 +399,17 @@ impl<M: Method> FrameTracer for Driven<M> {
                 stats
             }
         }
+    }
+
+    fn primary_costs(
+        &self,
+        layout: &TileLayout,
+        camera: &Camera,
+        attribution: Attribution,
+        out: &mut [Option<Hit>],
+        costs: &mut [PixelCost],
+    ) -> Counts {
+        cost_pass(&self.0, layout, camera, attribution, out, costs)
     }
 
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {

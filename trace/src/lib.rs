@@ -10,7 +10,8 @@
 //!   trace, and the name list for `--help`.
 //! - [`frame`]: the frame driver: primary, hard-shadow and soft-shadow passes over tiles with
 //!   rayon, the same for every method, and ray streams.
-//! - [`render`]: one view rendered with one method: timed tracing, then shading or AOVs.
+//! - [`render`]: one view rendered with one method: timed tracing, then shading or AOVs;
+//!   [`aov`]: cost images, each pixel's share of its method's traversal counts.
 //! - [`shade`]: hard shadow rays and the thesis's diffuse point-light shading; [`soft`]: the
 //!   rays of 16-sample soft shadows.
 //! - [`setup`]: scene, tree, camera and ray setup; [`report`]: tree, build and render
@@ -21,6 +22,7 @@
 //! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
 //! against the brute-force oracle and single rays, and every command takes it by name.
 
+pub mod aov;
 /// The conformance harness: every registered method against its single-ray twin and the
 /// brute-force oracle, on every scene, view and hard case (`tests/conformance.rs`).
 pub mod conformance;

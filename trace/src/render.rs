@@ -18,6 +18,7 @@ use kdtree::Hit;
 use rayon::prelude::*;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
+use crate::aov::{Attribution, CostFrame, PixelCost};
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
 use crate::{shade, soft};
@@ -125,6 +126,11 @@ impl<'a> Renderer<'a> {
         self
     }
 
+    /// The camera of the primary rays.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
     /// The tile layout of the per-pixel buffers.
     pub fn layout(&self) -> &TileLayout {
         &self.layout
@@ -151,6 +157,24 @@ impl<'a> Renderer<'a> {
     /// primary and the shadow pass apart. Slower: not for timing.
     pub fn trace_counted(&self, buf: &mut FrameBuffers) -> (FrameStats, Counts, Counts) {
         self.trace_with(buf, true)
+    }
+
+    /// The primary pass counted for cost images ([`crate::aov`]): hits into `buf.hits` (the
+    /// shadow buffers are left alone), and each pixel's share of the traversal counts, per
+    /// ray for single-ray methods and per tile for packets, frusta and cones
+    /// ([`Attribution::for_entry`]). Slower than [`Renderer::trace`]: not for timing.
+    pub fn trace_costs(&self, buf: &mut FrameBuffers) -> CostFrame {
+        let attribution = Attribution::for_entry(&self.method.entry);
+        let mut costs = vec![PixelCost::default(); self.layout.pixel_count()];
+        let totals =
+            self.method.tracer.primary_costs(&self.layout, &self.camera, attribution, &mut buf.hits, &mut costs);
+        CostFrame {
+            width: self.camera.width,
+            height: self.camera.height,
+            pixels: self.layout.to_row_major(&costs),
+            totals,
+            attribution,
+        }
     }
 
     fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, Counts, Counts) {
@@ -194,9 +218,28 @@ impl<'a> Renderer<'a> {
     /// The shaded image (`--aov color`): diffuse shading with the point light, dimmed by the
     /// hard shadow or by the visible fraction of the soft-shadow light.
     pub fn color(&self, buf: &FrameBuffers) -> Image {
+        let colors = self.shade_tiles(buf, |c| c);
+        Image { width: self.camera.width, height: self.camera.height, pixels: self.layout.to_row_major(&colors) }
+    }
+
+    /// [`Renderer::color`] for display: each pixel gamma-encoded as `Image::save_png` does
+    /// (`scenes::image::encode_gamma`) and packed as `0x00RRGGBB`, row-major, into `out`.
+    /// Shading and encoding run in parallel over the tiles; the one serial step is the copy
+    /// into row order.
+    pub fn color_packed(&self, buf: &FrameBuffers, out: &mut Vec<u32>) {
+        let packed = self.shade_tiles(buf, |c| {
+            let [r, g, b] = c.to_array().map(|v| u32::from(scenes::image::encode_gamma(v)));
+            r << 16 | g << 8 | b
+        });
+        out.clear();
+        out.extend(self.layout.to_row_major(&packed));
+    }
+
+    /// The shaded colour of every pixel through `f`, in tile order, in parallel over tiles.
+    fn shade_tiles<T: Copy + Default + Send>(&self, buf: &FrameBuffers, f: impl Fn(Vec3) -> T + Sync) -> Vec<T> {
         let light = &self.scene.point_light;
         let mesh = &self.scene.mesh;
-        let mut colors = vec![Vec3::ZERO; self.layout.pixel_count()];
+        let mut colors = vec![T::default(); self.layout.pixel_count()];
         let chunks = self.layout.chunks_mut(&mut colors);
         let visible = if buf.visible.len() == buf.hits.len() { Some(self.layout.chunks(&buf.visible)) } else { None };
         let inputs: Vec<_> = self.layout.chunks(&buf.hits).into_iter().zip(self.layout.chunks(&buf.occluded)).collect();
@@ -210,14 +253,14 @@ impl<'a> Renderer<'a> {
                         None if occluded[j] => 0.0,
                         None => 1.0,
                     };
-                    *slot = match hit {
+                    *slot = f(match hit {
                         Some(hit) => shade::shade(mesh, light, origin, dir, hit, seen),
                         None => shade::BACKGROUND,
-                    };
+                    });
                 }
             },
         );
-        Image { width: self.camera.width, height: self.camera.height, pixels: self.layout.to_row_major(&colors) }
+        colors
     }
 
     /// The distance of each primary hit (`--aov depth`, `+inf` for misses).
@@ -278,6 +321,27 @@ mod tests {
         assert!(hits > 0 && shadow_rays > 0);
         assert_eq!((stats.hits, stats.shadow_rays, stats.occluded), (hits, shadow_rays, blocked));
         assert_eq!(stats.primary_rays, u64::from(camera.width * camera.height));
+    }
+
+    /// The display buffer is the shaded image as its PNG encodes it, packed.
+    #[test]
+    fn packed_colors_are_the_png_bytes() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(45, 31).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let m = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+        let renderer = Renderer::new(&scene, &m, camera, Shadows::Hard);
+        let mut buf = renderer.buffers();
+        renderer.trace(&mut buf);
+        let rgb = renderer.color(&buf).to_rgb8();
+        let mut packed = vec![7; 3];
+        renderer.color_packed(&buf, &mut packed);
+        assert_eq!(packed.len(), 45 * 31);
+        for (p, c) in packed.iter().zip(rgb.rgb.chunks_exact(3)) {
+            assert_eq!(*p, u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2]));
+        }
+        assert!(packed.iter().any(|&p| p != packed[0]));
     }
 
     /// Soft shadows: 16 rays per lit point, a penumbra, and the same visibility for every

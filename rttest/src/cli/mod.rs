@@ -22,6 +22,7 @@ use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadow
 use crate::progress::{self, Bar};
 
 pub mod compare;
+pub mod heatmap;
 pub mod leaks;
 pub mod main_job;
 pub mod raycast;
@@ -245,13 +246,26 @@ pub struct RenderArgs {
     /// diagonal, as Table 4.6): a finite number >= 0.
     #[arg(long, value_name = "R", default_value_t = 1.0)]
     pub light_radius: f32,
-    /// What to write: the shaded image (PNG), or the hit distance or primitive id (PFM).
+    /// What to write: the shaded image (PNG), the hit distance or primitive id (PFM), or a
+    /// cost image (traversal steps, leaves, triangle tests or culled packets per primary
+    /// ray: PFM and a heat-map PNG with a legend).
     #[arg(long, value_enum, default_value_t = Aov::Color)]
     pub aov: Aov,
-    /// Output file (default: SCENE.png, SCENE-depth.pfm or SCENE-prim.pfm). A .pfm
-    /// colour image or a .png depth/prim image is written in that format.
+    /// Output file (default: SCENE.png, SCENE-depth.pfm, SCENE-prim.pfm, SCENE-METHOD-COST
+    /// for a cost image, SCENE-COST for a strip). A .pfm colour image or a .png depth/prim
+    /// image is written in that format; a cost image is written as both FILE.pfm and
+    /// FILE.png.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// With a cost --aov: the cost images of these methods (registry names) on one colour
+    /// scale, side by side in one PNG (FILE.png), each also as FILE-METHOD.pfm. Nothing is
+    /// timed.
+    #[arg(long, value_name = "A,B,...", value_delimiter = ',')]
+    pub compare_methods: Option<Vec<String>>,
+    /// Top of the cost images' colour scale (default: the largest pixel value): a finite
+    /// number > 0, to put several runs on one scale.
+    #[arg(long, value_name = "X")]
+    pub cost_max: Option<f32>,
     /// Frames traced; the reported trace time is the fastest.
     #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub frames: u32,
@@ -304,6 +318,14 @@ pub enum Aov {
     Depth,
     /// Primitive id of the primary hit in the file's face numbering, `-1` for misses (PFM).
     Prim,
+    /// Traversal steps per primary ray: the thesis's N (PFM and heat-map PNG).
+    Nodes,
+    /// Leaves visited per primary ray (PFM and heat-map PNG).
+    Leaves,
+    /// Triangle tests per primary ray (packet-triangle tests for packets): the thesis's I.
+    Isects,
+    /// 2x2 packets culled at leaves per primary ray (thesis 4.1.4).
+    Culled,
 }
 
 impl Aov {
@@ -312,6 +334,22 @@ impl Aov {
             Aov::Color => "color",
             Aov::Depth => "depth",
             Aov::Prim => "prim",
+            Aov::Nodes => "nodes",
+            Aov::Leaves => "leaves",
+            Aov::Isects => "isects",
+            Aov::Culled => "culled",
+        }
+    }
+
+    /// The traversal cost a cost image shows, `None` for the other outputs.
+    pub fn cost(self) -> Option<trace::aov::Cost> {
+        use trace::aov::Cost;
+        match self {
+            Aov::Color | Aov::Depth | Aov::Prim => None,
+            Aov::Nodes => Some(Cost::Nodes),
+            Aov::Leaves => Some(Cost::Leaves),
+            Aov::Isects => Some(Cost::Isects),
+            Aov::Culled => Some(Cost::Culled),
         }
     }
 }
@@ -539,6 +577,7 @@ fn out_path(scene: &Scene, args: &RenderArgs) -> PathBuf {
             Aov::Color => format!("{}.png", scene.name),
             Aov::Depth => format!("{}-depth.pfm", scene.name),
             Aov::Prim => format!("{}-prim.pfm", scene.name),
+            cost => format!("{}-{}-{}.pfm", scene.name, args.method, cost.name()),
         })
     })
 }
@@ -590,6 +629,9 @@ fn write_image(renderer: &Renderer<'_>, buffers: &FrameBuffers, aov: Aov, out: &
         Aov::Color => Output::Color(renderer.color(buffers)),
         Aov::Depth => Output::Scalar(renderer.depth(buffers)),
         Aov::Prim => Output::Scalar(renderer.prim(buffers)),
+        Aov::Nodes | Aov::Leaves | Aov::Isects | Aov::Culled => {
+            return Err(Error::Usage(format!("--aov {}: a cost image is written by heatmap", aov.name())));
+        }
     };
     let shade_secs = start.elapsed().as_secs_f64();
     let start = Instant::now();
@@ -608,6 +650,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
         return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
     }
+    check_cost_args(args)?;
     let registry = baselines::registry();
     let selected = registry.select(&args.method, Options { tile: args.tile, culling: !args.no_culling })?;
     let (camera, view) = camera_for(&built.scene, args)?;
@@ -628,7 +671,11 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         let packets = method.entry.packets.then(|| renderer.packet_count());
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
-    let (shade_secs, write_secs) = if write { write_image(&renderer, &buffers, args.aov, &out)? } else { (0.0, 0.0) };
+    let (shade_secs, write_secs) = match (write, args.aov.cost()) {
+        (false, _) => (0.0, 0.0),
+        (true, None) => write_image(&renderer, &buffers, args.aov, &out)?,
+        (true, Some(cost)) => heatmap::write_one(&renderer, &mut buffers, cost, &method.name, args, &out)?,
+    };
 
     Ok(RenderReport {
         scene: built.scene.name.clone(),
@@ -663,10 +710,32 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     })
 }
 
+/// Rejects a bad `--cost-max`, and `--compare-methods` without a cost `--aov`, before any
+/// work.
+fn check_cost_args(args: &RenderArgs) -> Result<(), Error> {
+    if let Some(m) = args.cost_max
+        && !(m.is_finite() && m > 0.0)
+    {
+        return Err(Error::Usage(format!("--cost-max {m} must be a finite number > 0")));
+    }
+    if args.compare_methods.is_some() && args.aov.cost().is_none() {
+        return Err(Error::Usage("--compare-methods needs a cost --aov: nodes, leaves, isects or culled".into()));
+    }
+    Ok(())
+}
+
 /// `rttest render`. The text output starts with the build report; the JSON object has the
-/// build time and triangle count only (`rttest build` has the rest).
+/// build time and triangle count only (`rttest build` has the rest). With
+/// `--compare-methods`, the cost images of several methods instead ([`heatmap::compare`]).
 fn render_command(global: &GlobalArgs, args: &RenderArgs) -> Result<(), Error> {
+    check_cost_args(args)?;
     let built = load_and_build(global, &args.scene, 1)?;
+    if let Some(methods) = &args.compare_methods {
+        if !global.json {
+            emit(global, &built.report)?;
+        }
+        return heatmap::compare(global, &built, args, methods);
+    }
     let report = render(global, &built, args, true)?;
     // Nothing goes to stdout before everything has succeeded.
     if !global.json {

@@ -1,0 +1,407 @@
+//! The render loop without a window: a [`ViewerState`] and a size in, a framebuffer of
+//! `0x00RRGGBB` pixels and a status line out.
+//!
+//! Every method is taken by name from `trace::Registry` and bound to the scene's kd-tree; a
+//! frame is `trace::Renderer`'s passes (primary, then hard or soft shadows) and its shading,
+//! or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map. Soft shadows
+//! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
+//! adds 16 rays per lit pixel, up to [`MAX_PASSES`] passes; then nothing is traced until
+//! something changes ([`FrameLoop::render`] returns `None`).
+
+use std::time::Instant;
+
+use cones::shadows::SAMPLES;
+use kdtree::{Counts, KdTree, Ray};
+use scenes::colormap::{common_max, heatmap};
+use scenes::font::{GLYPH_H, draw_text, text_width};
+use scenes::{Rgb8Image, Scene, SphereLight};
+use trace::frame::View;
+use trace::{Error, FrameBuffers, Options, Registry, Renderer, Shadows, Structures};
+
+use crate::refine;
+use crate::state::{Change, ShadowMode, ViewerState};
+
+/// Soft-shadow passes (16 rays per lit pixel each) before refinement stops: 256 rays.
+pub const MAX_PASSES: u32 = 16;
+
+/// Pixels per chunk of refinement rays (16 rays each).
+const REFINE_PIXELS: usize = 4096;
+
+/// What one frame did, for the status line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameInfo {
+    /// The method's full name.
+    pub method: String,
+    /// Rays traced by this frame.
+    pub rays: u64,
+    /// Seconds spent tracing them.
+    pub trace_secs: f64,
+    /// Seconds for the whole frame (tracing, shading, drawing; not the counted pass of N and
+    /// I).
+    pub frame_secs: f64,
+    /// Rayon threads.
+    pub threads: usize,
+    /// N and I per 2x2 packet (per four rays for single rays) of the primary rays, from the
+    /// last counted frame (the first frame after the camera comes to rest is counted).
+    pub n_i: Option<(f64, f64)>,
+    /// Soft-shadow passes so far (0 without soft shadows).
+    pub passes: u32,
+    /// With a cost overlay: the top of its colour scale.
+    pub overlay_max: Option<f32>,
+}
+
+impl FrameInfo {
+    /// Millions of rays per second of tracing.
+    pub fn mrays_per_s(&self) -> f64 {
+        if self.trace_secs > 0.0 { self.rays as f64 / self.trace_secs / 1e6 } else { 0.0 }
+    }
+
+    /// The status line: fps, Mrays/s, method, threads, N and I per packet, shadows or overlay.
+    pub fn status(&self, state: &ViewerState) -> String {
+        let fps = if self.frame_secs > 0.0 { 1.0 / self.frame_secs } else { 0.0 };
+        let ni = self.n_i.map_or("N - I -".to_string(), |(n, i)| format!("N {n:.1} I {i:.1}"));
+        let mode = match (state.overlay, self.overlay_max) {
+            (Some(c), Some(max)) => format!("{} / RAY 0-{}", c.name(), scenes::colormap::tick_label(max)),
+            _ if state.shadows == ShadowMode::Soft => format!("SOFT {}/{MAX_PASSES}", self.passes),
+            _ => state.shadows.name().to_string(),
+        };
+        format!(
+            "{fps:.1} FPS  {:.2} MRAYS/S  {}  {} THREADS  {ni}  {mode}",
+            self.mrays_per_s(),
+            self.method,
+            self.threads
+        )
+    }
+}
+
+/// The frame loop of one scene.
+pub struct FrameLoop<'a> {
+    scene: &'a Scene,
+    registry: Registry,
+    structures: Structures<'a>,
+    light: SphereLight,
+    /// Size of `buffers` and the method/shadows they were traced with.
+    size: (u32, u32),
+    buffers: FrameBuffers,
+    soft: Refinement,
+    /// Whether the last frame is final (nothing left to refine).
+    done: bool,
+    n_i: Option<(f64, f64)>,
+    /// The camera moved since N and I were last counted.
+    counts_stale: bool,
+}
+
+/// The progressive soft shadows of the kept primary hits.
+#[derive(Debug, Default)]
+struct Refinement {
+    /// Sum of the visible fractions of the passes so far (tile order).
+    visible_sum: Vec<f32>,
+    passes: u32,
+    rays: Vec<Ray>,
+    occluded: Vec<bool>,
+}
+
+impl<'a> FrameLoop<'a> {
+    /// The loop over `scene` and its kd-tree; soft shadows go to a light of radius 1 Sponza
+    /// unit at the point light (`trace::soft::scene_light`).
+    pub fn new(scene: &'a Scene, tree: &'a KdTree) -> FrameLoop<'a> {
+        FrameLoop {
+            scene,
+            registry: Registry::ours(),
+            structures: Structures::new(tree),
+            light: trace::soft::scene_light(scene, tree, 1.0),
+            size: (0, 0),
+            buffers: FrameBuffers::new(0),
+            soft: Refinement::default(),
+            done: false,
+            n_i: None,
+            counts_stale: true,
+        }
+    }
+
+    /// The method names the viewer switches between: every entry of the registry, the tiled
+    /// ones with 16x16 tiles.
+    pub fn method_names(&self) -> Vec<String> {
+        self.registry.names(&[trace::registry::TILE_SIZE])
+    }
+
+    /// Renders `state` at `width` x `height` into `out` (`0x00RRGGBB`, row-major), `change`
+    /// being what changed since the last call. Returns `None` when nothing new was traced: an
+    /// empty (minimised) window, or nothing changed and nothing is left to refine.
+    pub fn render(
+        &mut self,
+        state: &ViewerState,
+        change: Change,
+        width: u32,
+        height: u32,
+        out: &mut Vec<u32>,
+    ) -> Result<Option<FrameInfo>, Error> {
+        let start = Instant::now();
+        let Some(camera) = state.pose.camera(state.fovy_deg, width, height) else { return Ok(None) };
+        let resized = self.size != (width, height);
+        if !(change.any() || resized || !self.done || self.counts_stale) {
+            return Ok(None);
+        }
+        let selected = self.registry.select(state.method_name(), Options::default())?;
+        let bound = self.registry.bind(&selected, &self.structures)?;
+        if resized {
+            self.size = (width, height);
+            self.buffers = FrameBuffers::new(width as usize * height as usize);
+        }
+        let restart = change.any() || resized;
+        let resting = !change.camera;
+        self.counts_stale = change.camera;
+        let mut info = FrameInfo {
+            method: bound.name.clone(),
+            rays: 0,
+            trace_secs: 0.0,
+            frame_secs: 0.0,
+            threads: rayon::current_num_threads(),
+            n_i: None,
+            passes: 0,
+            overlay_max: None,
+        };
+        let mut counting_secs = 0.0;
+        if let Some(cost) = state.overlay {
+            let renderer = Renderer::new(self.scene, &bound, camera, Shadows::None);
+            let t = Instant::now();
+            let frame = renderer.trace_costs(&mut self.buffers);
+            info.trace_secs = t.elapsed().as_secs_f64();
+            info.rays = u64::from(width) * u64::from(height);
+            self.n_i = Some(per_packet(&frame.totals, &renderer, bound.entry.packets));
+            let values = frame.image(cost);
+            let max = common_max([&values]);
+            info.overlay_max = Some(max);
+            self.done = true;
+            pack(&heatmap(&values, max), out);
+        } else {
+            let shadows = match state.shadows {
+                ShadowMode::None => Shadows::None,
+                ShadowMode::Hard => Shadows::Hard,
+                ShadowMode::Soft => Shadows::Soft16,
+            };
+            let renderer = Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light);
+            if state.shadows == ShadowMode::Soft && !restart {
+                let t = Instant::now();
+                info.rays = self.soft.pass(&bound, &renderer, self.scene, &self.light, &mut self.buffers);
+                self.done = info.rays == 0;
+                info.trace_secs = t.elapsed().as_secs_f64();
+            } else {
+                let stats = renderer.trace(&mut self.buffers);
+                info.rays = stats.rays();
+                info.trace_secs = stats.trace_secs();
+                self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
+                self.soft.visible_sum.clone_from(&self.buffers.visible);
+                self.done = state.shadows != ShadowMode::Soft;
+            }
+            if resting {
+                // Counted apart: its time is left out of the frame's.
+                let t = Instant::now();
+                let mut counts = Counts::default();
+                let mut hits = vec![None; renderer.layout().pixel_count()];
+                bound.tracer.primary(renderer.layout(), &camera, &mut hits, Some(&mut counts));
+                self.n_i = Some(per_packet(&counts, &renderer, bound.entry.packets));
+                counting_secs = t.elapsed().as_secs_f64();
+            }
+            renderer.color_packed(&self.buffers, out);
+        }
+        info.passes = self.soft.passes;
+        info.n_i = self.n_i;
+        info.frame_secs = start.elapsed().as_secs_f64() - counting_secs;
+        draw_status(out, width, height, &info.status(state));
+        Ok(Some(info))
+    }
+}
+
+impl Refinement {
+    /// One refinement pass over the primary hits of `buffers`: 16 jittered rays per lit pixel
+    /// through the method's stream kernel, averaged into `buffers.visible`. Returns the rays
+    /// traced (0 once [`MAX_PASSES`] passes are done).
+    fn pass(
+        &mut self,
+        bound: &trace::Bound<'_>,
+        renderer: &Renderer<'_>,
+        scene: &Scene,
+        light: &SphereLight,
+        buffers: &mut FrameBuffers,
+    ) -> u64 {
+        if self.passes >= MAX_PASSES || self.visible_sum.len() != buffers.hits.len() {
+            return 0;
+        }
+        let layout = renderer.layout();
+        let camera = renderer.camera();
+        let view = View { layout, scene, camera };
+        let pass = self.passes;
+        // Pixel indices (tile order) and coordinates.
+        let pixels: Vec<(usize, u32, u32)> =
+            layout.tiles().iter().flat_map(|t| t.pixels()).enumerate().map(|(i, (x, y))| (i, x, y)).collect();
+        let mut traced = 0;
+        for chunk in pixels.chunks(REFINE_PIXELS) {
+            self.rays.clear();
+            let mut lit = Vec::with_capacity(chunk.len());
+            for &(i, x, y) in chunk {
+                let Some(hit) = &buffers.hits[i] else { continue };
+                let dir = view.camera.pixel_ray(x, y).1;
+                let Some((start, _)) = trace::soft::shadow_start(view.scene, light, hit, dir) else { continue };
+                let Some(rays) = refine::rays(start, light, pass) else { continue };
+                self.rays.extend_from_slice(&rays);
+                lit.push(i);
+            }
+            self.occluded.clear();
+            self.occluded.resize(self.rays.len(), false);
+            bound.tracer.stream_occluded(&self.rays, &mut self.occluded);
+            for (&i, blocked) in lit.iter().zip(self.occluded.chunks_exact(SAMPLES)) {
+                let n = blocked.iter().filter(|&&b| b).count();
+                self.visible_sum[i] += 1.0 - n as f32 / SAMPLES as f32;
+            }
+            traced += self.rays.len() as u64;
+        }
+        self.passes += 1;
+        let passes = self.passes as f32;
+        buffers.visible.clear();
+        buffers.visible.extend(self.visible_sum.iter().map(|v| v / passes));
+        traced
+    }
+}
+
+/// N and I per 2x2 packet of a counted primary pass (per four rays for single rays).
+fn per_packet(counts: &Counts, renderer: &Renderer<'_>, packets: bool) -> (f64, f64) {
+    let groups = if packets { renderer.packet_count() } else { (renderer.layout().pixel_count() as u64).div_ceil(4) };
+    (counts.steps_per_packet(groups), counts.tests_per_packet(groups))
+}
+
+/// `image` packed as `0x00RRGGBB` into `out`.
+fn pack(image: &Rgb8Image, out: &mut Vec<u32>) {
+    out.clear();
+    out.extend(image.rgb.chunks_exact(3).map(|c| u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2])));
+}
+
+/// Draws `text` on a dark band at the top of the `width` x `height` packed image `out`, twice
+/// as large from 1024 pixels wide.
+fn draw_status(out: &mut [u32], width: u32, height: u32, text: &str) {
+    let s = if width >= 1024 { 2 } else { 1 };
+    let h = (GLYPH_H * s + 4 * s).min(height);
+    let w = (text_width(text, s) + 6 * s).min(width);
+    let mut band = Rgb8Image::filled(w, h, [0; 3]);
+    for y in 0..h {
+        for x in 0..w {
+            let p = out[(y * width + x) as usize];
+            let c = [(p >> 16) as u8, (p >> 8) as u8, p as u8];
+            band.put(i64::from(x), i64::from(y), c.map(|v| v / 3));
+        }
+    }
+    draw_text(&mut band, i64::from(3 * s), i64::from(2 * s), text, s, [255, 255, 255]);
+    for y in 0..h {
+        for x in 0..w {
+            let [r, g, b] = band.get(x, y).map(u32::from);
+            out[(y * width + x) as usize] = r << 16 | g << 8 | b;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::state::{Action, Input};
+
+    fn setup() -> (Scene, KdTree) {
+        let scene = scenes::load_scene("atrium").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        (scene, tree)
+    }
+
+    /// Not black, not one colour: many distinct colours and a mean well above black.
+    fn looks_like_a_scene(pixels: &[u32]) {
+        let mut distinct: Vec<u32> = pixels.to_vec();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let mean: f64 = pixels
+            .iter()
+            .map(|p| f64::from((p >> 16) & 255) + f64::from((p >> 8) & 255) + f64::from(p & 255))
+            .sum::<f64>()
+            / (3.0 * pixels.len() as f64);
+        assert!(distinct.len() > 100 && mean > 20.0, "{} colours, mean {mean}", distinct.len());
+    }
+
+    /// The loop without a window: input -> camera -> frame, every method, shadows and
+    /// overlay; the frame equals `trace::Renderer`'s shaded image under the status line.
+    #[test]
+    fn renders_every_method_and_mode() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let names = frames.method_names();
+        assert!(names.contains(&"mft-16".to_string()) && names.contains(&"mono".to_string()));
+        let mut state = ViewerState::new(&scene, names.clone(), 0);
+        let mut out = Vec::new();
+        let (w, h) = (96, 64);
+        for _ in 0..names.len() {
+            let info =
+                frames.render(&state, Change { settings: true, camera: false }, w, h, &mut out).unwrap().unwrap();
+            assert_eq!(out.len(), (w * h) as usize);
+            assert_eq!(info.method, state.method_name());
+            assert!(info.rays > u64::from(w * h) && info.n_i.is_some_and(|(n, i)| n > 0.0 && i > 0.0), "{info:?}");
+            looks_like_a_scene(&out);
+            // The picture below the status band is the renderer's shaded image.
+            let bound = frames
+                .registry
+                .bind(&frames.registry.select(&info.method, Options::default()).unwrap(), &frames.structures)
+                .unwrap();
+            let camera = state.pose.camera(state.fovy_deg, w, h).unwrap();
+            let r = Renderer::new(&scene, &bound, camera, Shadows::Hard);
+            let mut buf = r.buffers();
+            r.trace(&mut buf);
+            let reference = r.color(&buf).to_rgb8();
+            let y = h - 1;
+            for x in 0..w {
+                let c = reference.get(x, y);
+                assert_eq!(out[(y * w + x) as usize], u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2]));
+            }
+            state.apply(&Input { pressed: vec![Action::NextMethod], ..Input::default() });
+        }
+        assert!(frames.render(&state, Change::default(), w, h, &mut out).unwrap().is_none(), "nothing new");
+        let status = FrameInfo {
+            method: "mft-16".into(),
+            rays: 3_000_000,
+            trace_secs: 0.5,
+            frame_secs: 0.25,
+            threads: 2,
+            n_i: Some((4.56, 6.1)),
+            passes: 0,
+            overlay_max: None,
+        }
+        .status(&state);
+        assert!(status.starts_with("4.0 FPS  6.00 MRAYS/S  mft-16  2 THREADS  N 4.6 I 6.1"), "{status}");
+        state.apply(&Input { pressed: vec![Action::NextOverlay], ..Input::default() });
+        let info = frames.render(&state, Change { settings: true, camera: false }, w, h, &mut out).unwrap().unwrap();
+        assert!(info.overlay_max.is_some_and(|m| m > 0.0));
+        looks_like_a_scene(&out);
+    }
+
+    /// Soft shadows refine while the camera rests, stop after MAX_PASSES, and restart when it
+    /// moves; resizing and a zero size never panic.
+    #[test]
+    fn soft_shadows_refine_at_rest() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        state.shadows = ShadowMode::Soft;
+        let mut out = Vec::new();
+        let first = frames.render(&state, Change { settings: true, camera: false }, 48, 32, &mut out).unwrap().unwrap();
+        assert_eq!(first.passes, 1);
+        let first_frame = out.clone();
+        let mut passes = vec![];
+        while let Some(info) = frames.render(&state, Change::default(), 48, 32, &mut out).unwrap() {
+            passes.push(info.passes);
+            assert!(passes.len() <= MAX_PASSES as usize + 1);
+        }
+        assert_eq!(passes.first(), Some(&2));
+        assert_eq!(passes.iter().max(), Some(&MAX_PASSES));
+        assert_ne!(out, first_frame, "refinement changes the penumbrae");
+        let moved = Change { camera: true, settings: false };
+        assert_eq!(frames.render(&state, moved, 48, 32, &mut out).unwrap().unwrap().passes, 1);
+        assert!(frames.render(&state, Change::default(), 0, 0, &mut out).unwrap().is_none());
+        assert!(frames.render(&state, Change::default(), 1, 1, &mut out).unwrap().is_some());
+        assert!(frames.render(&state, Change::default(), 300, 7, &mut out).unwrap().is_some());
+        assert_eq!(out.len(), 2100);
+    }
+}
