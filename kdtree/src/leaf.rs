@@ -44,6 +44,13 @@ pub trait LeafGroup: Copy + Send + Sync + std::fmt::Debug {
     fn prepare(ray: &Ray) -> Self::RayData;
     /// The lanes that hit in `[ray.t_min, t_max]`, with their `t`, `u` and `v`.
     fn intersect(&self, ray: &Ray, data: &Self::RayData, t_max: f32) -> GroupHits;
+    /// Every field's bits, lane by lane (to compare groups exactly, NaN padding included).
+    fn bits(&self) -> Vec<u32>;
+}
+
+/// The bits of the lanes of `fields`, in order.
+fn lane_bits(fields: &[Vec4]) -> Vec<u32> {
+    fields.iter().flat_map(|f| f.to_array().map(f32::to_bits)).collect()
 }
 
 /// The hits of one group: the lanes that hit and each lane's `t`, `u`, `v` (meaningless in
@@ -178,6 +185,12 @@ impl LeafGroup for Wald4 {
         let inside = beta.cmpge(Vec4::ZERO) & gamma.cmpge(Vec4::ZERO) & (beta + gamma).cmple(Vec4::ONE);
         GroupHits { mask: in_range & inside, t, u: beta, v: gamma }
     }
+
+    fn bits(&self) -> Vec<u32> {
+        lane_bits(&[
+            self.k, self.n_u, self.n_v, self.a_k, self.a_u, self.a_v, self.b_nu, self.b_nv, self.c_nu, self.c_nv,
+        ])
+    }
 }
 
 /// Watertight records of four triangles (Woop, Benthin & Wald 2013), structure-of-arrays:
@@ -263,6 +276,10 @@ impl LeafGroup for Watertight4 {
             hits = self.redo_lanes(exact_zero, ray, s, t_max, hits);
         }
         hits
+    }
+
+    fn bits(&self) -> Vec<u32> {
+        lane_bits(&self.v.concat())
     }
 }
 

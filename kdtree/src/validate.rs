@@ -2,8 +2,11 @@
 //! triangle referenced by every leaf whose box it enters; thesis 2.2.1: "polygons can belong
 //! to more than one leaf node if it straddles a split plane").
 
+use rayon::prelude::*;
+
 use crate::build::{Polygon, clip_triangle};
-use crate::triangle::is_degenerate;
+use crate::leaf::{GAP, LANES, LeafGroup, Wald4, Watertight4};
+use crate::triangle::{Intersector, is_degenerate};
 use crate::{Aabb, KdTree, MAX_DEPTH, STACK_SIZE};
 
 /// The boxes of a node's children split on `axis` at `split`.
@@ -65,6 +68,7 @@ impl KdTree {
     /// the cost is comparable to the build (about 1.5x the build time on Sponza).
     pub fn validate(&self) -> Result<(), String> {
         let boxes = self.check_structure()?;
+        self.check_leaf_groups()?;
         self.check_complete(&boxes)
     }
 
@@ -119,24 +123,24 @@ impl KdTree {
         Ok(boxes)
     }
 
-    /// The completeness check (see [`KdTree::validate`]).
+    /// The completeness check (see [`KdTree::validate`]): the triangles are checked in
+    /// parallel (rayon), each descending from the root; the error named is the one of the
+    /// lowest-numbered failing triangle, whatever the thread count.
     fn check_complete(&self, boxes: &[Aabb]) -> Result<(), String> {
         let mut sorted = self.prim_refs.clone();
         for n in self.nodes.iter().filter(|n| n.is_leaf()) {
             sorted[n.prim_range()].sort_unstable();
         }
-        let mut stack = Vec::new();
-        for (t, tri) in self.tris.iter().enumerate() {
+        let failure = self.tris.par_iter().enumerate().find_map_first(|(t, tri)| {
             if is_degenerate(tri) || !entering(tri, &boxes[0]) {
-                continue;
+                return None;
             }
-            stack.clear();
-            stack.push(0usize);
+            let mut stack = vec![0usize];
             while let Some(i) = stack.pop() {
                 let n = self.nodes[i];
                 if n.is_leaf() {
                     if sorted[n.prim_range()].binary_search(&(t as u32)).is_err() {
-                        return Err(format!(
+                        return Some(format!(
                             "triangle {t} {tri:?} enters leaf {i} {:?} but the leaf does not reference it",
                             boxes[i]
                         ));
@@ -150,7 +154,124 @@ impl KdTree {
                     }
                 }
             }
+            None
+        });
+        failure.map_or(Ok(()), Err)
+    }
+
+    /// The SIMD leaf layout ([`crate::leaf`]): each non-empty leaf's references start at a
+    /// multiple of 4, every slot outside the leaves' ranges is [`GAP`], and group `g` holds,
+    /// bit for bit, the records of references `4g .. 4g + 4` (NaN padding after a leaf's last).
+    fn check_leaf_groups(&self) -> Result<(), String> {
+        if self.prim_refs.len() % LANES != 0 {
+            return Err(format!("{} reference slots, not a multiple of {LANES}", self.prim_refs.len()));
         }
-        Ok(())
+        let mut used = vec![false; self.prim_refs.len()];
+        for (i, n) in self.nodes.iter().enumerate().filter(|(_, n)| n.is_leaf() && n.prim_count() > 0) {
+            if n.first_ref() % LANES != 0 {
+                return Err(format!("leaf {i}'s references start at {}, not a multiple of {LANES}", n.first_ref()));
+            }
+            for slot in n.prim_range() {
+                if used[slot] {
+                    return Err(format!("reference slot {slot} belongs to two leaves (leaf {i} and another)"));
+                }
+                used[slot] = true;
+            }
+        }
+        if let Some(slot) = (0..used.len()).find(|&k| !used[k] && self.prim_refs[k] != GAP) {
+            return Err(format!(
+                "reference slot {slot} is in no leaf but holds {}, not the gap value",
+                self.prim_refs[slot]
+            ));
+        }
+        let groups = self.prim_refs.len() / LANES;
+        fn check<G: LeafGroup>(made: &[G], stored: &[G], what: &str) -> Result<(), String> {
+            match made.iter().zip(stored).position(|(a, b)| a.bits() != b.bits()) {
+                Some(g) => Err(format!("{what} SIMD leaf group {g} does not match its references' records")),
+                None => Ok(()),
+            }
+        }
+        match self.intersector {
+            Intersector::Wald => {
+                if self.wald4.len() != groups {
+                    return Err(format!("{} Wald groups for {groups} groups of references", self.wald4.len()));
+                }
+                let made: Vec<Wald4> = rebuilt(&self.prim_refs, &self.wald);
+                check(&made, &self.wald4, "Wald")
+            }
+            Intersector::Watertight => {
+                if self.watertight4.len() != groups {
+                    return Err(format!(
+                        "{} watertight groups for {groups} groups of references",
+                        self.watertight4.len()
+                    ));
+                }
+                let made: Vec<Watertight4> = rebuilt(&self.prim_refs, &self.watertight);
+                check(&made, &self.watertight4, "watertight")
+            }
+        }
+    }
+}
+
+/// The groups of `prim_refs` made again from `records` (as the tree makes them).
+fn rebuilt<G: LeafGroup>(prim_refs: &[u32], records: &[G::Record]) -> Vec<G>
+where
+    G::Record: Copy,
+{
+    prim_refs
+        .chunks(LANES)
+        .map(|refs| {
+            let lanes: Vec<G::Record> =
+                refs.iter().take_while(|&&r| r != GAP).filter_map(|&r| records.get(r as usize).copied()).collect();
+            G::new(&lanes)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use crate::leaf::GAP;
+    use crate::{BuildConfig, Intersector, KdNode, KdTree};
+
+    fn tree(intersector: Intersector) -> KdTree {
+        let tris: Vec<[Vec3; 3]> = (0..40)
+            .map(|i| {
+                let c = Vec3::new((i % 7) as f32, (i / 7) as f32, (i % 3) as f32);
+                [c, c + Vec3::X, c + Vec3::new(0.0, 0.7, 0.4)]
+            })
+            .collect();
+        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap();
+        tree.validate().unwrap();
+        tree
+    }
+
+    #[test]
+    fn the_simd_leaf_layout_is_checked() {
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let good = tree(intersector);
+            let leaf = good.nodes.iter().position(|n| n.is_leaf() && n.prim_count() > 0).unwrap();
+
+            // A group that no longer matches its references' records.
+            let mut t = good.clone();
+            match intersector {
+                Intersector::Wald => t.wald4[0].n_u = t.wald4[0].n_u * 2.0 + glam::Vec4::ONE,
+                Intersector::Watertight => t.watertight4[0].v[0][0] += glam::Vec4::ONE,
+            }
+            assert!(t.validate().unwrap_err().contains("SIMD leaf group 0"), "{intersector:?}");
+
+            // A leaf whose references do not start at a multiple of 4.
+            let mut t = good.clone();
+            let n = t.nodes[leaf];
+            t.nodes[leaf] = KdNode::leaf(n.first_ref() as u32 + 1, n.prim_count() as u32 - 1);
+            assert!(t.validate().unwrap_err().contains("not a multiple of 4"), "{intersector:?}");
+
+            // A gap that holds a reference.
+            let mut t = good.clone();
+            let gap = t.prim_refs.iter().position(|&r| r == GAP).expect("some leaf is padded");
+            t.prim_refs[gap] = 0;
+            assert!(t.validate().unwrap_err().contains("not the gap value"), "{intersector:?}");
+        }
     }
 }
