@@ -163,12 +163,12 @@ impl KdTree {
     /// multiple of 4, every slot outside the leaves' ranges is [`GAP`], and group `g` holds,
     /// bit for bit, the records of references `4g .. 4g + 4` (NaN padding after a leaf's last).
     fn check_leaf_groups(&self) -> Result<(), String> {
-        if self.prim_refs.len() % LANES != 0 {
+        if !self.prim_refs.len().is_multiple_of(LANES) {
             return Err(format!("{} reference slots, not a multiple of {LANES}", self.prim_refs.len()));
         }
         let mut used = vec![false; self.prim_refs.len()];
         for (i, n) in self.nodes.iter().enumerate().filter(|(_, n)| n.is_leaf() && n.prim_count() > 0) {
-            if n.first_ref() % LANES != 0 {
+            if !n.first_ref().is_multiple_of(LANES) {
                 return Err(format!("leaf {i}'s references start at {}, not a multiple of {LANES}", n.first_ref()));
             }
             for slot in n.prim_range() {
