@@ -20,6 +20,7 @@ use scenes::Scene;
 use crate::Error;
 use crate::frame::{Driven, FrameTracer};
 use crate::method::SingleRays;
+use crate::multibvh;
 use crate::ours::{Kernel, Tiled};
 
 /// The name of our kd-tree as a structure.
@@ -167,7 +168,8 @@ pub struct Registry {
 }
 
 impl Registry {
-    /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9).
+    /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9) on
+    /// our kd-tree, and single rays on our 4-wide BVH (`mbvh-4`, structure `mbvh`).
     pub fn ours() -> Registry {
         let mut r = Registry::default();
         r.add(ours("mono", "single rays, closest and any hit (thesis 2.2.1)", false, false, "kd-single", |s, _| {
@@ -211,6 +213,18 @@ impl Registry {
         r.add(ours("mft-cone", "four quadrant cones per tile (thesis 4.1.9)", true, true, "kd-cone", |s, o| {
             tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone))
         }));
+        r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });
+        r.add(Entry {
+            name: "mbvh-4",
+            family: "ours",
+            summary: "4-wide BVH, single rays, SIMD over children and leaf triangles (Wald, Benthin & Boulos 2008)",
+            tiled: false,
+            packets: false,
+            structure: multibvh::MBVH,
+            shadow_kernel: "mbvh-4",
+            soft_kernel: "mbvh-4",
+            bind: |s, _| multibvh::bind(s),
+        });
         r
     }
 
