@@ -19,6 +19,9 @@
 //!   reports; [`timing`]: timed calls, interleaved rounds, medians; [`progress`]: progress
 //!   reporting without drawing; [`error`]: the one error type.
 //!
+//! - [`workload`]: the incoherent rays (ambient occlusion, one diffuse bounce) generated once
+//!   from a frame's primary hits and traced by every method's stream queries.
+//!
 //! Adding a method: implement [`Method`] in its own module and add one [`registry::Entry`]
 //! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
 //! against the brute-force oracle and single rays, and every command takes it by name.
@@ -40,6 +43,7 @@ pub mod shade;
 pub mod soft;
 pub mod ties;
 pub mod timing;
+pub mod workload;
 
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
