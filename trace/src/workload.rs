@@ -24,7 +24,7 @@ use scenes::{Camera, Scene};
 use crate::shade::facing_normal;
 
 /// The default seed of [`Incoherent::generate`].
-pub const SEED: u64 = 0x5eed_a0;
+pub const SEED: u64 = 0x5eed_00a0;
 
 /// The ambient-occlusion rays' length as a fraction of the scene's bounding-box diagonal.
 pub const AO_LENGTH: f32 = 0.1;
