@@ -9,9 +9,12 @@
 //!   primary, hard-shadow and soft-shadow Mrays/s, primitive mismatches classified);
 //! - [`shadows`]: edge-width against sampled soft shadows (images, errors, a plot drawn by
 //!   [`shadow_plot`]);
-//! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices.
+//! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices;
+//! - [`culling`]: pre-BVH culling for shadow rays (Selgrad et al.): culled fraction, build
+//!   and trace with and without, identical answers checked.
 
 pub mod compare;
+pub mod culling;
 pub mod leaks;
 pub mod scaling;
 pub mod shadow_plot;

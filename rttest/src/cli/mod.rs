@@ -21,6 +21,7 @@ use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadow
 use crate::progress::{self, Bar};
 
 pub mod compare;
+pub mod culling;
 pub mod leaks;
 pub mod main_job;
 pub mod raycast;
@@ -80,6 +81,8 @@ pub enum Command {
     /// Every registered method, ours and the baselines, on the same rays (build, primary,
     /// shadow and soft-shadow Mrays/s, primitive mismatches).
     Compare(compare::CompareArgs),
+    /// Pre-BVH culling for shadow rays: culled fraction, build and trace with and without.
+    Culling(culling::CullingArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -294,6 +297,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Tables(args)) => tables::run(&global, &args),
         Some(Command::Shadows(args)) => shadows::run(&global, &args),
         Some(Command::Compare(args)) => compare::run(&global, &args),
+        Some(Command::Culling(args)) => culling::run(&global, &args),
         None => main_job::run(&global),
     })
 }
