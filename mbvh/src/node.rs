@@ -11,8 +11,9 @@
 //! never culled. Each plane distance `(p - o) * (1 / d)` carries at most three roundings
 //! (the subtraction, the reciprocal, the product), a relative error below `gamma_3 = 3 eps /
 //! (1 - 3 eps)`; the entry distance is lowered and the exit distance raised by twice that
-//! (Ize 2013, "Robust BVH ray traversal", uses the same bound on the exit distance), so a
-//! grazing ray keeps the box. Planes are picked by the direction's sign bit (near plane
+//! (Ize 2013, "Robust BVH ray traversal", uses the same bound on the exit distance), plus
+//! the smallest normal float for products that underflow ([`TINY`]), so a grazing ray keeps
+//! the box. Planes are picked by the direction's sign bit (near plane
 //! `min` for `+d`, `max` for `-d`, `-0.0` counting as negative), which also makes the empty
 //! box a miss for every ray.
 //!
@@ -39,6 +40,10 @@ pub const LEAF: u32 = 1 << 31;
 /// Twice `gamma_3` (`3 eps / (1 - 3 eps)`, eps = 2^-24): the relative widening of the entry
 /// and exit distances that keeps the box test conservative (module docs).
 pub const WIDEN: f32 = 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// The absolute part of the widening: a product that underflows to a subnormal or zero has
+/// an absolute, not a relative, error (below `2^-149`); the smallest normal float covers it.
+pub const TINY: f32 = f32::MIN_POSITIVE;
 
 /// A multi-node: the boxes of up to four children, SoA, and what each child is.
 #[derive(Clone, Copy, Debug)]
@@ -115,8 +120,8 @@ pub fn hit4(node: &Node4, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, Vec4) {
         near = n.max(near);
         far = f.min(far);
     }
-    let near = near - near.abs() * WIDEN;
-    let far = far + far.abs() * WIDEN;
+    let near = near - (near.abs() * WIDEN + TINY);
+    let far = far + (far.abs() * WIDEN + TINY);
     let mask: BVec4A = near.cmple(far);
     (mask.bitmask(), near)
 }
@@ -141,8 +146,8 @@ pub fn hit4_scalar(node: &Node4, ray: &Ray, t_min: f32, t_max: f32) -> (u32, [f3
                 far = if f < far { f } else { far };
             }
         }
-        let near = near - near.abs() * WIDEN;
-        let far = far + far.abs() * WIDEN;
+        let near = near - (near.abs() * WIDEN + TINY);
+        let far = far + (far.abs() * WIDEN + TINY);
         if near <= far {
             mask |= 1 << i;
         }

@@ -238,6 +238,16 @@ impl Registry {
         self.structures.push(structure);
     }
 
+    /// Builds every registered structure for `scene` into `structures`, so that every method
+    /// binds (tests and tools that run every method; `rttest compare` builds only those its
+    /// methods need, timed).
+    pub fn build_structures(&self, scene: &Scene, structures: &mut Structures<'_>) -> Result<(), Error> {
+        for s in &self.structures {
+            structures.insert(s.name, (s.build)(scene)?);
+        }
+        Ok(())
+    }
+
     /// Every entry, in registration order.
     pub fn entries(&self) -> &[Entry] {
         &self.entries
