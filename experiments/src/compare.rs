@@ -25,6 +25,14 @@
 //! traces shadow rays one by one whatever the primary method, so every row of ours shows the
 //! one single-ray shadow kernel; our soft shadows are single rays (`mono`), the pyramid of the
 //! 16 rays (`packet`, `samesign`, `frustum-N`, `mft-N`) or their cone (`cone-N`, `mft-cone-N`).
+//!
+//! The incoherent columns (`ao`, `diffuse`; Wald, Benthin & Boulos 2008): from our single-ray
+//! primary hits, `--ao-rays` ambient-occlusion rays per hit and one diffuse bounce per hit
+//! ([`trace::workload`], seeded, generated once), traced by every method's stream queries
+//! (any hit and closest hit) in every round after the soft shadows; every method is timed on
+//! them (our packet methods group rays sharing an origin into packets and frusta). Their
+//! answers are compared with `mono`'s ray by ray (`ao_mismatch`, `diffuse_mismatch`: ties at
+//! equal distance included).
 
 use std::fmt::Write as _;
 
@@ -36,6 +44,7 @@ use trace::registry::{KDTREE, Selected, TILE_SIZE};
 use trace::setup::view_camera;
 use trace::ties::{coplanar, near_shared};
 use trace::timing::{median, mrays_per_s, timed};
+use trace::workload::{self, Incoherent};
 use trace::{Bound, Error, Options, Registry, Structures, TileLayout, soft};
 
 /// What `compare` measures.
@@ -61,6 +70,10 @@ pub struct CompareConfig {
     pub light_radius: f32,
     /// Leave out the 16-sample soft shadows (the slowest column).
     pub no_soft: bool,
+    /// Ambient-occlusion rays per primary hit (1 to 64; the incoherent `ao` column).
+    pub ao_rays: u32,
+    /// Leave out the incoherent columns (`ao`, `diffuse`).
+    pub no_incoherent: bool,
 }
 
 impl Default for CompareConfig {
@@ -75,6 +88,8 @@ impl Default for CompareConfig {
             tiles: vec![8, 16],
             light_radius: 1.0,
             no_soft: false,
+            ao_rays: 4,
+            no_incoherent: false,
         }
     }
 }
@@ -111,6 +126,22 @@ pub struct CompareRow {
     pub shadow_ms: Option<f64>,
     /// Median milliseconds of the soft-shadow pass (`null` when not measured).
     pub soft16_ms: Option<f64>,
+    /// Ambient-occlusion rays per second (millions), median; `null` with `--no-incoherent`.
+    pub ao_mrays_per_s: Option<f64>,
+    /// Diffuse-bounce rays per second (millions), median; `null` with `--no-incoherent`.
+    pub diffuse_mrays_per_s: Option<f64>,
+    /// Median milliseconds of the AO stream (`null` when not measured).
+    pub ao_ms: Option<f64>,
+    /// Median milliseconds of the diffuse stream (`null` when not measured).
+    pub diffuse_ms: Option<f64>,
+    /// AO rays traced (`--ao-rays` per primary hit).
+    pub ao_rays: u64,
+    /// Diffuse rays traced (one per primary hit).
+    pub diffuse_rays: u64,
+    /// AO answers (blocked or not) that differ from `mono`'s.
+    pub ao_mismatch: u64,
+    /// Diffuse hits naming another triangle than `mono`'s (ties at equal distance included).
+    pub diffuse_mismatch: u64,
     /// The shadow kernel (rows of ours share the single-ray one).
     pub shadow_kernel: Option<String>,
     /// The soft-shadow kernel (rows of ours share the single, pyramid and cone ones).
@@ -174,19 +205,36 @@ pub struct Frame<'a> {
     pub reference: Vec<Option<Hit>>,
     /// The soft shadows' spherical light.
     pub light: scenes::SphereLight,
+    /// The incoherent rays from the reference hits (empty when not asked for).
+    pub incoherent: Incoherent,
 }
 
 impl<'a> Frame<'a> {
     /// The frame of `scene` seen by `camera`, with `tree`'s single-ray hits as the reference
-    /// and a light of `radius` Sponza units at the scene's point light.
-    pub fn new(scene: &'a Scene, tree: &KdTree, camera: Camera, radius: f32) -> Frame<'a> {
+    /// and a light of `radius` Sponza units at the scene's point light, with `ao_rays`
+    /// ambient-occlusion rays and one diffuse ray per reference hit when `incoherent`.
+    pub fn new(
+        scene: &'a Scene,
+        tree: &KdTree,
+        camera: Camera,
+        radius: f32,
+        ao_rays: u32,
+        incoherent: bool,
+    ) -> Frame<'a> {
         let layout = TileLayout::new(camera.width, camera.height, TILE_SIZE);
         let mut reference_tiles = vec![None; layout.pixel_count()];
         let (_, kdtree::NoCounters) =
             trace::frame::primary_pass(&trace::SingleRays(tree), &layout, &camera, &mut reference_tiles);
         let reference = layout.to_row_major(&reference_tiles);
         let light = soft::scene_light(scene, tree, radius);
-        Frame { scene, camera, layout, reference_tiles, reference, light }
+        let incoherent = if incoherent {
+            let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
+            let diagonal = (tree.bounds().max - tree.bounds().min).length();
+            Incoherent::generate(scene, &camera, pixels, &reference_tiles, diagonal, ao_rays, workload::SEED)
+        } else {
+            Incoherent::default()
+        };
+        Frame { scene, camera, layout, reference_tiles, reference, light, incoherent }
     }
 }
 
@@ -287,6 +335,9 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     if !(config.light_radius.is_finite() && config.light_radius >= 0.0) {
         return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", config.light_radius)));
     }
+    if !(1..=64).contains(&config.ao_rays) {
+        return Err(Error::Usage(format!("--ao-rays {} must be in 1..=64", config.ao_rays)));
+    }
     let registry = baselines::registry();
     let selected = select_methods(&registry, config)?;
     let scene = scenes::load_scene(&config.scene)?;
@@ -306,7 +357,8 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     for (name, built) in others {
         structures.insert(name, built);
     }
-    let frame = Frame::new(&scene, &tree, camera, config.light_radius);
+    let frame = Frame::new(&scene, &tree, camera, config.light_radius, config.ao_rays, !config.no_incoherent);
+    let (ao, diffuse) = (&frame.incoherent.ao, &frame.incoherent.diffuse);
 
     // The contenders and their kernels.
     let mut contenders = Vec::new();
@@ -324,16 +376,33 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         contenders.push(Contender { method, build_ms: build, layout, hits, shadow, soft });
     }
 
-    // Warm-up frame: the hits of every method, for the mismatch column.
+    // Warm-up frame: the hits of every method, for the mismatch column; the incoherent
+    // answers of every method against the first's (`mono`).
     let mut checks = Vec::new();
-    for c in &mut contenders {
+    let mut ao_occluded = vec![false; ao.len()];
+    let mut diffuse_hits = vec![None; diffuse.len()];
+    let (mut ao_reference, mut diffuse_reference) = (Vec::new(), Vec::new());
+    let mut incoherent_checks = Vec::new();
+    for (i, c) in contenders.iter_mut().enumerate() {
         c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None);
         checks.push(mismatches(&scene, &camera, &frame.reference, &c.layout.to_row_major(&c.hits)));
+        c.method.tracer.stream_occluded(ao, &mut ao_occluded);
+        c.method.tracer.stream(diffuse, &mut diffuse_hits);
+        if i == 0 {
+            (ao_reference, diffuse_reference) = (ao_occluded.clone(), diffuse_hits.clone());
+        }
+        let ao_mismatch = ao_occluded.iter().zip(&ao_reference).filter(|(a, b)| a != b).count() as u64;
+        let diffuse_mismatch =
+            diffuse_hits.iter().zip(&diffuse_reference).filter(|(a, b)| a.map(|h| h.prim) != b.map(|h| h.prim)).count()
+                as u64;
+        incoherent_checks.push((ao_mismatch, diffuse_mismatch));
     }
 
     // Interleaved rounds: every primary pass, then every distinct shadow kernel, then every
     // distinct soft-shadow kernel.
-    let steps = u64::from(config.rounds) * (contenders.len() + shadows.kernels.len() + softs.kernels.len()) as u64;
+    let incoherent = if ao.is_empty() && diffuse.is_empty() { 0 } else { contenders.len() };
+    let steps =
+        u64::from(config.rounds) * (contenders.len() + shadows.kernels.len() + softs.kernels.len() + incoherent) as u64;
     let bar = progress.task(&format!("compare: {}", scene.name), Some(steps));
     let mut primary_secs = vec![Vec::new(); contenders.len()];
     let mut shadow_secs = vec![Vec::new(); shadows.kernels.len()];
@@ -343,6 +412,8 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut occluded = vec![false; frame.layout.pixel_count()];
     let frame_view = trace::frame::View { layout: &frame.layout, scene: &scene, camera: &camera };
     let mut visible = vec![0.0f32; frame.layout.pixel_count()];
+    let mut ao_secs = vec![Vec::new(); incoherent];
+    let mut diffuse_secs = vec![Vec::new(); incoherent];
     for _ in 0..config.rounds {
         for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
             secs.push(timed(|| c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None)).0);
@@ -363,6 +434,11 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
             soft_rays[i] = stats.rays;
             bar.inc();
         }
+        for (c, (a, d)) in contenders.iter().take(incoherent).zip(ao_secs.iter_mut().zip(&mut diffuse_secs)) {
+            a.push(timed(|| c.method.tracer.stream_occluded(ao, &mut ao_occluded)).0);
+            d.push(timed(|| c.method.tracer.stream(diffuse, &mut diffuse_hits)).0);
+            bar.inc();
+        }
     }
     bar.finish();
 
@@ -372,7 +448,11 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         .iter()
         .zip(&primary_secs)
         .zip(checks)
-        .map(|((c, secs), mismatches)| {
+        .zip(incoherent_checks)
+        .enumerate()
+        .map(|(i, (((c, secs), mismatches), (ao_mismatch, diffuse_mismatch)))| {
+            let ao_s = ao_secs.get(i).map(|s| median(s));
+            let diffuse_s = diffuse_secs.get(i).map(|s| median(s));
             let primary = median(secs);
             let shadow = (median(&shadow_secs[c.shadow]), shadow_rays[c.shadow], shadows.kernels[c.shadow].0.clone());
             let soft = c.soft.map(|i| (median(&soft_secs[i]), soft_rays[i], softs.kernels[i].0.clone()));
@@ -389,6 +469,14 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
                 primary_ms: primary * 1e3,
                 shadow_ms: Some(shadow.0 * 1e3),
                 soft16_ms: soft.as_ref().map(|s| s.0 * 1e3),
+                ao_mrays_per_s: ao_s.map(|s| mrays_per_s(ao.len() as u64, s)),
+                diffuse_mrays_per_s: diffuse_s.map(|s| mrays_per_s(diffuse.len() as u64, s)),
+                ao_ms: ao_s.map(|s| s * 1e3),
+                diffuse_ms: diffuse_s.map(|s| s * 1e3),
+                ao_rays: ao.len() as u64,
+                diffuse_rays: diffuse.len() as u64,
+                ao_mismatch,
+                diffuse_mismatch,
                 shadow_kernel: Some(shadow.2),
                 soft16_kernel: soft.map(|s| s.2),
                 threads,
@@ -475,6 +563,7 @@ impl std::fmt::Display for CompareReport {
             rounds: c.rounds,
             build_rounds: c.build_rounds,
             light_radius: c.light_radius,
+            ao_rays: c.ao_rays,
             embree_note: self.embree_note.clone(),
         };
         write!(f, "{}", table(&header, &self.rows))
@@ -490,6 +579,7 @@ struct Header<'a> {
     rounds: u32,
     build_rounds: u32,
     light_radius: f32,
+    ao_rays: u32,
     embree_note: Option<String>,
 }
 
@@ -506,8 +596,8 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     let (w, ht) = h.size;
     let _ = writeln!(
         out,
-        "rttest compare: {}, view {}, {w}x{ht}, {} threads; medians of {} interleaved rounds (builds: {}); soft16 = 16 rays per point to a spherical light of radius {} Sponza units.",
-        h.scene, h.view, h.threads, h.rounds, h.build_rounds, h.light_radius
+        "rttest compare: {}, view {}, {w}x{ht}, {} threads; medians of {} interleaved rounds (builds: {}); soft16 = 16 rays per point to a spherical light of radius {} Sponza units; ao = {} cosine rays per primary hit, a tenth of the scene's diagonal long; diffuse = 1 cosine ray per primary hit.",
+        h.scene, h.view, h.threads, h.rounds, h.build_rounds, h.light_radius, h.ao_rays
     );
     if let Some(note) = &h.embree_note {
         let _ = writeln!(out, "{note}");
@@ -515,23 +605,27 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     let _ = writeln!(out);
     let _ = writeln!(
         out,
-        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | prim mismatch | ties | of which edge | of which coincident | hit vs miss | shadow kernel | soft16 kernel |"
+        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | ao Mrays/s | diffuse Mrays/s | prim mismatch | ties | of which edge | of which coincident | hit vs miss | ao / diffuse mismatch | shadow kernel | soft16 kernel |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|");
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|");
     for r in rows {
         let _ = writeln!(
             out,
-            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} |",
             r.method,
             r.build_ms,
             r.primary_mrays_per_s,
             opt(r.shadow_mrays_per_s, 2),
             opt(r.soft16_mrays_per_s, 2),
+            opt(r.ao_mrays_per_s, 2),
+            opt(r.diffuse_mrays_per_s, 2),
             r.mismatches.prim_mismatch,
             r.mismatches.prim_ties,
             r.mismatches.prim_edge_ties,
             r.mismatches.prim_coincident,
             r.mismatches.prim_hit_vs_miss,
+            r.ao_mismatch,
+            r.diffuse_mismatch,
             r.shadow_kernel.as_deref().unwrap_or("-"),
             r.soft16_kernel.as_deref().unwrap_or("-"),
         );
@@ -545,10 +639,12 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
             },
         )
     };
-    let columns: [(&str, Column); 3] = [
+    let columns: [(&str, Column); 5] = [
         ("primary", |r| Some(r.primary_mrays_per_s)),
         ("shadow", |r| r.shadow_mrays_per_s),
         ("soft16", |r| r.soft16_mrays_per_s),
+        ("ao", |r| r.ao_mrays_per_s),
+        ("diffuse", |r| r.diffuse_mrays_per_s),
     ];
     for base in ["embree", "bvh", "obvhs"] {
         if !rows.iter().any(|r| r.family == base) {
@@ -615,17 +711,35 @@ mod tests {
     #[test]
     fn a_run_of_ours_has_no_mismatch() {
         let report = run(&config(&["ours"]), &trace::progress::Quiet).unwrap();
-        assert_eq!(report.rows.len(), 3 + 4 * 2);
+        assert_eq!(report.rows.len(), 3 + 4 * 2 + 1);
         for r in &report.rows {
-            assert_eq!(r.mismatches.prim_mismatch, 0, "{}", r.method);
-            assert_eq!(r.shadow_kernel.as_deref(), Some("kd-single"));
+            // mbvh-4 traces another structure: at equal distance it may name the other
+            // triangle of a tie (the harness's rules); the kd-tree methods name `mono`'s.
+            let m = &r.mismatches;
+            let differing = if r.method == "mbvh-4" { m.prim_mismatch - m.prim_ties } else { m.prim_mismatch };
+            assert_eq!(differing, 0, "{}: {m:?}", r.method);
+            let kernel = if r.method == "mbvh-4" { "mbvh-4" } else { "kd-single" };
+            assert_eq!(r.shadow_kernel.as_deref(), Some(kernel));
             assert!(r.primary_mrays_per_s > 0.0);
+            // The incoherent columns: every method timed on the same rays, same answers.
+            assert!(r.ao_rays > 0 && r.diffuse_rays > 0 && r.ao_rays == 4 * r.diffuse_rays, "{}", r.method);
+            assert!(r.ao_mrays_per_s.is_some_and(|v| v > 0.0) && r.diffuse_mrays_per_s.is_some_and(|v| v > 0.0));
+            if r.method != "mbvh-4" {
+                assert_eq!((r.ao_mismatch, r.diffuse_mismatch), (0, 0), "{}", r.method);
+            } else {
+                // Ties again (none at the time of writing); the conformance test judges them.
+                assert!(100 * (r.ao_mismatch + r.diffuse_mismatch) <= r.diffuse_rays, "{r:?}");
+            }
         }
         let soft = |m: &str| report.rows.iter().find(|r| r.method == m).and_then(|r| r.soft16_kernel.clone());
         assert_eq!(soft("mono").as_deref(), Some("kd-single"));
         assert_eq!(soft("mft-8").as_deref(), Some("kd-pyramid"));
         assert_eq!(soft("cone-16").as_deref(), Some("kd-cone"));
-        assert!(report.to_string().contains("| mft-cone-16 |"));
+        let text = report.to_string();
+        assert!(text.contains("| mft-cone-16 |") && text.contains("| mbvh-4 |") && text.contains("ao Mrays/s"));
+        let quiet = CompareConfig { no_incoherent: true, ..config(&["mbvh-4"]) };
+        let report = run(&quiet, &trace::progress::Quiet).unwrap();
+        assert!(report.rows.iter().all(|r| r.ao_mrays_per_s.is_none() && r.ao_rays == 0));
     }
 
     #[test]

@@ -10,9 +10,12 @@
 //! - [`shadows`]: edge-width against sampled soft shadows (images, errors, a plot drawn by
 //!   [`shadow_plot`]);
 //! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices;
+//! - [`culling`]: pre-BVH culling for shadow rays (Selgrad et al.): culled fraction, build
+//!   and trace with and without, identical answers checked;
 //! - [`sah_sweep`]: the SAH cost model chosen by measurement (tree shape against speed).
 
 pub mod compare;
+pub mod culling;
 pub mod leaks;
 pub mod sah_sweep;
 pub mod scaling;

@@ -59,7 +59,10 @@ fuzz_target!(|input: Input| {
     let shared: Vec<Ray> =
         accepted.iter().filter_map(|r| Ray::try_new(eye.origin, r.dir, r.t_min.max(0.0), r.t_max).ok()).collect();
     let registry = Registry::ours();
-    let structures = Structures::new(&tree);
+    let mut structures = Structures::new(&tree);
+    // The registry's other structures (the 4-wide BVH) over the same soup, same numbering.
+    let scene = trace::conformance::soup_scene("fuzz", &tris);
+    registry.build_structures(&scene, &mut structures).expect("a finite soup builds");
     for rays in [&accepted, &shared] {
         let want: Vec<Option<Hit>> = rays.iter().map(|r| tree.intersect(r)).collect();
         let want_any: Vec<bool> = rays.iter().map(|r| tree.occluded(r)).collect();

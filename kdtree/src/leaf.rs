@@ -46,6 +46,8 @@ pub trait LeafGroup: Copy + Send + Sync + std::fmt::Debug {
     fn intersect(&self, ray: &Ray, data: &Self::RayData, t_max: f32) -> GroupHits;
     /// Every field's bits, lane by lane (to compare groups exactly, NaN padding included).
     fn bits(&self) -> Vec<u32>;
+    /// The record of lane `lane` (NaN for a padding lane), for scalar twins and checks.
+    fn lane(&self, lane: usize) -> Self::Record;
 }
 
 /// The bits of the lanes of `fields`, in order.
@@ -186,6 +188,23 @@ impl LeafGroup for Wald4 {
         GroupHits { mask: in_range & inside, t, u: beta, v: gamma }
     }
 
+    fn lane(&self, i: usize) -> WaldTriangle {
+        let f = |v: Vec4| v.to_array()[i];
+        WaldTriangle {
+            // A padding lane's NaN `k` becomes axis 0; its NaN fields never hit.
+            kuv: crate::triangle::pack_axes(f(self.k) as usize % 3),
+            n_u: f(self.n_u),
+            n_v: f(self.n_v),
+            a_k: f(self.a_k),
+            a_u: f(self.a_u),
+            a_v: f(self.a_v),
+            b_nu: f(self.b_nu),
+            b_nv: f(self.b_nv),
+            c_nu: f(self.c_nu),
+            c_nv: f(self.c_nv),
+        }
+    }
+
     fn bits(&self) -> Vec<u32> {
         lane_bits(&[
             self.k, self.n_u, self.n_v, self.a_k, self.a_u, self.a_v, self.b_nu, self.b_nv, self.c_nu, self.c_nv,
@@ -213,13 +232,6 @@ pub struct ShearedSplat {
     pub o: [Vec4; 3],
     /// `t_min` in all lanes.
     pub t_min: Vec4,
-}
-
-impl Watertight4 {
-    /// Lane `i`'s vertices.
-    fn lane(&self, i: usize) -> WatertightTriangle {
-        WatertightTriangle { v: self.v.map(|c| Vec3::new(c[0][i], c[1][i], c[2][i])) }
-    }
 }
 
 impl LeafGroup for Watertight4 {
@@ -276,6 +288,10 @@ impl LeafGroup for Watertight4 {
             hits = self.redo_lanes(exact_zero, ray, s, t_max, hits);
         }
         hits
+    }
+
+    fn lane(&self, i: usize) -> WatertightTriangle {
+        WatertightTriangle { v: self.v.map(|c| Vec3::new(c[0][i], c[1][i], c[2][i])) }
     }
 
     fn bits(&self) -> Vec<u32> {

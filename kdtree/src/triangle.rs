@@ -153,7 +153,7 @@ impl WaldTriangle {
 }
 
 /// `k | (k + 1) % 3 << 8 | (k + 2) % 3 << 16`.
-fn pack_axes(k: usize) -> u32 {
+pub(crate) fn pack_axes(k: usize) -> u32 {
     (k | ((k + 1) % 3) << 8 | ((k + 2) % 3) << 16) as u32
 }
 

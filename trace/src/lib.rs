@@ -6,6 +6,8 @@
 //!   a point's 16 soft-shadow rays, a stream of arbitrary rays).
 //! - [`ours`]: our kd-tree methods (single rays, packets, frusta, MFT, cones; thesis 2.2.1,
 //!   4.1.2-4.1.9) as `Method`s.
+//! - [`multibvh`]: our 4-wide BVH (crate `mbvh`, Wald, Benthin & Boulos 2008) as the
+//!   single-ray method `mbvh-4`.
 //! - [`registry`]: names to methods (`mono`, `mft-16`, `embree-8`, ...), the structures they
 //!   trace, and the name list for `--help`.
 //! - [`frame`]: the frame driver: primary, hard-shadow and soft-shadow passes over tiles with
@@ -18,6 +20,9 @@
 //!   reports; [`timing`]: timed calls, interleaved rounds, medians; [`progress`]: progress
 //!   reporting without drawing; [`error`]: the one error type.
 //!
+//! - [`workload`]: the incoherent rays (ambient occlusion, one diffuse bounce) generated once
+//!   from a frame's primary hits and traced by every method's stream queries.
+//!
 //! Adding a method: implement [`Method`] in its own module and add one [`registry::Entry`]
 //! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
 //! against the brute-force oracle and single rays, and every command takes it by name.
@@ -29,6 +34,7 @@ pub mod conformance;
 pub mod error;
 pub mod frame;
 pub mod method;
+pub mod multibvh;
 pub mod ours;
 pub mod progress;
 pub mod registry;
@@ -39,6 +45,7 @@ pub mod shade;
 pub mod soft;
 pub mod ties;
 pub mod timing;
+pub mod workload;
 
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};

@@ -20,6 +20,7 @@ use scenes::Scene;
 use crate::Error;
 use crate::frame::{Driven, FrameTracer};
 use crate::method::SingleRays;
+use crate::multibvh;
 use crate::ours::{Kernel, Tiled};
 
 /// The name of our kd-tree as a structure.
@@ -167,7 +168,8 @@ pub struct Registry {
 }
 
 impl Registry {
-    /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9).
+    /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9) on
+    /// our kd-tree, and single rays on our 4-wide BVH (`mbvh-4`, structure `mbvh`).
     pub fn ours() -> Registry {
         let mut r = Registry::default();
         r.add(ours("mono", "single rays, closest and any hit (thesis 2.2.1)", false, false, "kd-single", |s, _| {
@@ -211,6 +213,18 @@ impl Registry {
         r.add(ours("mft-cone", "four quadrant cones per tile (thesis 4.1.9)", true, true, "kd-cone", |s, o| {
             tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone))
         }));
+        r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });
+        r.add(Entry {
+            name: "mbvh-4",
+            family: "ours",
+            summary: "4-wide BVH, single rays, SIMD over children and leaf triangles (Wald, Benthin & Boulos 2008)",
+            tiled: false,
+            packets: false,
+            structure: multibvh::MBVH,
+            shadow_kernel: "mbvh-4",
+            soft_kernel: "mbvh-4",
+            bind: |s, _| multibvh::bind(s),
+        });
         r
     }
 
@@ -222,6 +236,16 @@ impl Registry {
     /// Adds a structure that methods name.
     pub fn add_structure(&mut self, structure: StructureEntry) {
         self.structures.push(structure);
+    }
+
+    /// Builds every registered structure for `scene` into `structures`, so that every method
+    /// binds (tests and tools that run every method; `rttest compare` builds only those its
+    /// methods need, timed).
+    pub fn build_structures(&self, scene: &Scene, structures: &mut Structures<'_>) -> Result<(), Error> {
+        for s in &self.structures {
+            structures.insert(s.name, (s.build)(scene)?);
+        }
+        Ok(())
     }
 
     /// Every entry, in registration order.

@@ -59,7 +59,9 @@ fn errors(mesh: &Mesh, camera: &Camera) -> Vec<(String, Intersector, usize, f64)
     for intersector in [Intersector::Wald, Intersector::Watertight] {
         let tree = KdTree::build(&mesh.positions, &mesh.triangles, &BuildConfig { intersector, ..Default::default() })
             .unwrap();
-        let structures = Structures::new(&tree);
+        let mut structures = Structures::new(&tree);
+        let scene = scenes::Scene::from_mesh("far", mesh.clone());
+        registry.build_structures(&scene, &mut structures).unwrap();
         for name in registry.names(&[8, 16]) {
             let m = registry.bind(&registry.select(&name, Options::default()).unwrap(), &structures).unwrap();
             let layout = TileLayout::new(w, h, m.options.tile);

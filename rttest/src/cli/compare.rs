@@ -40,6 +40,12 @@ pub struct CompareArgs {
     /// Leave out the 16-sample soft shadows (the slowest column).
     #[arg(long)]
     pub no_soft: bool,
+    /// Ambient-occlusion rays per primary hit (the incoherent `ao` column; 1 to 64).
+    #[arg(long, default_value_t = 4, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub ao_rays: u32,
+    /// Leave out the incoherent columns (`ao`, `diffuse`).
+    #[arg(long)]
+    pub no_incoherent: bool,
 }
 
 impl From<&CompareArgs> for CompareConfig {
@@ -54,6 +60,8 @@ impl From<&CompareArgs> for CompareConfig {
             tiles: a.tiles.clone(),
             light_radius: a.light_radius,
             no_soft: a.no_soft,
+            ao_rays: a.ao_rays,
+            no_incoherent: a.no_incoherent,
         }
     }
 }

@@ -22,6 +22,7 @@ use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadow
 use crate::progress::{self, Bar};
 
 pub mod compare;
+pub mod culling;
 pub mod heatmap;
 pub mod leaks;
 pub mod main_job;
@@ -86,6 +87,8 @@ pub enum Command {
     /// Sweep the SAH cost model (C_trav:C_isect, empty bonus, depth limit): tree shape, N, I,
     /// build time and single-ray / MFT Mrays/s in one table per scene.
     SahSweep(sah_sweep::SahSweepArgs),
+    /// Pre-BVH culling for shadow rays: culled fraction, build and trace with and without.
+    Culling(culling::CullingArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -419,6 +422,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Shadows(args)) => shadows::run(&global, &args),
         Some(Command::Compare(args)) => compare::run(&global, &args),
         Some(Command::SahSweep(args)) => sah_sweep::run(&global, &args),
+        Some(Command::Culling(args)) => culling::run(&global, &args),
         None => main_job::run(&global),
     })
 }

@@ -1,0 +1,112 @@
+//! The 4-wide BVH against the brute-force oracle (`kdtree::oracle::BruteForce`, same triangle
+//! test) and against its scalar twin, with both intersectors: on the small built-in scenes
+//! (every view, primary rays and random rays from and to surfaces, axis-parallel rays) and on
+//! random soups. Every closest hit must pass `BruteForce::check`, and the SIMD traversal must
+//! give the scalar twin's answers bit for bit.
+
+use glam::Vec3;
+use kdtree::{BruteForce, Hit, Intersector, NoCounters, Ray};
+use mbvh::{LeafBlock, Mbvh, Traversal};
+use proptest::prelude::*;
+use scenes::builtin::shapes::Rng;
+
+fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
+    h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim))
+}
+
+/// Checks every ray; returns the number of hits.
+fn check<B: LeafBlock>(what: &str, tr: Traversal<'_, B>, oracle: &BruteForce, rays: &[Ray]) -> usize {
+    let mut hits = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let got = tr.intersect_counted(ray, &mut NoCounters);
+        let occluded = tr.occluded_counted(ray, &mut NoCounters);
+        if let Err(e) = oracle.check(ray, got, occluded) {
+            panic!("{what}: ray {i} {ray:?}: {e}");
+        }
+        assert_eq!(bits(got), bits(tr.intersect_scalar(ray, &mut NoCounters)), "{what}: ray {i}: scalar twin");
+        assert_eq!(occluded, tr.occluded_scalar(ray, &mut NoCounters), "{what}: ray {i}: scalar twin (any hit)");
+        hits += usize::from(got.is_some());
+    }
+    hits
+}
+
+fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) -> usize {
+    let bvh = Mbvh::build(positions, triangles).unwrap();
+    bvh.validate(positions, triangles).unwrap();
+    let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
+    let wald = check(&format!("{what} wald"), bvh.wald(), &BruteForce::new(&tris, Intersector::Wald), rays);
+    let wt = BruteForce::new(&tris, Intersector::Watertight);
+    wald + check(&format!("{what} watertight"), bvh.watertight(), &wt, rays)
+}
+
+/// Primary rays of every view, rays between random surface points (starting on surfaces),
+/// random rays through the scene box, and axis-parallel ones (zero direction components).
+fn rays(scene: &scenes::Scene, seed: u64) -> Vec<Ray> {
+    let mut out = Vec::new();
+    for view in &scene.views {
+        let camera = view.camera(24, 16).unwrap();
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let (o, d) = camera.pixel_ray(x, y);
+                out.push(Ray::new(o, d, 0.0, f32::INFINITY));
+            }
+        }
+    }
+    let mesh = &scene.mesh;
+    let lo = mesh.positions.iter().fold(Vec3::INFINITY, |a, &b| a.min(b));
+    let hi = mesh.positions.iter().fold(Vec3::NEG_INFINITY, |a, &b| a.max(b));
+    let mut rng = Rng::new(seed);
+    let point = |rng: &mut Rng| Vec3::new(rng.range(lo.x, hi.x), rng.range(lo.y, hi.y), rng.range(lo.z, hi.z));
+    let n = mesh.triangles.len();
+    for _ in 0..300 {
+        let (a, b) = (point(&mut rng), point(&mut rng));
+        if a != b {
+            out.push(Ray::new(a, b - a, 0.0, f32::INFINITY));
+            out.push(Ray::new(a, b - a, 0.0, 1.0));
+        }
+        let t = mesh.triangle((rng.next_u64() % n as u64) as usize);
+        let (u, v) = (rng.range(0.0, 0.5), rng.range(0.0, 0.5));
+        let on = t[0] + u * (t[1] - t[0]) + v * (t[2] - t[0]);
+        let axis = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z][(rng.next_u64() % 6) as usize];
+        out.push(Ray::new(on, axis, 0.0, f32::INFINITY));
+        if on != b {
+            out.push(Ray::new(on, b - on, 1e-4, 1.0));
+        }
+    }
+    out
+}
+
+#[test]
+fn builtin_scenes_against_the_oracle_and_the_scalar_twin() {
+    for name in ["cube", "sphere", "touching-boxes", "axis-plane-triangle", "triangle", "arena"] {
+        let scene = scenes::load_scene(name).unwrap();
+        let rays = rays(&scene, 7);
+        let hits = both(name, &scene.mesh.positions, &scene.mesh.triangles, &rays);
+        assert!(hits > 0, "{name}: no ray hit anything");
+    }
+}
+
+fn vertex() -> impl Strategy<Value = Vec3> {
+    // Shared coordinates (on a coarse grid) make shared vertices, edges and axis planes.
+    let c = prop_oneof![(-3i32..4).prop_map(|i| i as f32 * 0.5), -2.0f32..2.0];
+    (c.clone(), c.clone(), c).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_soups_against_the_oracle(
+        tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..200),
+        rays in prop::collection::vec((vertex(), vertex(), -0.5f32..0.5), 1..40),
+    ) {
+        let positions: Vec<Vec3> = tris.iter().flat_map(|&(a, b, c)| [a, b, c]).collect();
+        let triangles: Vec<[u32; 3]> = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let rays: Vec<Ray> = rays
+            .iter()
+            .filter(|(o, t, _)| o != t)
+            .flat_map(|&(o, t, tmin)| [Ray::new(o * 1.5, t - o * 1.5, tmin, f32::INFINITY), Ray::new(o, (t - o).signum() * Vec3::X, 0.0, 10.0)])
+            .collect();
+        both("soup", &positions, &triangles, &rays);
+    }
+}

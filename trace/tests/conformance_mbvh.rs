@@ -1,0 +1,50 @@
+//! Our methods on structures other than the kd-tree (the 4-wide BVH `mbvh-4`) through the
+//! conformance harness (`trace::conformance`): every query (primary tiles at tiles 4, 8 and
+//! 16, hard and soft shadows, streams closest and any hit) against `mono` on the kd-tree
+//! built with the same triangle test, under `Rule::Equivalent` (the hit `mono` reports, a tie
+//! at the same distance, or a difference the oracle accepts: a rounding artefact on a
+//! triangle the ray cannot reach exactly: the two structures test different triangles, so
+//! they need not meet the same artefacts), and each method's single rays against the
+//! brute-force oracle of the same test exactly. Both intersectors; built-in scenes at every
+//! view, soups, the hard cases, the shared scenes when present. `Plan::ours` covers the
+//! kd-tree methods only; a new method of ours on another structure is picked up here.
+
+use trace::Registry;
+use trace::conformance::{self, Check, OracleCheck, OracleTest, Plan, Rule};
+use trace::registry::{KDTREE, Options};
+
+fn plan(registry: &Registry) -> Plan {
+    let (mut checks, mut oracles) = (Vec::new(), Vec::new());
+    for e in registry.entries().iter().filter(|e| e.family == "ours" && e.structure != KDTREE) {
+        for tile in conformance::TILES {
+            let options = Options { tile, culling: true };
+            checks.push(Check { method: e.name.into(), options, reference: "mono".into(), rule: Rule::Equivalent });
+        }
+        oracles.push(OracleCheck { method: e.name.into(), test: OracleTest::Tree, rule: Rule::Exact });
+    }
+    assert!(!checks.is_empty(), "no method of ours on another structure");
+    Plan { checks, oracles, ..Plan::ours(registry) }
+}
+
+#[test]
+fn other_structures_on_the_builtin_scenes() {
+    let registry = Registry::ours();
+    let cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
+    conformance::assert_conforms(&registry, &plan(&registry), &cases);
+}
+
+#[test]
+fn other_structures_on_soups_and_hard_cases() {
+    let registry = Registry::ours();
+    let mut cases = conformance::soup_cases(4);
+    cases.extend(conformance::hard_cases());
+    conformance::assert_conforms(&registry, &plan(&registry), &cases);
+}
+
+#[test]
+fn other_structures_on_the_shared_scenes() {
+    let Some(cases) = conformance::shared_cases_or_skip(17, 11) else { return };
+    let registry = Registry::ours();
+    let plan = Plan { intersectors: vec![kdtree::Intersector::Wald], ..plan(&registry) };
+    conformance::assert_conforms(&registry, &plan, &cases);
+}
