@@ -104,11 +104,20 @@ struct Refinement {
 impl<'a> FrameLoop<'a> {
     /// The loop over `scene` and its kd-tree; soft shadows go to a light of radius 1 Sponza
     /// unit at the point light (`trace::soft::scene_light`).
+    ///
+    /// Every other registered structure (the 4-wide BVH of `mbvh-4`) is built here too, so
+    /// that every method binds; one that fails to build is named on stderr and its methods
+    /// report the error when chosen.
     pub fn new(scene: &'a Scene, tree: &'a KdTree) -> FrameLoop<'a> {
+        let registry = Registry::ours();
+        let mut structures = Structures::new(tree);
+        if let Err(e) = registry.build_structures(scene, &mut structures) {
+            eprintln!("viewer: {e}");
+        }
         FrameLoop {
             scene,
-            registry: Registry::ours(),
-            structures: Structures::new(tree),
+            registry,
+            structures,
             light: trace::soft::scene_light(scene, tree, 1.0),
             size: (0, 0),
             buffers: FrameBuffers::new(0),
