@@ -1,13 +1,20 @@
 //! The 4x4 discontinuity filter of Benthin & Wald 2009 (4.5), applied after 4x4 interleaved
 //! sampling ([`crate::sampling::InterleavedSets`]).
 //!
-//! Each pixel's value becomes the mean over the 4x4 block of pixels `x - 1 ..= x + 2`,
-//! `y - 1 ..= y + 2` (which holds each of the 16 sample sets once) of the pixels on the same
-//! surface: a neighbour counts when its depth is within `depth_tolerance` of the pixel's
-//! (relative) and its normal within `normal_cos` of the pixel's. Background pixels (infinite
-//! depth) are left as they are and never count. Non-finite input is defined too: a pixel with
-//! a NaN depth is left as it is, a neighbour with a NaN depth or normal never counts, and the
-//! pixel itself always counts, so NaN thresholds (or a NaN normal) leave its own value.
+//! Each pixel's value becomes the weighted mean, over a 4x4 pixel neighbourhood centred on
+//! the pixel, of the pixels on the same surface. A 4-pixel box has no centre pixel, so the
+//! neighbourhood is the 5x5 block `x - 2 ..= x + 2`, `y - 2 ..= y + 2` with weight 1/2 for the
+//! outer columns and rows (1/4 in the corners): its weights per axis are `1/2, 1, 1, 1, 1/2`,
+//! 4 in all, and columns `x - 2` and `x + 2` use the same sample sets, so over a full
+//! neighbourhood each of the 16 interleaved sets weighs exactly 1, as in a 4x4 block, while
+//! the mean stays centred on the pixel (a plain `x - 1 ..= x + 2` block shifts the image by
+//! half a pixel towards `+x, +y`).
+//!
+//! A neighbour counts when its depth is within `depth_tolerance` of the pixel's (relative) and
+//! its normal within `normal_cos` of the pixel's. Background pixels (infinite depth) are left
+//! as they are and never count. Non-finite input is defined too: a pixel with a NaN depth is
+//! left as it is, a neighbour with a NaN depth or normal never counts, and the pixel itself
+//! always counts, so NaN thresholds (or a NaN normal) leave its own value.
 //!
 //! The paper filters irradiance; with the shading separated (one sample at the light's centre
 //! times the visible fraction, its 4.5) irradiance is a smooth shading term times the visible
@@ -54,9 +61,11 @@ pub fn filter_pixel(x: u32, y: u32, values: &[f32], g: &GBuffer, params: &Filter
     if !dc.is_finite() {
         return values[c];
     }
-    let (mut sum, mut count) = (0.0f32, 0u32);
-    for yy in y.saturating_sub(1)..(y + 3).min(g.height) {
-        for xx in x.saturating_sub(1)..(x + 3).min(g.width) {
+    // Weight of an offset `-2 ..= 2` from the pixel along one axis.
+    let weight = |offset: u32, at: u32| if offset.abs_diff(at) == 2 { 0.5f32 } else { 1.0 };
+    let (mut sum, mut total) = (0.0f32, 0.0f32);
+    for yy in y.saturating_sub(2)..(y + 3).min(g.height) {
+        for xx in x.saturating_sub(2)..(x + 3).min(g.width) {
             let i = yy as usize * w + xx as usize;
             let d = g.depth[i];
             if i == c
@@ -64,34 +73,120 @@ pub fn filter_pixel(x: u32, y: u32, values: &[f32], g: &GBuffer, params: &Filter
                     && (d - dc).abs() <= params.depth_tolerance * dc
                     && g.normal[i].dot(nc) >= params.normal_cos)
             {
-                sum += values[i];
-                count += 1;
+                let wt = weight(xx, x) * weight(yy, y);
+                sum += wt * values[i];
+                total += wt;
             }
         }
     }
-    // The pixel itself always counts, so count >= 1.
-    sum / count as f32
+    // The pixel itself always counts (weight 1), so total >= 1.
+    sum / total
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Filters every pixel of `values`.
+    fn filter_all(values: &[f32], g: &GBuffer, p: &FilterParams) -> Vec<f32> {
+        (0..g.height)
+            .flat_map(|y| (0..g.width).map(move |x| (x, y)))
+            .map(|(x, y)| filter_pixel(x, y, values, g, p))
+            .collect()
+    }
+
     #[test]
-    fn averages_one_surface_and_stops_at_discontinuities() {
-        // 8x4: left half at depth 1 facing +Z, right half at depth 3 (a step).
-        let (w, h) = (8u32, 4u32);
-        let depth: Vec<f32> = (0..w * h).map(|i| if i % w < 4 { 1.0 } else { 3.0 }).collect();
-        let normal = vec![Vec3::Z; (w * h) as usize];
-        let values: Vec<f32> = (0..w * h).map(|i| if i % w < 4 { (i % 2) as f32 } else { 0.25 }).collect();
+    fn a_constant_image_is_left_as_it_is() {
+        let (w, h) = (9u32, 7u32);
+        let n = (w * h) as usize;
+        // Two surfaces and a background pixel: whatever is accepted, a constant stays.
+        let depth: Vec<f32> = (0..n)
+            .map(|i| {
+                if i == 20 {
+                    f32::INFINITY
+                } else if i % 9 < 4 {
+                    2.0
+                } else {
+                    5.0
+                }
+            })
+            .collect();
+        let normal = vec![Vec3::Y; n];
+        let g = GBuffer { width: w, height: h, depth: &depth, normal: &normal };
+        let values = vec![0.375f32; n];
+        assert!(filter_all(&values, &g, &FilterParams::default()).iter().all(|&v| v == 0.375));
+    }
+
+    #[test]
+    fn each_interleaved_set_weighs_the_same_and_the_mean_is_centred() {
+        // One flat surface: value 1 on the pixels of set `k`, 0 elsewhere. Away from the
+        // border every set must weigh 1/16 of the neighbourhood, whichever pixel is filtered.
+        let (w, h) = (12u32, 12u32);
+        let n = (w * h) as usize;
+        let (depth, normal) = (vec![3.0f32; n], vec![Vec3::Z; n]);
         let g = GBuffer { width: w, height: h, depth: &depth, normal: &normal };
         let p = FilterParams::default();
-        // Inside the left half, a 4x4 block of alternating 0/1 averages to 1/2.
-        assert_eq!(filter_pixel(1, 1, &values, &g, &p), 0.5);
-        // At the step, the right half's values never leak in.
-        assert_eq!(filter_pixel(4, 1, &values, &g, &p), 0.25);
-        let left_edge = filter_pixel(3, 1, &values, &g, &p);
+        for k in 0..16u32 {
+            let values: Vec<f32> =
+                (0..n as u32).map(|i| f32::from(u8::from(4 * (i / w % 4) + i % w % 4 == k))).collect();
+            for (x, y) in [(4, 4), (5, 6), (7, 5)] {
+                assert_eq!(filter_pixel(x, y, &values, &g, &p), 1.0 / 16.0, "set {k} at ({x}, {y})");
+            }
+        }
+        // Centred: a step between columns 5 and 6 is blurred symmetrically about it.
+        let step: Vec<f32> = (0..n as u32).map(|i| f32::from(u8::from(i % w >= 6))).collect();
+        let f = filter_all(&step, &g, &p);
+        let row = 6 * w as usize;
+        for d in 0..3 {
+            let (left, right) = (f[row + 5 - d], f[row + 6 + d]);
+            assert_eq!(left, 1.0 - right, "columns {} and {}", 5 - d, 6 + d);
+        }
+    }
+
+    #[test]
+    fn mirroring_the_image_mirrors_the_result() {
+        // Irregular values and two surfaces: filtering the mirrored image gives the mirrored
+        // result (a window that is not centred fails this).
+        let (w, h) = (10u32, 8u32);
+        let n = (w * h) as usize;
+        let values: Vec<f32> = (0..n).map(|i| ((i * 37 % 11) as f32) / 10.0).collect();
+        let depth: Vec<f32> = (0..n).map(|i| if (i % 10) + (i / 10) < 9 { 1.0 } else { 4.0 }).collect();
+        let normal = vec![Vec3::Z; n];
+        let mirror = |v: &[f32]| -> Vec<f32> {
+            (0..n)
+                .map(|i| v[(h as usize - 1 - i / w as usize) * w as usize + (w as usize - 1 - i % w as usize)])
+                .collect()
+        };
+        let p = FilterParams::default();
+        let g = GBuffer { width: w, height: h, depth: &depth, normal: &normal };
+        let md = mirror(&depth);
+        let gm = GBuffer { depth: &md, ..g };
+        let a = mirror(&filter_all(&values, &g, &p));
+        let b = filter_all(&mirror(&values), &gm, &p);
+        for (i, (a, b)) in a.iter().zip(&b).enumerate() {
+            assert!((a - b).abs() < 1e-6, "pixel {i}: {a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn averages_one_surface_and_stops_at_discontinuities() {
+        // 12x6: left half at depth 1 facing +Z, right half at depth 3 (a step).
+        let (w, h) = (12u32, 6u32);
+        let depth: Vec<f32> = (0..w * h).map(|i| if i % w < 6 { 1.0 } else { 3.0 }).collect();
+        let normal = vec![Vec3::Z; (w * h) as usize];
+        let values: Vec<f32> = (0..w * h).map(|i| if i % w < 6 { (i % 2) as f32 } else { 0.25 }).collect();
+        let g = GBuffer { width: w, height: h, depth: &depth, normal: &normal };
+        let p = FilterParams::default();
+        // Inside the left half, alternating columns of 0 and 1 average to 1/2.
+        assert_eq!(filter_pixel(2, 2, &values, &g, &p), 0.5);
+        // At the step, the right half's values never leak in, nor the left half's out.
+        assert_eq!(filter_pixel(6, 2, &values, &g, &p), 0.25);
+        assert_eq!(filter_pixel(7, 2, &values, &g, &p), 0.25);
+        let left_edge = filter_pixel(5, 2, &values, &g, &p);
         assert!((0.0..=1.0).contains(&left_edge) && left_edge != 0.25);
+        // The same step in depth alone (equal normals, values 0 and 1) stays a step.
+        let two: Vec<f32> = (0..w * h).map(|i| f32::from(u8::from(i % w >= 6))).collect();
+        assert_eq!(filter_all(&two, &g, &p), two);
         // A normal discontinuity also stops it.
         let mut tilted = normal.clone();
         for (i, n) in tilted.iter_mut().enumerate() {
@@ -100,7 +195,7 @@ mod tests {
             }
         }
         let g = GBuffer { normal: &tilted, ..g };
-        assert_eq!(filter_pixel(2, 1, &values, &g, &p), 0.0);
+        assert_eq!(filter_pixel(2, 2, &values, &g, &p), 0.0);
     }
 
     #[test]
@@ -134,11 +229,12 @@ mod tests {
         holes_normal[10] = Vec3::new(f32::NAN, 0.0, 1.0);
         let got =
             filter_pixel(1, 1, &values, &GBuffer { depth: &holes, normal: &holes_normal, width: w, height: h }, &p);
-        let kept: Vec<usize> = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15]
-            .into_iter()
-            .filter(|&i| i % 4 <= 3 && i / 4 <= 3 && i != 0 && i != 10)
-            .collect();
-        let want = kept.iter().map(|&i| values[i]).sum::<f32>() / kept.len() as f32;
+        // Pixel (1, 1): columns and rows 0..=3 of the 4x4 image, weight 1/2 on column and
+        // row 3 (offset 2), pixels 0 and 10 left out.
+        let weight = |i: usize| if i % 4 == 3 { 0.5 } else { 1.0 } * if i / 4 == 3 { 0.5 } else { 1.0 };
+        let kept: Vec<usize> = (0..16).filter(|&i| i != 0 && i != 10).collect();
+        let want =
+            kept.iter().map(|&i| weight(i) * values[i]).sum::<f32>() / kept.iter().map(|&i| weight(i)).sum::<f32>();
         assert!((got - want).abs() < 1e-6, "{got} vs {want}");
     }
 }

@@ -7,8 +7,12 @@
 //! - `edge-width` / `edge-width-packet`: one edge-width ray to the centre (single rays, or
 //!   4-wide packets; identical images), occlusion from Eq. 5.1 with `R` from the light's size;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
-//! - `interleaved-16`: Benthin & Wald's 4x4 interleaved sampling, 16 samples per pixel, then
-//!   their 4x4 discontinuity filter.
+//! - `interleaved-16-raw`: Benthin & Wald's 4x4 interleaved sampling, 16 samples per pixel,
+//!   unfiltered;
+//! - `interleaved-16`: the same samples, then their 4x4 discontinuity filter. Its row also
+//!   gives the filter's bias: the RMSE of the filtered reference against the reference, the
+//!   error the filter adds even to exact visibilities (penumbrae narrower than the filter are
+//!   blurred), which no choice of samples removes.
 //!
 //! Shading is the light's centre times the visible fraction (both papers). The reference is
 //! `--ref-samples` (1024) stratified samples per pixel, cached on disk (see
@@ -160,12 +164,14 @@ pub enum ShadowMethod {
     EdgeWidthPacket,
     /// `N` stratified samples of the light.
     Sampled(u32),
+    /// 4x4 interleaved sampling (16 samples), unfiltered.
+    InterleavedRaw,
     /// 4x4 interleaved sampling (16 samples) and the 4x4 discontinuity filter.
     Interleaved,
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 9] = [
+pub const METHODS: [ShadowMethod; 10] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
@@ -174,6 +180,7 @@ pub const METHODS: [ShadowMethod; 9] = [
     ShadowMethod::Sampled(16),
     ShadowMethod::Sampled(32),
     ShadowMethod::Sampled(256),
+    ShadowMethod::InterleavedRaw,
     ShadowMethod::Interleaved,
 ];
 
@@ -185,6 +192,7 @@ impl ShadowMethod {
             ShadowMethod::EdgeWidth => "edge-width".into(),
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Sampled(n) => format!("sampled-{n}"),
+            ShadowMethod::InterleavedRaw => "interleaved-16-raw".into(),
             ShadowMethod::Interleaved => "interleaved-16".into(),
         }
     }
@@ -345,7 +353,7 @@ impl<'a> ShadowSetup<'a> {
                             rays += u64::from(n);
                             visible_fraction(tree, &self.light, &p, n, &mut Rng::new(pixel_seed(x, y, u64::from(n))))
                         }
-                        ShadowMethod::Interleaved => {
+                        ShadowMethod::Interleaved | ShadowMethod::InterleavedRaw => {
                             rays += 16;
                             sets.visible_fraction(tree, &self.light, &p, x, y)
                         }
@@ -357,8 +365,9 @@ impl<'a> ShadowSetup<'a> {
         rays
     }
 
-    /// The discontinuity filter over a row-major visibility buffer.
-    fn filtered(&self, hits: &[Option<Hit>], vis: &[f32]) -> Vec<f32> {
+    /// The discontinuity filter (`edgewidth::filter`, default thresholds) over a row-major
+    /// visibility buffer, with the G-buffer of `hits` (hit distance, facing geometric normal).
+    pub fn filtered(&self, hits: &[Option<Hit>], vis: &[f32]) -> Vec<f32> {
         let (w, h) = (self.camera.width, self.camera.height);
         let mesh = &self.scene.mesh;
         let mut depth = vec![f32::INFINITY; hits.len()];
@@ -433,6 +442,9 @@ pub struct ShadowReport {
     pub visibility_max_err: f64,
     /// PSNR of the visibility (peak 1), dB.
     pub psnr: f64,
+    /// `interleaved-16` only: the discontinuity filter's bias, the RMSE of the filtered
+    /// reference against the reference over the same pixels (`None` for other methods).
+    pub filter_bias_rmse: Option<f64>,
     /// Whether the method is on the speed/error Pareto front of its scene.
     pub pareto: bool,
 }
@@ -450,7 +462,11 @@ impl fmt::Display for ShadowReport {
             self.visibility_max_err,
             self.psnr,
             if self.pareto { "  [pareto]" } else { "" }
-        )
+        )?;
+        match self.filter_bias_rmse {
+            Some(b) => write!(f, "  (filter bias: rmse {b:.4} on the reference)"),
+            None => Ok(()),
+        }
     }
 }
 
@@ -634,7 +650,9 @@ pub struct SceneShadows {
     /// The folder of its images, CSV and plot (`out_dir/<scene name>`).
     pub dir: PathBuf,
     /// The files written there: `reference.png`, then per method `<method>.png` and
-    /// `error-<method>.png`, then `strip.png`, `shadows.csv`, `pareto.svg` and `pareto.png`.
+    /// `error-<method>.png`, then `filtered-reference.png` and its error
+    /// `error-filtered-reference.png` (the filter's bias), `strip.png`, `shadows.csv`,
+    /// `pareto.svg` and `pareto.png`.
     pub files: Vec<PathBuf>,
     /// The reference's cache file (see [`reference_cache_path`]).
     pub reference: PathBuf,
@@ -716,6 +734,8 @@ pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) ->
             }
         }
     }
+    let filtered_reference = setup.filtered(hits, &reference);
+    let filter_bias = masked_errors(&filtered_reference, &reference, &mask).0;
     let mut rows: Vec<ShadowReport> = METHODS
         .iter()
         .zip(&frames)
@@ -731,13 +751,14 @@ pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) ->
                 visibility_rmse: rmse,
                 visibility_max_err: max,
                 psnr,
+                filter_bias_rmse: (*m == ShadowMethod::Interleaved).then_some(filter_bias),
                 pareto: false,
             }
         })
         .collect();
     mark_pareto(&mut rows);
     let dir = config.out_dir.join(&scene.name);
-    let files = write_outputs(&dir, &setup, &frames, &reference, &mask, &rows)?;
+    let files = write_outputs(&dir, &setup, &frames, &reference, &filtered_reference, &mask, &rows)?;
     Ok(SceneShadows { scene: scene.name.clone(), rows, dir, files, reference: reference_path, reference_cached })
 }
 
@@ -759,6 +780,7 @@ fn write_outputs(
     setup: &ShadowSetup,
     frames: &[ShadowFrame],
     reference: &[f32],
+    filtered_reference: &[f32],
     mask: &[bool],
     reports: &[ShadowReport],
 ) -> Result<Vec<PathBuf>, Error> {
@@ -773,9 +795,19 @@ fn write_outputs(
         Ok(())
     };
     save(&ref_image, "reference.png".into())?;
-    // The strip: reference then each method; below, each method's |error| x 4 (red: off the
-    // measured pixels).
-    let mut strip = Image::new(w * (frames.len() as u32 + 1), 2 * h);
+    let error_image = |vis: &[f32]| Image {
+        width: w,
+        height: h,
+        pixels: vis
+            .iter()
+            .zip(reference)
+            .zip(mask)
+            .map(|((a, b), &m)| if m { Vec3::splat(4.0 * (a - b).abs()) } else { Vec3::new(0.15, 0.0, 0.0) })
+            .collect(),
+    };
+    // The strip: reference then each method, then the filtered reference; below, each one's
+    // |error| x 4 (red: off the measured pixels).
+    let mut strip = Image::new(w * (frames.len() as u32 + 2), 2 * h);
     let mut put = |col: u32, row: u32, img: &Image| {
         for y in 0..h {
             for x in 0..w {
@@ -786,27 +818,24 @@ fn write_outputs(
     put(0, 0, &ref_image);
     for (i, (f, r)) in frames.iter().zip(reports).enumerate() {
         save(&f.image, format!("{}.png", r.method))?;
-        let err = Image {
-            width: w,
-            height: h,
-            pixels: f
-                .visibility
-                .iter()
-                .zip(reference)
-                .zip(mask)
-                .map(|((a, b), &m)| if m { Vec3::splat(4.0 * (a - b).abs()) } else { Vec3::new(0.15, 0.0, 0.0) })
-                .collect(),
-        };
+        let err = error_image(&f.visibility);
         save(&err, format!("error-{}.png", r.method))?;
         put(i as u32 + 1, 0, &f.image);
         put(i as u32 + 1, 1, &err);
     }
+    let filtered = setup.shade(&frames[0].hits, filtered_reference);
+    let err = error_image(filtered_reference);
+    save(&filtered, "filtered-reference.png".into())?;
+    save(&err, "error-filtered-reference.png".into())?;
+    put(frames.len() as u32 + 1, 0, &filtered);
+    put(frames.len() as u32 + 1, 1, &err);
     save(&strip, "strip.png".into())?;
-    let mut csv =
-        String::from("scene,method,ms_per_frame,shadow_rays_per_s,visibility_rmse,visibility_max_err,psnr,pareto\n");
+    let mut csv = String::from(
+        "scene,method,ms_per_frame,shadow_rays_per_s,visibility_rmse,visibility_max_err,psnr,pareto,filter_bias_rmse\n",
+    );
     for r in reports {
         csv += &format!(
-            "{},{},{:.3},{:.0},{:.6},{:.6},{:.3},{}\n",
+            "{},{},{:.3},{:.0},{:.6},{:.6},{:.3},{},{}\n",
             r.scene,
             r.method,
             r.ms_per_frame,
@@ -814,7 +843,8 @@ fn write_outputs(
             r.visibility_rmse,
             r.visibility_max_err,
             r.psnr,
-            r.pareto
+            r.pareto,
+            r.filter_bias_rmse.map_or(String::new(), |b| format!("{b:.6}"))
         );
     }
     let csv_path = dir.join("shadows.csv");
@@ -848,6 +878,7 @@ mod tests {
             visibility_rmse: e,
             visibility_max_err: 0.0,
             psnr: 0.0,
+            filter_bias_rmse: None,
             pareto: false,
         };
         let mut v = vec![r("a", 1.0, 0.5), r("b", 2.0, 0.2), r("c", 3.0, 0.3), r("d", 4.0, 0.1)];
@@ -876,6 +907,20 @@ mod tests {
         assert!(!cached_reference(&other, &dir, 4).unwrap().1);
         assert!(!cached_reference(&setup, &dir, 8).unwrap().1);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn interleaved_frames_are_the_raw_ones_filtered() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+        let raw = setup.frame(ShadowMethod::InterleavedRaw);
+        let filtered = setup.frame(ShadowMethod::Interleaved);
+        assert_eq!(raw.shadow_rays, filtered.shadow_rays);
+        assert_eq!(raw.shadow_rays, 16 * raw.hits.iter().flatten().count() as u64);
+        assert_eq!(setup.filtered(&raw.hits, &raw.visibility), filtered.visibility);
+        assert_ne!(raw.visibility, filtered.visibility, "the filter changes something here");
     }
 
     #[test]
