@@ -2,8 +2,10 @@
 //! `0x00RRGGBB` pixels and a status line out.
 //!
 //! Every method is taken by name from `trace::Registry` and bound to the scene's kd-tree; a
-//! frame is `trace::Renderer`'s passes (primary, then hard or soft shadows) and its shading,
-//! or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map. Soft shadows
+//! frame is `trace::Renderer`'s passes (primary, then hard, edge-width or soft shadows) and
+//! its shading, or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
+//! Edge widths (thesis chapter 5) are traced over the kd-tree given to [`FrameLoop::new`]
+//! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
 //! adds 16 rays per lit pixel, up to [`MAX_PASSES`] passes; then nothing is traced until
 //! something changes ([`FrameLoop::render`] returns `None`).
@@ -77,6 +79,7 @@ impl FrameInfo {
 /// The frame loop of one scene.
 pub struct FrameLoop<'a> {
     scene: &'a Scene,
+    tree: &'a KdTree,
     registry: Registry,
     structures: Structures<'a>,
     light: SphereLight,
@@ -107,6 +110,7 @@ impl<'a> FrameLoop<'a> {
     pub fn new(scene: &'a Scene, tree: &'a KdTree) -> FrameLoop<'a> {
         FrameLoop {
             scene,
+            tree,
             registry: Registry::ours(),
             structures: Structures::new(tree),
             light: trace::soft::scene_light(scene, tree, 1.0),
@@ -178,9 +182,11 @@ impl<'a> FrameLoop<'a> {
             let shadows = match state.shadows {
                 ShadowMode::None => Shadows::None,
                 ShadowMode::Hard => Shadows::Hard,
+                ShadowMode::EdgeWidth => Shadows::EdgeWidth,
                 ShadowMode::Soft => Shadows::Soft16,
             };
-            let renderer = Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light);
+            let renderer =
+                Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light).with_tree(self.tree);
             if state.shadows == ShadowMode::Soft && !restart {
                 let t = Instant::now();
                 info.rays = self.soft.pass(&bound, &renderer, self.scene, &self.light, &mut self.buffers);
@@ -403,5 +409,56 @@ mod tests {
         assert!(frames.render(&state, Change::default(), 1, 1, &mut out).unwrap().is_some());
         assert!(frames.render(&state, Change::default(), 300, 7, &mut out).unwrap().is_some());
         assert_eq!(out.len(), 2100);
+    }
+    /// Edge-width shadows (H: none, hard, edge width, soft): the frame is the renderer's
+    /// edge-width image; it differs from the hard-shadow frame only in the light's penumbra
+    /// (0 < visible < 1, inside the hard shadows), in some pixels there, and is identical
+    /// where the point is fully lit; the status line names the mode.
+    #[test]
+    fn edge_width_frames_differ_from_hard_in_the_penumbra_only() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        let (w, h) = (96, 64);
+        let settings = Change { settings: true, camera: false };
+        let mut hard = Vec::new();
+        assert_eq!(state.shadows, ShadowMode::Hard);
+        frames.render(&state, settings, w, h, &mut hard).unwrap().unwrap();
+        state.apply(&Input { pressed: vec![Action::NextShadows], ..Input::default() });
+        assert_eq!(state.shadows, ShadowMode::EdgeWidth);
+        let mut edge = Vec::new();
+        let info = frames.render(&state, settings, w, h, &mut edge).unwrap().unwrap();
+        assert!(info.status(&state).ends_with("edge-width"), "{}", info.status(&state));
+        assert_eq!(info.passes, 0);
+        assert!(frames.render(&state, Change::default(), w, h, &mut edge).unwrap().is_none(), "nothing to refine");
+        looks_like_a_scene(&edge);
+        // The visibility the frame was shaded with, from the renderer itself.
+        let bound = frames
+            .registry
+            .bind(&frames.registry.select(state.method_name(), Options::default()).unwrap(), &frames.structures)
+            .unwrap();
+        let camera = state.pose.camera(state.fovy_deg, w, h).unwrap();
+        let r = Renderer::new(&scene, &bound, camera, Shadows::EdgeWidth).with_light(frames.light).with_tree(&tree);
+        let mut buf = r.buffers();
+        r.trace(&mut buf);
+        let visible = r.layout().to_row_major(&buf.visible);
+        let hits = r.layout().to_row_major(&buf.hits);
+        let band = GLYPH_H + 4;
+        let (mut lit, mut penumbra, mut differ) = (0, 0, 0);
+        for y in band..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if hits[i].is_some() && visible[i] == 1.0 {
+                    assert_eq!(edge[i], hard[i], "fully lit ({x}, {y})");
+                    lit += 1;
+                } else if visible[i] > 0.0 && visible[i] < 1.0 {
+                    penumbra += 1;
+                    differ += usize::from(edge[i] != hard[i]);
+                } else {
+                    assert_eq!(edge[i], hard[i], "umbra, unlit or background ({x}, {y})");
+                }
+            }
+        }
+        assert!(lit > 100 && penumbra > 10 && differ > penumbra / 2, "lit {lit}, penumbra {penumbra}, differ {differ}");
     }
 }

@@ -2,8 +2,8 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up, drag with the left mouse button to turn; 1-9 the
 //! scene's named views; M/N next/previous method (every `trace::Registry` method, tiled ones
-//! with 16x16 tiles); H shadows (none, hard, soft: refined while the camera rests); C cost
-//! overlay (none, nodes, leaves, isects, culled per ray); Escape quits.
+//! with 16x16 tiles); H shadows (none, hard, edge width, soft: refined while the camera
+//! rests); C cost overlay (none, nodes, leaves, isects, culled per ray); Escape quits.
 //!
 //! The window and its events live on the main thread; frames are traced on a render thread
 //! (with rayon's pool), which gets the latest state whenever it is free, so the window stays

@@ -66,17 +66,21 @@ pub enum ShadowMode {
     None,
     /// One ray per hit to the point light (the method's hard-shadow pass).
     Hard,
+    /// Edge Width Soft Shadows (thesis chapter 5): one edge-width ray per hit to the centre
+    /// of the soft shadows' spherical light (`trace::Shadows::EdgeWidth`, over the kd-tree).
+    EdgeWidth,
     /// 16 rays per hit to a spherical light (the method's soft-shadow pass), refined with 16
     /// more per hit each frame while the camera rests.
     Soft,
 }
 
 impl ShadowMode {
-    /// The next mode (`H` key).
+    /// The next mode (`H` key): none, hard, edge width, soft, none.
     pub fn next(self) -> ShadowMode {
         match self {
             ShadowMode::None => ShadowMode::Hard,
-            ShadowMode::Hard => ShadowMode::Soft,
+            ShadowMode::Hard => ShadowMode::EdgeWidth,
+            ShadowMode::EdgeWidth => ShadowMode::Soft,
             ShadowMode::Soft => ShadowMode::None,
         }
     }
@@ -86,6 +90,7 @@ impl ShadowMode {
         match self {
             ShadowMode::None => "none",
             ShadowMode::Hard => "hard",
+            ShadowMode::EdgeWidth => "edge-width",
             ShadowMode::Soft => "soft",
         }
     }
@@ -287,6 +292,13 @@ mod tests {
         s.apply(&press(Action::PrevMethod));
         assert_eq!(s.method_name(), "mft-16");
         assert_eq!(s.shadows, ShadowMode::Hard);
+        let mut cycle = Vec::new();
+        for _ in 0..4 {
+            assert!(s.apply(&press(Action::NextShadows)).settings);
+            cycle.push(s.shadows);
+        }
+        assert_eq!(cycle, [ShadowMode::EdgeWidth, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]);
+        s.apply(&press(Action::NextShadows));
         s.apply(&press(Action::NextShadows));
         assert_eq!(s.shadows, ShadowMode::Soft);
         let mut seen = Vec::new();
