@@ -8,7 +8,9 @@
 //! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
 //! adds 16 rays per lit pixel, up to [`MAX_PASSES`] passes; then nothing is traced until
-//! something changes ([`FrameLoop::render`] returns `None`).
+//! something changes ([`FrameLoop::render`] returns `None`). The overlay's colour scale is the
+//! maximum of the first overlay frame after the method, the overlay or the named view changes,
+//! kept while the camera moves, and kept whatever changes while it is locked (L).
 
 use std::time::Instant;
 
@@ -17,6 +19,7 @@ use kdtree::{Counts, KdTree, Ray};
 use scenes::colormap::{common_max, heatmap};
 use scenes::font::{GLYPH_H, draw_text, text_width};
 use scenes::{Rgb8Image, Scene, SphereLight};
+use trace::aov::Cost;
 use trace::frame::View;
 use trace::{Error, FrameBuffers, Options, Registry, Renderer, Shadows, Structures};
 
@@ -63,7 +66,10 @@ impl FrameInfo {
         let fps = if self.frame_secs > 0.0 { 1.0 / self.frame_secs } else { 0.0 };
         let ni = self.n_i.map_or("N - I -".to_string(), |(n, i)| format!("N {n:.1} I {i:.1}"));
         let mode = match (state.overlay, self.overlay_max) {
-            (Some(c), Some(max)) => format!("{} / RAY 0-{}", c.name(), scenes::colormap::tick_label(max)),
+            (Some(c), Some(max)) => {
+                let lock = if state.scale_locked { " LOCKED" } else { "" };
+                format!("{} / RAY 0-{}{lock}", c.name(), scenes::colormap::tick_label(max))
+            }
             _ if state.shadows == ShadowMode::Soft => format!("SOFT {}/{MAX_PASSES}", self.passes),
             _ => state.shadows.name().to_string(),
         };
@@ -92,7 +98,13 @@ pub struct FrameLoop<'a> {
     n_i: Option<(f64, f64)>,
     /// The camera moved since N and I were last counted.
     counts_stale: bool,
+    /// The cost overlay's colour scale and what it was fixed for.
+    overlay_scale: Option<(ScaleKey, f32)>,
 }
+
+/// What an unlocked overlay scale is fixed for: method (index), overlay and named view
+/// ([`ViewerState::view_jumps`]).
+type ScaleKey = (usize, Cost, u32);
 
 /// The progressive soft shadows of the kept primary hits.
 #[derive(Debug, Default)]
@@ -120,6 +132,7 @@ impl<'a> FrameLoop<'a> {
             done: false,
             n_i: None,
             counts_stale: true,
+            overlay_scale: None,
         }
     }
 
@@ -174,7 +187,12 @@ impl<'a> FrameLoop<'a> {
             info.rays = u64::from(width) * u64::from(height);
             self.n_i = Some(per_packet(&frame.totals, &renderer, bound.entry.packets));
             let values = frame.image(cost);
-            let max = common_max([&values]);
+            let key = (state.method, cost, state.view_jumps);
+            let max = match self.overlay_scale {
+                Some((k, max)) if state.scale_locked || k == key => max,
+                _ => common_max([&values]),
+            };
+            self.overlay_scale = Some((key, max));
             info.overlay_max = Some(max);
             self.done = true;
             pack(&heatmap(&values, max), out);
@@ -460,5 +478,63 @@ mod tests {
             }
         }
         assert!(lit > 100 && penumbra > 10 && differ > penumbra / 2, "lit {lit}, penumbra {penumbra}, differ {differ}");
+    }
+    /// The overlay's scale is fixed per method, overlay and named view: moving the camera
+    /// keeps it (although the moved frame's own maximum differs), a new method or named view
+    /// sets it anew, and a locked scale survives both.
+    #[test]
+    fn overlay_scale_is_fixed_per_method_and_view_and_can_be_locked() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let names = frames.method_names();
+        let mut state = ViewerState::new(&scene, names, 0);
+        let press = |a| Input { pressed: vec![a], ..Input::default() };
+        let (w, h) = (64, 48);
+        let mut out = Vec::new();
+        let mut render = |frames: &mut FrameLoop, state: &ViewerState, change| {
+            frames.render(state, change, w, h, &mut out).unwrap().unwrap().overlay_max.unwrap()
+        };
+        // The frame's own maximum, as an unfixed scale would be.
+        let own_max = |frames: &FrameLoop, state: &ViewerState| {
+            let b = frames
+                .registry
+                .bind(&frames.registry.select(state.method_name(), Options::default()).unwrap(), &frames.structures)
+                .unwrap();
+            let r = Renderer::new(&scene, &b, state.pose.camera(state.fovy_deg, w, h).unwrap(), Shadows::None);
+            common_max([&r.trace_costs(&mut r.buffers()).image(Cost::Nodes)])
+        };
+        let settings = state.apply(&press(Action::NextOverlay));
+        let first = render(&mut frames, &state, settings);
+        assert_eq!(first, own_max(&frames, &state));
+        // Fly forward: the scale stays although the frame's own maximum changes.
+        for _ in 0..4 {
+            assert!(state.apply(&Input { held: vec![Action::Forward], dt: 0.25, ..Input::default() }).camera);
+        }
+        assert_ne!(own_max(&frames, &state), first, "the move changes the frame's maximum");
+        assert_eq!(render(&mut frames, &state, Change { camera: true, settings: false }), first);
+        // A new method: a new scale.
+        let c = state.apply(&press(Action::NextMethod));
+        let second = render(&mut frames, &state, c);
+        assert_eq!(second, own_max(&frames, &state));
+        assert_ne!(second, first);
+        // Locked: kept across methods and named views.
+        let c = state.apply(&press(Action::LockScale));
+        assert_eq!(render(&mut frames, &state, c), second);
+        let c = state.apply(&press(Action::NextMethod));
+        assert_eq!(render(&mut frames, &state, c), second);
+        let c = state.apply(&press(Action::View(1)));
+        let info = frames.render(&state, c, w, h, &mut out).unwrap().unwrap();
+        assert_eq!(info.overlay_max, Some(second));
+        assert!(info.status(&state).ends_with("LOCKED"), "{}", info.status(&state));
+        // Unlocked: the named view and method get their own scale again.
+        let c = state.apply(&press(Action::LockScale));
+        let c2 = state.apply(&press(Action::View(1)));
+        let third = frames
+            .render(&state, Change { camera: true, settings: c.settings || c2.settings }, w, h, &mut out)
+            .unwrap()
+            .unwrap()
+            .overlay_max
+            .unwrap();
+        assert_eq!(third, own_max(&frames, &state));
     }
 }

@@ -3,7 +3,8 @@
 //! Keys: W/A/S/D move, Q/E down/up, drag with the left mouse button to turn; 1-9 the
 //! scene's named views; M/N next/previous method (every `trace::Registry` method, tiled ones
 //! with 16x16 tiles); H shadows (none, hard, edge width, soft: refined while the camera
-//! rests); C cost overlay (none, nodes, leaves, isects, culled per ray); Escape quits.
+//! rests); C cost overlay (none, nodes, leaves, isects, culled per ray; its scale is fixed
+//! per method, overlay and named view); L locks the overlay's scale; Escape quits.
 //!
 //! The window and its events live on the main thread; frames are traced on a render thread
 //! (with rayon's pool), which gets the latest state whenever it is free, so the window stays
@@ -167,6 +168,7 @@ fn pressed_action(key: Key) -> Option<Action> {
         Key::N => Action::PrevMethod,
         Key::H => Action::NextShadows,
         Key::C => Action::NextOverlay,
+        Key::L => Action::LockScale,
         Key::Key1 => Action::View(0),
         Key::Key2 => Action::View(1),
         Key::Key3 => Action::View(2),
@@ -235,7 +237,12 @@ fn window_loop(
         let change = state.apply(&input);
         if change.settings {
             let overlay = state.overlay.map_or("none", |c| c.name());
-            eprintln!("viewer: method {} shadows {} overlay {overlay}", state.method_name(), state.shadows.name());
+            let lock = if state.scale_locked { " (scale locked)" } else { "" };
+            eprintln!(
+                "viewer: method {} shadows {} overlay {overlay}{lock}",
+                state.method_name(),
+                state.shadows.name()
+            );
         }
         pending.camera |= change.camera;
         pending.settings |= change.settings;

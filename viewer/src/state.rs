@@ -119,6 +119,9 @@ pub enum Action {
     NextShadows,
     /// Next cost overlay: none, nodes, leaves, isects, culled (C).
     NextOverlay,
+    /// Lock or unlock the cost overlay's colour scale (L): locked, it is kept whatever the
+    /// method, overlay or view, to compare them on one scale.
+    LockScale,
     /// The scene's named view `i` (number key `i + 1`).
     View(usize),
 }
@@ -170,6 +173,13 @@ pub struct ViewerState {
     pub shadows: ShadowMode,
     /// The cost overlay, if any.
     pub overlay: Option<Cost>,
+    /// Whether the overlay's colour scale is locked ([`Action::LockScale`]). Unlocked, the
+    /// scale is the first overlay frame's maximum after the method, the overlay or the named
+    /// view changes, and stays while the camera moves (values above it saturate).
+    pub scale_locked: bool,
+    /// How many times a named view was chosen (a number key): a new named view gets a new
+    /// overlay scale.
+    pub view_jumps: u32,
     /// The scene's named views: (name, pose, field of view).
     pub views: Vec<(String, Pose, f32)>,
     /// Movement speed in scene units per second.
@@ -198,6 +208,8 @@ impl ViewerState {
             method,
             shadows: ShadowMode::Hard,
             overlay: None,
+            scale_locked: false,
+            view_jumps: 0,
             views,
             speed: 0.25 * diag,
         }
@@ -217,6 +229,7 @@ impl ViewerState {
                 Action::NextMethod => self.method = (self.method + 1) % n,
                 Action::PrevMethod => self.method = (self.method + n - 1) % n,
                 Action::NextShadows => self.shadows = self.shadows.next(),
+                Action::LockScale => self.scale_locked = !self.scale_locked,
                 Action::NextOverlay => {
                     self.overlay = match self.overlay {
                         None => Some(Cost::ALL[0]),
@@ -227,6 +240,7 @@ impl ViewerState {
                     if let Some(&(_, pose, fovy)) = self.views.get(i) {
                         self.pose = pose;
                         self.fovy_deg = fovy;
+                        self.view_jumps = self.view_jumps.wrapping_add(1);
                         change.camera = true;
                     }
                     continue;
@@ -307,6 +321,11 @@ mod tests {
             seen.push(s.overlay);
         }
         assert_eq!(seen, [Some(Cost::Nodes), Some(Cost::Leaves), Some(Cost::Isects), Some(Cost::Culled), None]);
+        assert!(!s.scale_locked);
+        assert!(s.apply(&press(Action::LockScale)).settings);
+        assert!(s.scale_locked);
+        s.apply(&press(Action::LockScale));
+        assert!(!s.scale_locked);
         assert_eq!(s.apply(&Input::default()), Change::default(), "no input, no change");
     }
 
@@ -335,6 +354,7 @@ mod tests {
         let c = s.apply(&Input { pressed: vec![Action::View(1)], ..Input::default() });
         assert!(c.camera);
         assert_eq!(s.pose, s.views[1].1);
+        assert_eq!(s.view_jumps, 1);
         assert_eq!(s.apply(&Input { pressed: vec![Action::View(99)], ..Input::default() }), Change::default());
     }
 }
