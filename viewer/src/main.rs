@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use clap::Parser;
 use kdtree::KdTree;
 use minifb::{Key, KeyRepeat, MouseButton, MouseMode, ScaleMode, Window, WindowOptions};
-use viewer::{Action, Change, FrameInfo, FrameLoop, Input, ViewerState};
+use viewer::{Action, Change, FrameInfo, FrameLoop, Input, ShadowMode, ViewerState};
 
 /// An interactive viewer: a scene traced live with any registered method.
 #[derive(Debug, Parser)]
@@ -33,6 +33,9 @@ struct Args {
     /// The first method (a registry name; M and N switch).
     #[arg(long, default_value = "mft-16", value_name = "METHOD")]
     method: String,
+    /// The first shadow mode (H switches): none, hard, edge-width or soft.
+    #[arg(long, default_value = "hard", value_name = "MODE", value_parser = parse_shadows)]
+    shadows: ShadowMode,
     /// Rayon threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -46,6 +49,14 @@ struct Args {
     /// Close the window after this many seconds (for scripted runs).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
+}
+
+/// A shadow mode by its name.
+fn parse_shadows(s: &str) -> Result<ShadowMode, String> {
+    ShadowMode::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = ShadowMode::ALL.iter().map(|m| m.name()).collect();
+        format!("'{s}' is not one of {}", names.join(", "))
+    })
 }
 
 /// `WxH`, each side in 1..=8192.
@@ -92,7 +103,8 @@ fn run(args: &Args) -> Result<(), String> {
     let Some(first) = names.iter().position(|n| *n == args.method) else {
         return Err(format!("--method {}: not one of {}", args.method, names.join(", ")));
     };
-    let state = ViewerState::new(&scene, names, first);
+    let mut state = ViewerState::new(&scene, names, first);
+    state.shadows = args.shadows;
     let (width, height) = args.size;
     if let Some(path) = &args.headless {
         let mut frames = frames;
@@ -117,9 +129,10 @@ fn run(args: &Args) -> Result<(), String> {
             if let (Some(&best), Some(&median)) = (timed.first(), timed.get(timed.len() / 2)) {
                 let _ = writeln!(
                     std::io::stdout(),
-                    "{} frames of {width}x{height}, {}, {} threads: {}; {}",
+                    "{} frames of {width}x{height}, {}, shadows {}, {} threads: {}; {}",
                     timed.len(),
                     state.method_name(),
+                    state.shadows.name(),
                     rayon::current_num_threads(),
                     line("best", best),
                     line("median", median)

@@ -75,6 +75,14 @@ pub enum ShadowMode {
 }
 
 impl ShadowMode {
+    /// Every mode, in the order of the `H` key.
+    pub const ALL: [ShadowMode; 4] = [ShadowMode::None, ShadowMode::Hard, ShadowMode::EdgeWidth, ShadowMode::Soft];
+
+    /// The mode called `name` (its [`ShadowMode::name`]).
+    pub fn from_name(name: &str) -> Option<ShadowMode> {
+        ShadowMode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
     /// The next mode (`H` key): none, hard, edge width, soft, none.
     pub fn next(self) -> ShadowMode {
         match self {
@@ -312,6 +320,11 @@ mod tests {
             cycle.push(s.shadows);
         }
         assert_eq!(cycle, [ShadowMode::EdgeWidth, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]);
+        for m in ShadowMode::ALL {
+            assert_eq!(ShadowMode::from_name(m.name()), Some(m));
+            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 4], m.next());
+        }
+        assert_eq!(ShadowMode::from_name("soft16"), None);
         s.apply(&press(Action::NextShadows));
         s.apply(&press(Action::NextShadows));
         assert_eq!(s.shadows, ShadowMode::Soft);
