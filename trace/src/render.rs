@@ -304,12 +304,13 @@ impl<'a> Renderer<'a> {
     }
 
     /// [`Renderer::color`] for display: each pixel gamma-encoded as `Image::save_png` does
-    /// (`scenes::image::encode_gamma`) and packed as `0x00RRGGBB`, row-major, into `out`.
+    /// (`scenes::image::encode_gamma`, bit for bit, through [`GammaTable`]) and packed as `0x00RRGGBB`, row-major, into `out`.
     /// Shading and encoding run in parallel over the tiles; the one serial step is the copy
     /// into row order.
     pub fn color_packed(&self, buf: &FrameBuffers, out: &mut Vec<u32>) {
+        let gamma = GammaTable::get();
         let packed = self.shade_tiles(buf, |c| {
-            let [r, g, b] = c.to_array().map(|v| u32::from(scenes::image::encode_gamma(v)));
+            let [r, g, b] = c.to_array().map(|v| u32::from(gamma.encode(v)));
             r << 16 | g << 8 | b
         });
         out.clear();
@@ -360,6 +361,62 @@ impl<'a> Renderer<'a> {
             .map(|h| h.map_or(-1.0, |h| ids.get(h.prim as usize).map_or(-1.0, |&id| id as f32)))
             .collect();
         ScalarImage { width: self.camera.width, height: self.camera.height, values: self.layout.to_row_major(&values) }
+    }
+}
+
+/// `scenes::image::encode_gamma` without a `powf` per channel: the 255 thresholds where its
+/// byte goes up (found once, by bisection over the f32 bit patterns of `[0, 1]`, on which
+/// `encode_gamma` is non-decreasing) and, per 1/4096 of `[0, 1]`, the byte at the bucket's
+/// start. A value's byte is its bucket's, moved up past the thresholds it reaches: the same
+/// byte as `encode_gamma` for every f32 (tested at each threshold and around it).
+#[derive(Debug)]
+pub struct GammaTable {
+    /// `thresholds[k]`: the smallest value whose byte is above `k`.
+    thresholds: [f32; 255],
+    /// The byte of each bucket's first value.
+    buckets: Vec<u8>,
+}
+
+/// Buckets of [`GammaTable`] over `[0, 1]`.
+const GAMMA_BUCKETS: usize = 4096;
+
+impl GammaTable {
+    /// The table, built on first use.
+    pub fn get() -> &'static GammaTable {
+        static TABLE: std::sync::OnceLock<GammaTable> = std::sync::OnceLock::new();
+        TABLE.get_or_init(GammaTable::new)
+    }
+
+    fn new() -> GammaTable {
+        use scenes::image::encode_gamma;
+        let mut thresholds = [1.0f32; 255];
+        for (k, t) in thresholds.iter_mut().enumerate() {
+            let (mut lo, mut hi) = (0.0f32.to_bits(), 1.0f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if usize::from(encode_gamma(f32::from_bits(mid))) > k { hi = mid } else { lo = mid + 1 }
+            }
+            *t = f32::from_bits(lo);
+        }
+        let buckets = (0..GAMMA_BUCKETS).map(|b| encode_gamma(b as f32 / GAMMA_BUCKETS as f32)).collect();
+        GammaTable { thresholds, buckets }
+    }
+
+    /// `scenes::image::encode_gamma(v)`: clamped to [0, 1] (NaN as 0), gamma 1/2.2, rounded.
+    #[inline]
+    pub fn encode(&self, v: f32) -> u8 {
+        // Written so that NaN gives 0.
+        if !(v > 0.0) {
+            return 0;
+        }
+        if v >= 1.0 {
+            return 255;
+        }
+        let mut code = self.buckets[((v * GAMMA_BUCKETS as f32) as usize).min(GAMMA_BUCKETS - 1)];
+        while code < 255 && v >= self.thresholds[usize::from(code)] {
+            code += 1;
+        }
+        code
     }
 }
 
@@ -498,5 +555,24 @@ mod tests {
                 Some(r) => assert_eq!(r, &visible, "{name}"),
             }
         }
+    }
+    /// The gamma table gives `encode_gamma`'s byte at every threshold, one ulp either side,
+    /// at every bucket start, on a million spread values, and for NaN, infinities, negatives.
+    #[test]
+    fn gamma_table_is_encode_gamma() {
+        use scenes::image::encode_gamma;
+        let table = GammaTable::get();
+        let mut values = vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0, -0.0, 0.0, 1.0, 1.5, f32::MIN_POSITIVE];
+        for &t in &table.thresholds {
+            values.extend([f32::from_bits(t.to_bits() - 1), t, f32::from_bits(t.to_bits() + 1)]);
+        }
+        values.extend((0..=GAMMA_BUCKETS).map(|b| b as f32 / GAMMA_BUCKETS as f32));
+        let one = 1.0f32.to_bits();
+        values.extend((0..1_000_000u32).map(|i| f32::from_bits((u64::from(i) * u64::from(one) / 1_000_000) as u32)));
+        values.extend((0..1_000_000u32).map(|i| i as f32 / 1e6));
+        for v in values {
+            assert_eq!(table.encode(v), encode_gamma(v), "{v:e}");
+        }
+        assert!(table.thresholds.windows(2).all(|w| w[0] < w[1]));
     }
 }

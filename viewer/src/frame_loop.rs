@@ -197,12 +197,7 @@ impl<'a> FrameLoop<'a> {
             self.done = true;
             pack(&heatmap(&values, max), out);
         } else {
-            let shadows = match state.shadows {
-                ShadowMode::None => Shadows::None,
-                ShadowMode::Hard => Shadows::Hard,
-                ShadowMode::EdgeWidth => Shadows::EdgeWidth,
-                ShadowMode::Soft => Shadows::Soft16,
-            };
+            let shadows = renderer_shadows(state.shadows);
             let renderer =
                 Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light).with_tree(self.tree);
             if state.shadows == ShadowMode::Soft && !restart {
@@ -234,6 +229,76 @@ impl<'a> FrameLoop<'a> {
         info.frame_secs = start.elapsed().as_secs_f64() - counting_secs;
         draw_status(out, width, height, &info.status(state));
         Ok(Some(info))
+    }
+}
+
+/// One round of [`FrameLoop::time_against_renderer`]: the viewer's frame and what
+/// `rttest render` times for the same frame, in seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RoundTimes {
+    /// The viewer's whole frame ([`FrameInfo::frame_secs`]: select and bind the method,
+    /// trace, shade and gamma-encode into the packed buffer, status line).
+    pub viewer_frame: f64,
+    /// Its tracing ([`FrameInfo::trace_secs`]).
+    pub viewer_trace: f64,
+    /// `Renderer::trace` of the same frame (`trace_secs` of `rttest render`: primary and
+    /// shadow passes).
+    pub render_trace: f64,
+    /// `Renderer::color` of it (`shade_secs` of `rttest render`: shading into an f32 image,
+    /// no gamma encoding, no copy for display).
+    pub render_shade: f64,
+    /// Rays of the viewer's frame and of the renderer's (equal: the same work).
+    pub rays: (u64, u64),
+}
+
+impl FrameLoop<'_> {
+    /// Times the viewer's frame of `state` against `rttest render`'s timed parts of the same
+    /// frame (the same method bound once, shadows, light and size, as `rttest render` does),
+    /// in `rounds` interleaved rounds (the order alternating from round to round), so that
+    /// load from other processes falls on both alike. The viewer's frames are traced as with
+    /// a moving camera (no counted pass, no soft-shadow refinement).
+    pub fn time_against_renderer(
+        &mut self,
+        state: &ViewerState,
+        width: u32,
+        height: u32,
+        rounds: u32,
+    ) -> Result<Vec<RoundTimes>, Error> {
+        let camera =
+            state.pose.camera(state.fovy_deg, width, height).ok_or_else(|| Error::Usage("no camera".into()))?;
+        // Bound apart from the loop's own registry, as `rttest render` binds it: once.
+        let (scene, tree) = (self.scene, self.tree);
+        let registry = Registry::ours();
+        let structures = Structures::new(tree);
+        let bound = registry.bind(&registry.select(state.method_name(), Options::default())?, &structures)?;
+        let shadows = renderer_shadows(state.shadows);
+        let renderer = Renderer::new(scene, &bound, camera, shadows).with_light(self.light).with_tree(tree);
+        let mut buf = renderer.buffers();
+        let mut state = state.clone();
+        state.overlay = None;
+        let moving = Change { camera: true, settings: false };
+        let mut out = Vec::new();
+        let mut times = Vec::with_capacity(rounds as usize);
+        for round in 0..rounds {
+            let mut t = RoundTimes::default();
+            for viewer_first in [round % 2 == 0, round % 2 != 0] {
+                if viewer_first {
+                    let info = self
+                        .render(&state, moving, width, height, &mut out)?
+                        .ok_or_else(|| Error::Usage("the viewer traced nothing".into()))?;
+                    (t.viewer_frame, t.viewer_trace, t.rays.0) = (info.frame_secs, info.trace_secs, info.rays);
+                } else {
+                    let stats = renderer.trace(&mut buf);
+                    let start = Instant::now();
+                    let image = renderer.color(&buf);
+                    t.render_shade = start.elapsed().as_secs_f64();
+                    std::hint::black_box(image);
+                    (t.render_trace, t.rays.1) = (stats.trace_secs(), stats.rays());
+                }
+            }
+            times.push(t);
+        }
+        Ok(times)
     }
 }
 
@@ -285,6 +350,16 @@ impl Refinement {
         buffers.visible.clear();
         buffers.visible.extend(self.visible_sum.iter().map(|v| v / passes));
         traced
+    }
+}
+
+/// The renderer's shadows of a viewer mode (soft: the first 16-ray pass).
+fn renderer_shadows(mode: ShadowMode) -> Shadows {
+    match mode {
+        ShadowMode::None => Shadows::None,
+        ShadowMode::Hard => Shadows::Hard,
+        ShadowMode::EdgeWidth => Shadows::EdgeWidth,
+        ShadowMode::Soft => Shadows::Soft16,
     }
 }
 
@@ -536,5 +611,22 @@ mod tests {
             .overlay_max
             .unwrap();
         assert_eq!(third, own_max(&frames, &state));
+    }
+    /// The timing against the renderer runs the same work on both sides.
+    #[test]
+    fn timing_against_the_renderer_traces_the_same_rays() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        for mode in [ShadowMode::Hard, ShadowMode::EdgeWidth] {
+            state.shadows = mode;
+            let times = frames.time_against_renderer(&state, 40, 30, 3).unwrap();
+            assert_eq!(times.len(), 3);
+            for t in times {
+                assert!(t.rays.0 > 1200 && t.rays.0 == t.rays.1, "{mode:?}: {t:?}");
+                assert!(t.viewer_frame >= t.viewer_trace && t.viewer_trace > 0.0 && t.render_trace > 0.0);
+                assert!(t.render_shade > 0.0);
+            }
+        }
     }
 }

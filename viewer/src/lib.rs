@@ -16,5 +16,5 @@ pub mod frame_loop;
 pub mod refine;
 pub mod state;
 
-pub use frame_loop::{FrameInfo, FrameLoop};
+pub use frame_loop::{FrameInfo, FrameLoop, RoundTimes};
 pub use state::{Action, Change, Input, Pose, ShadowMode, ViewerState};

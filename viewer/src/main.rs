@@ -46,6 +46,11 @@ struct Args {
     /// print the best and the median frame time, fps and Mrays/s.
     #[arg(long, default_value_t = 0, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=10000))]
     frames: u32,
+    /// With --headless and --frames N: N interleaved rounds of the viewer's frame and of what
+    /// `rttest render` times for the same frame (`Renderer::trace` and `Renderer::color`),
+    /// in one process, and their medians and ratio.
+    #[arg(long, requires = "headless")]
+    against_render: bool,
     /// Close the window after this many seconds (for scripted runs).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
@@ -109,7 +114,31 @@ fn run(args: &Args) -> Result<(), String> {
     if let Some(path) = &args.headless {
         let mut frames = frames;
         let mut out = Vec::new();
-        if args.frames > 0 {
+        if args.against_render && args.frames > 0 {
+            let times = frames.time_against_renderer(&state, width, height, args.frames).map_err(|e| e.to_string())?;
+            let med = |f: &dyn Fn(&viewer::RoundTimes) -> f64| {
+                trace::timing::median(&times.iter().map(f).collect::<Vec<f64>>()) * 1e3
+            };
+            let (frame, vtrace) = (med(&|t| t.viewer_frame), med(&|t| t.viewer_trace));
+            let (rtrace, shade) = (med(&|t| t.render_trace), med(&|t| t.render_shade));
+            let both = med(&|t| t.render_trace + t.render_shade);
+            let ratio = trace::timing::median(
+                &times.iter().map(|t| t.viewer_frame / (t.render_trace + t.render_shade)).collect::<Vec<f64>>(),
+            );
+            let _ = writeln!(
+                std::io::stdout(),
+                "{} interleaved rounds of {width}x{height}, {}, shadows {}, {} threads, medians: viewer frame \
+                 {frame:.2} ms ({:.2} fps; its tracing {vtrace:.2} ms); rttest render's trace {rtrace:.2} ms \
+                 + shade {shade:.2} ms = {both:.2} ms ({:.2} fps); viewer frame / (trace + shade) {ratio:.3} \
+                 (median of the rounds' ratios)",
+                times.len(),
+                state.method_name(),
+                state.shadows.name(),
+                rayon::current_num_threads(),
+                1e3 / frame,
+                1e3 / both,
+            );
+        } else if args.frames > 0 {
             let moving = Change { camera: true, settings: false };
             let mut timed = Vec::new();
             for _ in 0..args.frames {
