@@ -405,8 +405,7 @@ impl GammaTable {
     /// `scenes::image::encode_gamma(v)`: clamped to [0, 1] (NaN as 0), gamma 1/2.2, rounded.
     #[inline]
     pub fn encode(&self, v: f32) -> u8 {
-        // Written so that NaN gives 0.
-        if !(v > 0.0) {
+        if v.is_nan() || v <= 0.0 {
             return 0;
         }
         if v >= 1.0 {
