@@ -217,6 +217,7 @@ impl<'a> Renderer<'a> {
         let (shadow_rays, occluded) = match self.shadows {
             Shadows::None => {
                 buf.occluded.fill(false);
+                buf.visible.clear();
                 (0, 0)
             }
             Shadows::Soft16 => {
@@ -573,5 +574,28 @@ mod tests {
             assert_eq!(table.encode(v), encode_gamma(v), "{v:e}");
         }
         assert!(table.thresholds.windows(2).all(|w| w[0] < w[1]));
+    }
+    /// Buffers reused from a frame with other shadows (as the viewer reuses them) give the
+    /// frame of fresh buffers: no visibility is left over from soft or edge-width shadows.
+    #[test]
+    fn reused_buffers_keep_nothing_from_other_shadows() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let m = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+        let modes = [Shadows::None, Shadows::Hard, Shadows::Soft16, Shadows::EdgeWidth];
+        let renderer = |s| Renderer::new(&scene, &m, camera, s).with_tree(&tree);
+        for before in modes {
+            for after in modes {
+                let mut reused = renderer(before).buffers();
+                renderer(before).trace(&mut reused);
+                renderer(after).trace(&mut reused);
+                let mut fresh = renderer(after).buffers();
+                renderer(after).trace(&mut fresh);
+                let (a, b) = (renderer(after).color(&reused), renderer(after).color(&fresh));
+                assert!(a.pixels == b.pixels, "{before:?} then {after:?}");
+            }
+        }
     }
 }
