@@ -210,7 +210,12 @@ impl<'a> FrameLoop<'a> {
                 info.rays = stats.rays();
                 info.trace_secs = stats.trace_secs();
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
-                self.soft.visible_sum.clone_from(&self.buffers.visible);
+                // The sum refinement adds to: soft shadows only (edge widths fill `visible` too).
+                if state.shadows == ShadowMode::Soft {
+                    self.soft.visible_sum.clone_from(&self.buffers.visible);
+                } else {
+                    self.soft.visible_sum.clear();
+                }
                 self.done = state.shadows != ShadowMode::Soft;
             }
             if resting {
