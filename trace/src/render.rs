@@ -3,7 +3,9 @@
 //! A frame is the frame driver's passes ([`crate::frame`]) over preallocated per-pixel
 //! buffers in tile order: the primary pass, then with `Shadows::Hard` one shadow ray per hit
 //! facing the point light, or with `Shadows::Soft16` 16 rays per hit to a spherical light at
-//! the point light (thesis Table 4.6). Tracing is the timed part (ray generation, traversal
+//! the point light (thesis Table 4.6), or with `Shadows::EdgeWidth` one edge-width ray per
+//! hit to the same light's centre (Edge Width Soft Shadows, thesis chapter 5: the `edgewidth`
+//! kernels over our kd-tree, given by [`Renderer::with_tree`]). Tracing is the timed part (ray generation, traversal
 //! and intersection); shading into an image ([`Renderer::color`]) or taking the depth or
 //! primitive id comes after and is timed apart.
 //!
@@ -12,10 +14,14 @@
 
 use std::time::Instant;
 
+use edgewidth::packet::{EdgeScratch4, edge_width4};
+use edgewidth::{LeakRemedies, occlusion_factor, width_from_light};
 use glam::Vec3;
 use kdtree::Counts;
-use kdtree::Hit;
+use kdtree::{Hit, KdTree};
+use packets::RayPacket;
 use rayon::prelude::*;
+use scenes::PointLight;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
 use crate::aov::{Attribution, CostFrame, PixelCost};
@@ -35,6 +41,15 @@ pub enum Shadows {
     /// 16 rays per hit to a spherical light at the point light (thesis Table 4.6), traced
     /// with the method's soft-shadow kernel.
     Soft16,
+    /// Edge Width Soft Shadows (thesis chapter 5, Eq. 5.1): one ray per hit facing the light,
+    /// from the hard shadow ray's origin to the centre of the spherical light of `Soft16`,
+    /// traced four at a time by `edgewidth::packet::edge_width4` over our kd-tree (whatever
+    /// the primary method; [`Renderer::with_tree`] gives the tree), `R` from the light's
+    /// radius (`edgewidth::width_from_light`, scale 1), no leak remedies. The visible
+    /// fraction is `1 - occlusion_factor(width, R)`. The kernels have no counters: a counted
+    /// frame counts its primary pass only.
+    #[serde(rename = "edge-width")]
+    EdgeWidth,
 }
 
 impl Shadows {
@@ -44,6 +59,7 @@ impl Shadows {
             Shadows::None => "none",
             Shadows::Hard => "hard",
             Shadows::Soft16 => "soft16",
+            Shadows::EdgeWidth => "edge-width",
         }
     }
 }
@@ -56,8 +72,8 @@ pub struct FrameBuffers {
     /// Whether each hit's hard shadow ray found a blocker (`false` without hard shadows, for
     /// misses and for surfaces facing away from the light).
     pub occluded: Vec<bool>,
-    /// With soft shadows, the visible fraction of the light per pixel (0 for pixels without
-    /// a lit hit); empty otherwise.
+    /// With soft or edge-width shadows, the visible fraction of the light per pixel (0 for
+    /// pixels without a lit hit); empty otherwise.
     pub visible: Vec<f32>,
 }
 
@@ -77,7 +93,7 @@ pub struct FrameStats {
     pub shadow_rays: u64,
     /// Primary rays that hit a triangle.
     pub hits: u64,
-    /// Shadow rays that found a blocker.
+    /// Shadow rays that found a blocker (edge widths: rays with a width above 0).
     pub occluded: u64,
     /// Seconds for the primary pass.
     pub primary_secs: f64,
@@ -106,6 +122,7 @@ pub struct Renderer<'a> {
     layout: TileLayout,
     shadows: Shadows,
     light: SphereLight,
+    tree: Option<&'a KdTree>,
 }
 
 impl<'a> Renderer<'a> {
@@ -117,7 +134,14 @@ impl<'a> Renderer<'a> {
         let layout = TileLayout::new(camera.width, camera.height, method.options.tile.max(1));
         let (lo, hi) = scene.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let light = soft::light_in_bounds(scene, lo, hi, 1.0);
-        Renderer { scene, method, camera, layout, shadows, light }
+        Renderer { scene, method, camera, layout, shadows, light, tree: None }
+    }
+
+    /// The same renderer with our kd-tree of the scene, which [`Shadows::EdgeWidth`] traces
+    /// (the edge-width kernels are ours alone, so they need the tree whatever the method).
+    pub fn with_tree(mut self, tree: &'a KdTree) -> Self {
+        self.tree = Some(tree);
+        self
     }
 
     /// The same renderer with the spherical light of soft shadows.
@@ -149,6 +173,10 @@ impl<'a> Renderer<'a> {
 
     /// Traces one frame into `buf`: the primary pass, then the shadow pass if shadows are on.
     /// Runs on the current rayon pool.
+    ///
+    /// # Panics
+    /// With [`Shadows::EdgeWidth`] and no [`Renderer::with_tree`] (a programming error: the
+    /// callers that offer edge widths always give the tree).
     pub fn trace(&self, buf: &mut FrameBuffers) -> FrameStats {
         self.trace_with(buf, false).0
     }
@@ -189,6 +217,7 @@ impl<'a> Renderer<'a> {
         let (shadow_rays, occluded) = match self.shadows {
             Shadows::None => {
                 buf.occluded.fill(false);
+                buf.visible.clear();
                 (0, 0)
             }
             Shadows::Soft16 => {
@@ -201,6 +230,12 @@ impl<'a> Renderer<'a> {
             Shadows::Hard => {
                 buf.visible.clear();
                 tracer.shadow(&View { layout, scene, camera }, &buf.hits, &mut buf.occluded, counts)
+            }
+            Shadows::EdgeWidth => {
+                let tree = self.tree.expect("Shadows::EdgeWidth needs Renderer::with_tree");
+                buf.occluded.fill(false);
+                buf.visible.resize(layout.pixel_count(), 0.0);
+                self.edge_width_pass(tree, &buf.hits, &mut buf.visible)
             }
         };
         let shadow_secs = if self.shadows == Shadows::None { 0.0 } else { start.elapsed().as_secs_f64() };
@@ -215,20 +250,68 @@ impl<'a> Renderer<'a> {
         (stats, primary_counts, shadow_counts)
     }
 
+    /// The edge-width pass ([`Shadows::EdgeWidth`]): the visible fraction of each pixel of
+    /// `hits` into `visible` (tile order), in parallel over tiles, each tile's pixels four at
+    /// a time in tile order. Returns the rays traced and those with a width above 0.
+    fn edge_width_pass(&self, tree: &KdTree, hits: &[Option<Hit>], visible: &mut [f32]) -> (u64, u64) {
+        let mesh = &self.scene.mesh;
+        let center = PointLight { position: self.light.center, intensity: self.light.intensity };
+        let remedies = LeakRemedies::default();
+        let inputs = self.layout.chunks(hits);
+        let outputs = self.layout.chunks_mut(visible);
+        self.layout
+            .tiles()
+            .par_iter()
+            .zip(inputs)
+            .zip(outputs)
+            .map_init(EdgeScratch4::default, |scratch, ((tile, hits), out)| {
+                let (mut rays, mut blocked) = (0u64, 0u64);
+                let mut pixels = tile.pixels();
+                for (hits, out) in hits.chunks(4).zip(out.chunks_mut(4)) {
+                    let mut lanes = [None; 4];
+                    let mut r = [0.0f32; 4];
+                    for (lane, hit) in hits.iter().enumerate() {
+                        let Some((x, y)) = pixels.next() else { break };
+                        let Some(hit) = hit else { continue };
+                        let (origin, dir) = self.camera.pixel_ray(x, y);
+                        let Some(ray) = shade::shadow_ray(mesh, &center, origin, dir, hit) else { continue };
+                        let p = kdtree::ray::surface_point(&mesh.triangle(hit.prim as usize), hit);
+                        r[lane] = width_from_light(self.light.radius, (self.light.center - p).length(), 1.0);
+                        lanes[lane] = Some(ray);
+                    }
+                    let widths = edge_width4(tree, &RayPacket::from_lanes(lanes), r, &remedies, scratch);
+                    for (lane, slot) in out.iter_mut().enumerate() {
+                        *slot = match lanes[lane] {
+                            Some(_) => {
+                                rays += 1;
+                                blocked += u64::from(widths[lane] > 0.0);
+                                1.0 - occlusion_factor(widths[lane], r[lane])
+                            }
+                            None => 0.0,
+                        };
+                    }
+                }
+                (rays, blocked)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+
     /// The shaded image (`--aov color`): diffuse shading with the point light, dimmed by the
-    /// hard shadow or by the visible fraction of the soft-shadow light.
+    /// hard shadow or by the visible fraction of the soft-shadow light (soft or edge-width
+    /// shadows).
     pub fn color(&self, buf: &FrameBuffers) -> Image {
         let colors = self.shade_tiles(buf, |c| c);
         Image { width: self.camera.width, height: self.camera.height, pixels: self.layout.to_row_major(&colors) }
     }
 
     /// [`Renderer::color`] for display: each pixel gamma-encoded as `Image::save_png` does
-    /// (`scenes::image::encode_gamma`) and packed as `0x00RRGGBB`, row-major, into `out`.
+    /// (`scenes::image::encode_gamma`, bit for bit, through [`GammaTable`]) and packed as `0x00RRGGBB`, row-major, into `out`.
     /// Shading and encoding run in parallel over the tiles; the one serial step is the copy
     /// into row order.
     pub fn color_packed(&self, buf: &FrameBuffers, out: &mut Vec<u32>) {
+        let gamma = GammaTable::get();
         let packed = self.shade_tiles(buf, |c| {
-            let [r, g, b] = c.to_array().map(|v| u32::from(scenes::image::encode_gamma(v)));
+            let [r, g, b] = c.to_array().map(|v| u32::from(gamma.encode(v)));
             r << 16 | g << 8 | b
         });
         out.clear();
@@ -279,6 +362,61 @@ impl<'a> Renderer<'a> {
             .map(|h| h.map_or(-1.0, |h| ids.get(h.prim as usize).map_or(-1.0, |&id| id as f32)))
             .collect();
         ScalarImage { width: self.camera.width, height: self.camera.height, values: self.layout.to_row_major(&values) }
+    }
+}
+
+/// `scenes::image::encode_gamma` without a `powf` per channel: the 255 thresholds where its
+/// byte goes up (found once, by bisection over the f32 bit patterns of `[0, 1]`, on which
+/// `encode_gamma` is non-decreasing) and, per 1/4096 of `[0, 1]`, the byte at the bucket's
+/// start. A value's byte is its bucket's, moved up past the thresholds it reaches: the same
+/// byte as `encode_gamma` for every f32 (tested at each threshold and around it).
+#[derive(Debug)]
+pub struct GammaTable {
+    /// `thresholds[k]`: the smallest value whose byte is above `k`.
+    thresholds: [f32; 255],
+    /// The byte of each bucket's first value.
+    buckets: Vec<u8>,
+}
+
+/// Buckets of [`GammaTable`] over `[0, 1]`.
+const GAMMA_BUCKETS: usize = 4096;
+
+impl GammaTable {
+    /// The table, built on first use.
+    pub fn get() -> &'static GammaTable {
+        static TABLE: std::sync::OnceLock<GammaTable> = std::sync::OnceLock::new();
+        TABLE.get_or_init(GammaTable::new)
+    }
+
+    fn new() -> GammaTable {
+        use scenes::image::encode_gamma;
+        let mut thresholds = [1.0f32; 255];
+        for (k, t) in thresholds.iter_mut().enumerate() {
+            let (mut lo, mut hi) = (0.0f32.to_bits(), 1.0f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if usize::from(encode_gamma(f32::from_bits(mid))) > k { hi = mid } else { lo = mid + 1 }
+            }
+            *t = f32::from_bits(lo);
+        }
+        let buckets = (0..GAMMA_BUCKETS).map(|b| encode_gamma(b as f32 / GAMMA_BUCKETS as f32)).collect();
+        GammaTable { thresholds, buckets }
+    }
+
+    /// `scenes::image::encode_gamma(v)`: clamped to [0, 1] (NaN as 0), gamma 1/2.2, rounded.
+    #[inline]
+    pub fn encode(&self, v: f32) -> u8 {
+        if v.is_nan() || v <= 0.0 {
+            return 0;
+        }
+        if v >= 1.0 {
+            return 255;
+        }
+        let mut code = self.buckets[((v * GAMMA_BUCKETS as f32) as usize).min(GAMMA_BUCKETS - 1)];
+        while code < 255 && v >= self.thresholds[usize::from(code)] {
+            code += 1;
+        }
+        code
     }
 }
 
@@ -366,6 +504,97 @@ mod tests {
             match &reference {
                 None => reference = Some(visible),
                 Some(r) => assert_eq!(r, &visible, "{name}"),
+            }
+        }
+    }
+    /// Edge-width shadows: the same rays as hard shadows, so a pixel is fully lit exactly where
+    /// the hard shadow ray is unblocked; inside hard shadows the edge width gives a penumbra
+    /// (0 < visible < 1) somewhere; the same visibility whatever the primary method; and each
+    /// value is `1 - occlusion_factor` of the single-ray kernel's edge width.
+    #[test]
+    fn edge_width_shadows_darken_only_the_hard_shadows() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(64, 48).unwrap();
+        let light = crate::soft::scene_light(&scene, &tree, 2.0);
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let mut reference: Option<Vec<f32>> = None;
+        for name in ["mono", "mft-8"] {
+            let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+            let hard = Renderer::new(&scene, &m, camera, Shadows::Hard).with_light(light);
+            let mut hard_buf = hard.buffers();
+            let hard_stats = hard.trace(&mut hard_buf);
+            let edge = Renderer::new(&scene, &m, camera, Shadows::EdgeWidth).with_light(light).with_tree(&tree);
+            let mut buf = edge.buffers();
+            let stats = edge.trace(&mut buf);
+            assert_eq!((stats.shadow_rays, stats.occluded), (hard_stats.shadow_rays, hard_stats.occluded), "{name}");
+            assert!(buf.occluded.iter().all(|&o| !o));
+            let visible = edge.layout().to_row_major(&buf.visible);
+            let hits = edge.layout().to_row_major(&buf.hits);
+            let blocked = hard.layout().to_row_major(&hard_buf.occluded);
+            let mut penumbra = 0;
+            let mut scratch = edgewidth::EdgeScratch::default();
+            for (i, (&v, hit)) in visible.iter().zip(&hits).enumerate() {
+                let (x, y) = (i as u32 % camera.width, i as u32 / camera.width);
+                let (origin, dir) = camera.pixel_ray(x, y);
+                let center = PointLight { position: light.center, intensity: light.intensity };
+                let Some(ray) = hit.and_then(|h| shade::shadow_ray(&scene.mesh, &center, origin, dir, &h)) else {
+                    assert_eq!(v, 0.0, "{name}: unlit pixel ({x}, {y})");
+                    continue;
+                };
+                let p = kdtree::ray::surface_point(&scene.mesh.triangle(hit.unwrap().prim as usize), &hit.unwrap());
+                let r = width_from_light(light.radius, (light.center - p).length(), 1.0);
+                let w = edgewidth::edge_width(&tree, &ray, r, &LeakRemedies::default(), &mut scratch);
+                assert_eq!(v, 1.0 - occlusion_factor(w, r), "{name}: ({x}, {y})");
+                assert_eq!(v == 1.0, !blocked[i], "{name}: ({x}, {y}) lit by edge widths iff by hard shadows");
+                penumbra += usize::from(v > 0.0 && v < 1.0);
+            }
+            assert!(penumbra > 0, "{name}: no penumbra");
+            match &reference {
+                None => reference = Some(visible),
+                Some(r) => assert_eq!(r, &visible, "{name}"),
+            }
+        }
+    }
+    /// The gamma table gives `encode_gamma`'s byte at every threshold, one ulp either side,
+    /// at every bucket start, on a million spread values, and for NaN, infinities, negatives.
+    #[test]
+    fn gamma_table_is_encode_gamma() {
+        use scenes::image::encode_gamma;
+        let table = GammaTable::get();
+        let mut values = vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0, -0.0, 0.0, 1.0, 1.5, f32::MIN_POSITIVE];
+        for &t in &table.thresholds {
+            values.extend([f32::from_bits(t.to_bits() - 1), t, f32::from_bits(t.to_bits() + 1)]);
+        }
+        values.extend((0..=GAMMA_BUCKETS).map(|b| b as f32 / GAMMA_BUCKETS as f32));
+        let one = 1.0f32.to_bits();
+        values.extend((0..1_000_000u32).map(|i| f32::from_bits((u64::from(i) * u64::from(one) / 1_000_000) as u32)));
+        values.extend((0..1_000_000u32).map(|i| i as f32 / 1e6));
+        for v in values {
+            assert_eq!(table.encode(v), encode_gamma(v), "{v:e}");
+        }
+        assert!(table.thresholds.windows(2).all(|w| w[0] < w[1]));
+    }
+    /// Buffers reused from a frame with other shadows (as the viewer reuses them) give the
+    /// frame of fresh buffers: no visibility is left over from soft or edge-width shadows.
+    #[test]
+    fn reused_buffers_keep_nothing_from_other_shadows() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(40, 30).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let m = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+        let modes = [Shadows::None, Shadows::Hard, Shadows::Soft16, Shadows::EdgeWidth];
+        let renderer = |s| Renderer::new(&scene, &m, camera, s).with_tree(&tree);
+        for before in modes {
+            for after in modes {
+                let mut reused = renderer(before).buffers();
+                renderer(before).trace(&mut reused);
+                renderer(after).trace(&mut reused);
+                let mut fresh = renderer(after).buffers();
+                renderer(after).trace(&mut fresh);
+                let (a, b) = (renderer(after).color(&reused), renderer(after).color(&fresh));
+                assert!(a.pixels == b.pixels, "{before:?} then {after:?}");
             }
         }
     }

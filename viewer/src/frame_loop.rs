@@ -2,11 +2,15 @@
 //! `0x00RRGGBB` pixels and a status line out.
 //!
 //! Every method is taken by name from `trace::Registry` and bound to the scene's kd-tree; a
-//! frame is `trace::Renderer`'s passes (primary, then hard or soft shadows) and its shading,
-//! or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map. Soft shadows
+//! frame is `trace::Renderer`'s passes (primary, then hard, edge-width or soft shadows) and
+//! its shading, or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
+//! Edge widths (thesis chapter 5) are traced over the kd-tree given to [`FrameLoop::new`]
+//! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
 //! adds 16 rays per lit pixel, up to [`MAX_PASSES`] passes; then nothing is traced until
-//! something changes ([`FrameLoop::render`] returns `None`).
+//! something changes ([`FrameLoop::render`] returns `None`). The overlay's colour scale is the
+//! maximum of the first overlay frame after the method, the overlay or the named view changes,
+//! kept while the camera moves, and kept whatever changes while it is locked (L).
 
 use std::time::Instant;
 
@@ -15,6 +19,7 @@ use kdtree::{Counts, KdTree, Ray};
 use scenes::colormap::{common_max, heatmap};
 use scenes::font::{GLYPH_H, draw_text, text_width};
 use scenes::{Rgb8Image, Scene, SphereLight};
+use trace::aov::Cost;
 use trace::frame::View;
 use trace::{Error, FrameBuffers, Options, Registry, Renderer, Shadows, Structures};
 
@@ -61,7 +66,10 @@ impl FrameInfo {
         let fps = if self.frame_secs > 0.0 { 1.0 / self.frame_secs } else { 0.0 };
         let ni = self.n_i.map_or("N - I -".to_string(), |(n, i)| format!("N {n:.1} I {i:.1}"));
         let mode = match (state.overlay, self.overlay_max) {
-            (Some(c), Some(max)) => format!("{} / RAY 0-{}", c.name(), scenes::colormap::tick_label(max)),
+            (Some(c), Some(max)) => {
+                let lock = if state.scale_locked { " LOCKED" } else { "" };
+                format!("{} / RAY 0-{}{lock}", c.name(), scenes::colormap::tick_label(max))
+            }
             _ if state.shadows == ShadowMode::Soft => format!("SOFT {}/{MAX_PASSES}", self.passes),
             _ => state.shadows.name().to_string(),
         };
@@ -77,6 +85,7 @@ impl FrameInfo {
 /// The frame loop of one scene.
 pub struct FrameLoop<'a> {
     scene: &'a Scene,
+    tree: &'a KdTree,
     registry: Registry,
     structures: Structures<'a>,
     light: SphereLight,
@@ -89,7 +98,13 @@ pub struct FrameLoop<'a> {
     n_i: Option<(f64, f64)>,
     /// The camera moved since N and I were last counted.
     counts_stale: bool,
+    /// The cost overlay's colour scale and what it was fixed for.
+    overlay_scale: Option<(ScaleKey, f32)>,
 }
+
+/// What an unlocked overlay scale is fixed for: method (index), overlay and named view
+/// ([`ViewerState::view_jumps`]).
+type ScaleKey = (usize, Cost, u32);
 
 /// The progressive soft shadows of the kept primary hits.
 #[derive(Debug, Default)]
@@ -116,6 +131,7 @@ impl<'a> FrameLoop<'a> {
         }
         FrameLoop {
             scene,
+            tree,
             registry,
             structures,
             light: trace::soft::scene_light(scene, tree, 1.0),
@@ -125,6 +141,7 @@ impl<'a> FrameLoop<'a> {
             done: false,
             n_i: None,
             counts_stale: true,
+            overlay_scale: None,
         }
     }
 
@@ -179,17 +196,19 @@ impl<'a> FrameLoop<'a> {
             info.rays = u64::from(width) * u64::from(height);
             self.n_i = Some(per_packet(&frame.totals, &renderer, bound.entry.packets));
             let values = frame.image(cost);
-            let max = common_max([&values]);
+            let key = (state.method, cost, state.view_jumps);
+            let max = match self.overlay_scale {
+                Some((k, max)) if state.scale_locked || k == key => max,
+                _ => common_max([&values]),
+            };
+            self.overlay_scale = Some((key, max));
             info.overlay_max = Some(max);
             self.done = true;
             pack(&heatmap(&values, max), out);
         } else {
-            let shadows = match state.shadows {
-                ShadowMode::None => Shadows::None,
-                ShadowMode::Hard => Shadows::Hard,
-                ShadowMode::Soft => Shadows::Soft16,
-            };
-            let renderer = Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light);
+            let shadows = renderer_shadows(state.shadows);
+            let renderer =
+                Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light).with_tree(self.tree);
             if state.shadows == ShadowMode::Soft && !restart {
                 let t = Instant::now();
                 info.rays = self.soft.pass(&bound, &renderer, self.scene, &self.light, &mut self.buffers);
@@ -200,7 +219,12 @@ impl<'a> FrameLoop<'a> {
                 info.rays = stats.rays();
                 info.trace_secs = stats.trace_secs();
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
-                self.soft.visible_sum.clone_from(&self.buffers.visible);
+                // The sum refinement adds to: soft shadows only (edge widths fill `visible` too).
+                if state.shadows == ShadowMode::Soft {
+                    self.soft.visible_sum.clone_from(&self.buffers.visible);
+                } else {
+                    self.soft.visible_sum.clear();
+                }
                 self.done = state.shadows != ShadowMode::Soft;
             }
             if resting {
@@ -219,6 +243,76 @@ impl<'a> FrameLoop<'a> {
         info.frame_secs = start.elapsed().as_secs_f64() - counting_secs;
         draw_status(out, width, height, &info.status(state));
         Ok(Some(info))
+    }
+}
+
+/// One round of [`FrameLoop::time_against_renderer`]: the viewer's frame and what
+/// `rttest render` times for the same frame, in seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RoundTimes {
+    /// The viewer's whole frame ([`FrameInfo::frame_secs`]: select and bind the method,
+    /// trace, shade and gamma-encode into the packed buffer, status line).
+    pub viewer_frame: f64,
+    /// Its tracing ([`FrameInfo::trace_secs`]).
+    pub viewer_trace: f64,
+    /// `Renderer::trace` of the same frame (`trace_secs` of `rttest render`: primary and
+    /// shadow passes).
+    pub render_trace: f64,
+    /// `Renderer::color` of it (`shade_secs` of `rttest render`: shading into an f32 image,
+    /// no gamma encoding, no copy for display).
+    pub render_shade: f64,
+    /// Rays of the viewer's frame and of the renderer's (equal: the same work).
+    pub rays: (u64, u64),
+}
+
+impl FrameLoop<'_> {
+    /// Times the viewer's frame of `state` against `rttest render`'s timed parts of the same
+    /// frame (the same method bound once, shadows, light and size, as `rttest render` does),
+    /// in `rounds` interleaved rounds (the order alternating from round to round), so that
+    /// load from other processes falls on both alike. The viewer's frames are traced as with
+    /// a moving camera (no counted pass, no soft-shadow refinement).
+    pub fn time_against_renderer(
+        &mut self,
+        state: &ViewerState,
+        width: u32,
+        height: u32,
+        rounds: u32,
+    ) -> Result<Vec<RoundTimes>, Error> {
+        let camera =
+            state.pose.camera(state.fovy_deg, width, height).ok_or_else(|| Error::Usage("no camera".into()))?;
+        // Bound apart from the loop's own registry, as `rttest render` binds it: once.
+        let (scene, tree) = (self.scene, self.tree);
+        let registry = Registry::ours();
+        let structures = Structures::new(tree);
+        let bound = registry.bind(&registry.select(state.method_name(), Options::default())?, &structures)?;
+        let shadows = renderer_shadows(state.shadows);
+        let renderer = Renderer::new(scene, &bound, camera, shadows).with_light(self.light).with_tree(tree);
+        let mut buf = renderer.buffers();
+        let mut state = state.clone();
+        state.overlay = None;
+        let moving = Change { camera: true, settings: false };
+        let mut out = Vec::new();
+        let mut times = Vec::with_capacity(rounds as usize);
+        for round in 0..rounds {
+            let mut t = RoundTimes::default();
+            for viewer_first in [round % 2 == 0, round % 2 != 0] {
+                if viewer_first {
+                    let info = self
+                        .render(&state, moving, width, height, &mut out)?
+                        .ok_or_else(|| Error::Usage("the viewer traced nothing".into()))?;
+                    (t.viewer_frame, t.viewer_trace, t.rays.0) = (info.frame_secs, info.trace_secs, info.rays);
+                } else {
+                    let stats = renderer.trace(&mut buf);
+                    let start = Instant::now();
+                    let image = renderer.color(&buf);
+                    t.render_shade = start.elapsed().as_secs_f64();
+                    std::hint::black_box(image);
+                    (t.render_trace, t.rays.1) = (stats.trace_secs(), stats.rays());
+                }
+            }
+            times.push(t);
+        }
+        Ok(times)
     }
 }
 
@@ -270,6 +364,16 @@ impl Refinement {
         buffers.visible.clear();
         buffers.visible.extend(self.visible_sum.iter().map(|v| v / passes));
         traced
+    }
+}
+
+/// The renderer's shadows of a viewer mode (soft: the first 16-ray pass).
+fn renderer_shadows(mode: ShadowMode) -> Shadows {
+    match mode {
+        ShadowMode::None => Shadows::None,
+        ShadowMode::Hard => Shadows::Hard,
+        ShadowMode::EdgeWidth => Shadows::EdgeWidth,
+        ShadowMode::Soft => Shadows::Soft16,
     }
 }
 
@@ -412,5 +516,131 @@ mod tests {
         assert!(frames.render(&state, Change::default(), 1, 1, &mut out).unwrap().is_some());
         assert!(frames.render(&state, Change::default(), 300, 7, &mut out).unwrap().is_some());
         assert_eq!(out.len(), 2100);
+    }
+    /// Edge-width shadows (H: none, hard, edge width, soft): the frame is the renderer's
+    /// edge-width image; it differs from the hard-shadow frame only in the light's penumbra
+    /// (0 < visible < 1, inside the hard shadows), in some pixels there, and is identical
+    /// where the point is fully lit; the status line names the mode.
+    #[test]
+    fn edge_width_frames_differ_from_hard_in_the_penumbra_only() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        let (w, h) = (96, 64);
+        let settings = Change { settings: true, camera: false };
+        let mut hard = Vec::new();
+        assert_eq!(state.shadows, ShadowMode::Hard);
+        frames.render(&state, settings, w, h, &mut hard).unwrap().unwrap();
+        state.apply(&Input { pressed: vec![Action::NextShadows], ..Input::default() });
+        assert_eq!(state.shadows, ShadowMode::EdgeWidth);
+        let mut edge = Vec::new();
+        let info = frames.render(&state, settings, w, h, &mut edge).unwrap().unwrap();
+        assert!(info.status(&state).ends_with("edge-width"), "{}", info.status(&state));
+        assert_eq!(info.passes, 0);
+        assert!(frames.render(&state, Change::default(), w, h, &mut edge).unwrap().is_none(), "nothing to refine");
+        looks_like_a_scene(&edge);
+        // The visibility the frame was shaded with, from the renderer itself.
+        let bound = frames
+            .registry
+            .bind(&frames.registry.select(state.method_name(), Options::default()).unwrap(), &frames.structures)
+            .unwrap();
+        let camera = state.pose.camera(state.fovy_deg, w, h).unwrap();
+        let r = Renderer::new(&scene, &bound, camera, Shadows::EdgeWidth).with_light(frames.light).with_tree(&tree);
+        let mut buf = r.buffers();
+        r.trace(&mut buf);
+        let visible = r.layout().to_row_major(&buf.visible);
+        let hits = r.layout().to_row_major(&buf.hits);
+        let band = GLYPH_H + 4;
+        let (mut lit, mut penumbra, mut differ) = (0, 0, 0);
+        for y in band..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if hits[i].is_some() && visible[i] == 1.0 {
+                    assert_eq!(edge[i], hard[i], "fully lit ({x}, {y})");
+                    lit += 1;
+                } else if visible[i] > 0.0 && visible[i] < 1.0 {
+                    penumbra += 1;
+                    differ += usize::from(edge[i] != hard[i]);
+                } else {
+                    assert_eq!(edge[i], hard[i], "umbra, unlit or background ({x}, {y})");
+                }
+            }
+        }
+        assert!(lit > 100 && penumbra > 10 && differ > penumbra / 2, "lit {lit}, penumbra {penumbra}, differ {differ}");
+    }
+    /// The overlay's scale is fixed per method, overlay and named view: moving the camera
+    /// keeps it (although the moved frame's own maximum differs), a new method or named view
+    /// sets it anew, and a locked scale survives both.
+    #[test]
+    fn overlay_scale_is_fixed_per_method_and_view_and_can_be_locked() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let names = frames.method_names();
+        let mut state = ViewerState::new(&scene, names, 0);
+        let press = |a| Input { pressed: vec![a], ..Input::default() };
+        let (w, h) = (64, 48);
+        let mut out = Vec::new();
+        let mut render = |frames: &mut FrameLoop, state: &ViewerState, change| {
+            frames.render(state, change, w, h, &mut out).unwrap().unwrap().overlay_max.unwrap()
+        };
+        // The frame's own maximum, as an unfixed scale would be.
+        let own_max = |frames: &FrameLoop, state: &ViewerState| {
+            let b = frames
+                .registry
+                .bind(&frames.registry.select(state.method_name(), Options::default()).unwrap(), &frames.structures)
+                .unwrap();
+            let r = Renderer::new(&scene, &b, state.pose.camera(state.fovy_deg, w, h).unwrap(), Shadows::None);
+            common_max([&r.trace_costs(&mut r.buffers()).image(Cost::Nodes)])
+        };
+        let settings = state.apply(&press(Action::NextOverlay));
+        let first = render(&mut frames, &state, settings);
+        assert_eq!(first, own_max(&frames, &state));
+        // Fly forward: the scale stays although the frame's own maximum changes.
+        for _ in 0..4 {
+            assert!(state.apply(&Input { held: vec![Action::Forward], dt: 0.25, ..Input::default() }).camera);
+        }
+        assert_ne!(own_max(&frames, &state), first, "the move changes the frame's maximum");
+        assert_eq!(render(&mut frames, &state, Change { camera: true, settings: false }), first);
+        // A new method: a new scale.
+        let c = state.apply(&press(Action::NextMethod));
+        let second = render(&mut frames, &state, c);
+        assert_eq!(second, own_max(&frames, &state));
+        assert_ne!(second, first);
+        // Locked: kept across methods and named views.
+        let c = state.apply(&press(Action::LockScale));
+        assert_eq!(render(&mut frames, &state, c), second);
+        let c = state.apply(&press(Action::NextMethod));
+        assert_eq!(render(&mut frames, &state, c), second);
+        let c = state.apply(&press(Action::View(1)));
+        let info = frames.render(&state, c, w, h, &mut out).unwrap().unwrap();
+        assert_eq!(info.overlay_max, Some(second));
+        assert!(info.status(&state).ends_with("LOCKED"), "{}", info.status(&state));
+        // Unlocked: the named view and method get their own scale again.
+        let c = state.apply(&press(Action::LockScale));
+        let c2 = state.apply(&press(Action::View(1)));
+        let third = frames
+            .render(&state, Change { camera: true, settings: c.settings || c2.settings }, w, h, &mut out)
+            .unwrap()
+            .unwrap()
+            .overlay_max
+            .unwrap();
+        assert_eq!(third, own_max(&frames, &state));
+    }
+    /// The timing against the renderer runs the same work on both sides.
+    #[test]
+    fn timing_against_the_renderer_traces_the_same_rays() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        for mode in [ShadowMode::Hard, ShadowMode::EdgeWidth] {
+            state.shadows = mode;
+            let times = frames.time_against_renderer(&state, 40, 30, 3).unwrap();
+            assert_eq!(times.len(), 3);
+            for t in times {
+                assert!(t.rays.0 > 1200 && t.rays.0 == t.rays.1, "{mode:?}: {t:?}");
+                assert!(t.viewer_frame >= t.viewer_trace && t.viewer_trace > 0.0 && t.render_trace > 0.0);
+                assert!(t.render_shade > 0.0);
+            }
+        }
     }
 }

@@ -2,8 +2,9 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up, drag with the left mouse button to turn; 1-9 the
 //! scene's named views; M/N next/previous method (every `trace::Registry` method, tiled ones
-//! with 16x16 tiles); H shadows (none, hard, soft: refined while the camera rests); C cost
-//! overlay (none, nodes, leaves, isects, culled per ray); Escape quits.
+//! with 16x16 tiles); H shadows (none, hard, edge width, soft: refined while the camera
+//! rests); C cost overlay (none, nodes, leaves, isects, culled per ray; its scale is fixed
+//! per method, overlay and named view); L locks the overlay's scale; Escape quits.
 //!
 //! The window and its events live on the main thread; frames are traced on a render thread
 //! (with rayon's pool), which gets the latest state whenever it is free, so the window stays
@@ -17,7 +18,7 @@ use std::time::{Duration, Instant};
 use clap::Parser;
 use kdtree::KdTree;
 use minifb::{Key, KeyRepeat, MouseButton, MouseMode, ScaleMode, Window, WindowOptions};
-use viewer::{Action, Change, FrameInfo, FrameLoop, Input, ViewerState};
+use viewer::{Action, Change, FrameInfo, FrameLoop, Input, ShadowMode, ViewerState};
 
 /// An interactive viewer: a scene traced live with any registered method.
 #[derive(Debug, Parser)]
@@ -32,6 +33,9 @@ struct Args {
     /// The first method (a registry name; M and N switch).
     #[arg(long, default_value = "mft-16", value_name = "METHOD")]
     method: String,
+    /// The first shadow mode (H switches): none, hard, edge-width or soft.
+    #[arg(long, default_value = "hard", value_name = "MODE", value_parser = parse_shadows)]
+    shadows: ShadowMode,
     /// Rayon threads (default: all cores).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -42,9 +46,22 @@ struct Args {
     /// print the best and the median frame time, fps and Mrays/s.
     #[arg(long, default_value_t = 0, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=10000))]
     frames: u32,
+    /// With --headless and --frames N: N interleaved rounds of the viewer's frame and of what
+    /// `rttest render` times for the same frame (`Renderer::trace` and `Renderer::color`),
+    /// in one process, and their medians and ratio.
+    #[arg(long, requires = "headless")]
+    against_render: bool,
     /// Close the window after this many seconds (for scripted runs).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
+}
+
+/// A shadow mode by its name.
+fn parse_shadows(s: &str) -> Result<ShadowMode, String> {
+    ShadowMode::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = ShadowMode::ALL.iter().map(|m| m.name()).collect();
+        format!("'{s}' is not one of {}", names.join(", "))
+    })
 }
 
 /// `WxH`, each side in 1..=8192.
@@ -91,12 +108,37 @@ fn run(args: &Args) -> Result<(), String> {
     let Some(first) = names.iter().position(|n| *n == args.method) else {
         return Err(format!("--method {}: not one of {}", args.method, names.join(", ")));
     };
-    let state = ViewerState::new(&scene, names, first);
+    let mut state = ViewerState::new(&scene, names, first);
+    state.shadows = args.shadows;
     let (width, height) = args.size;
     if let Some(path) = &args.headless {
         let mut frames = frames;
         let mut out = Vec::new();
-        if args.frames > 0 {
+        if args.against_render && args.frames > 0 {
+            let times = frames.time_against_renderer(&state, width, height, args.frames).map_err(|e| e.to_string())?;
+            let med = |f: &dyn Fn(&viewer::RoundTimes) -> f64| {
+                trace::timing::median(&times.iter().map(f).collect::<Vec<f64>>()) * 1e3
+            };
+            let (frame, vtrace) = (med(&|t| t.viewer_frame), med(&|t| t.viewer_trace));
+            let (rtrace, shade) = (med(&|t| t.render_trace), med(&|t| t.render_shade));
+            let both = med(&|t| t.render_trace + t.render_shade);
+            let ratio = trace::timing::median(
+                &times.iter().map(|t| t.viewer_frame / (t.render_trace + t.render_shade)).collect::<Vec<f64>>(),
+            );
+            let _ = writeln!(
+                std::io::stdout(),
+                "{} interleaved rounds of {width}x{height}, {}, shadows {}, {} threads, medians: viewer frame \
+                 {frame:.2} ms ({:.2} fps; its tracing {vtrace:.2} ms); rttest render's trace {rtrace:.2} ms \
+                 + shade {shade:.2} ms = {both:.2} ms ({:.2} fps); viewer frame / (trace + shade) {ratio:.3} \
+                 (median of the rounds' ratios)",
+                times.len(),
+                state.method_name(),
+                state.shadows.name(),
+                rayon::current_num_threads(),
+                1e3 / frame,
+                1e3 / both,
+            );
+        } else if args.frames > 0 {
             let moving = Change { camera: true, settings: false };
             let mut timed = Vec::new();
             for _ in 0..args.frames {
@@ -116,9 +158,10 @@ fn run(args: &Args) -> Result<(), String> {
             if let (Some(&best), Some(&median)) = (timed.first(), timed.get(timed.len() / 2)) {
                 let _ = writeln!(
                     std::io::stdout(),
-                    "{} frames of {width}x{height}, {}, {} threads: {}; {}",
+                    "{} frames of {width}x{height}, {}, shadows {}, {} threads: {}; {}",
                     timed.len(),
                     state.method_name(),
+                    state.shadows.name(),
                     rayon::current_num_threads(),
                     line("best", best),
                     line("median", median)
@@ -167,6 +210,7 @@ fn pressed_action(key: Key) -> Option<Action> {
         Key::N => Action::PrevMethod,
         Key::H => Action::NextShadows,
         Key::C => Action::NextOverlay,
+        Key::L => Action::LockScale,
         Key::Key1 => Action::View(0),
         Key::Key2 => Action::View(1),
         Key::Key3 => Action::View(2),
@@ -235,7 +279,12 @@ fn window_loop(
         let change = state.apply(&input);
         if change.settings {
             let overlay = state.overlay.map_or("none", |c| c.name());
-            eprintln!("viewer: method {} shadows {} overlay {overlay}", state.method_name(), state.shadows.name());
+            let lock = if state.scale_locked { " (scale locked)" } else { "" };
+            eprintln!(
+                "viewer: method {} shadows {} overlay {overlay}{lock}",
+                state.method_name(),
+                state.shadows.name()
+            );
         }
         pending.camera |= change.camera;
         pending.settings |= change.settings;

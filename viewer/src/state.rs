@@ -66,17 +66,29 @@ pub enum ShadowMode {
     None,
     /// One ray per hit to the point light (the method's hard-shadow pass).
     Hard,
+    /// Edge Width Soft Shadows (thesis chapter 5): one edge-width ray per hit to the centre
+    /// of the soft shadows' spherical light (`trace::Shadows::EdgeWidth`, over the kd-tree).
+    EdgeWidth,
     /// 16 rays per hit to a spherical light (the method's soft-shadow pass), refined with 16
     /// more per hit each frame while the camera rests.
     Soft,
 }
 
 impl ShadowMode {
-    /// The next mode (`H` key).
+    /// Every mode, in the order of the `H` key.
+    pub const ALL: [ShadowMode; 4] = [ShadowMode::None, ShadowMode::Hard, ShadowMode::EdgeWidth, ShadowMode::Soft];
+
+    /// The mode called `name` (its [`ShadowMode::name`]).
+    pub fn from_name(name: &str) -> Option<ShadowMode> {
+        ShadowMode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The next mode (`H` key): none, hard, edge width, soft, none.
     pub fn next(self) -> ShadowMode {
         match self {
             ShadowMode::None => ShadowMode::Hard,
-            ShadowMode::Hard => ShadowMode::Soft,
+            ShadowMode::Hard => ShadowMode::EdgeWidth,
+            ShadowMode::EdgeWidth => ShadowMode::Soft,
             ShadowMode::Soft => ShadowMode::None,
         }
     }
@@ -86,6 +98,7 @@ impl ShadowMode {
         match self {
             ShadowMode::None => "none",
             ShadowMode::Hard => "hard",
+            ShadowMode::EdgeWidth => "edge-width",
             ShadowMode::Soft => "soft",
         }
     }
@@ -114,6 +127,9 @@ pub enum Action {
     NextShadows,
     /// Next cost overlay: none, nodes, leaves, isects, culled (C).
     NextOverlay,
+    /// Lock or unlock the cost overlay's colour scale (L): locked, it is kept whatever the
+    /// method, overlay or view, to compare them on one scale.
+    LockScale,
     /// The scene's named view `i` (number key `i + 1`).
     View(usize),
 }
@@ -165,6 +181,13 @@ pub struct ViewerState {
     pub shadows: ShadowMode,
     /// The cost overlay, if any.
     pub overlay: Option<Cost>,
+    /// Whether the overlay's colour scale is locked ([`Action::LockScale`]). Unlocked, the
+    /// scale is the first overlay frame's maximum after the method, the overlay or the named
+    /// view changes, and stays while the camera moves (values above it saturate).
+    pub scale_locked: bool,
+    /// How many times a named view was chosen (a number key): a new named view gets a new
+    /// overlay scale.
+    pub view_jumps: u32,
     /// The scene's named views: (name, pose, field of view).
     pub views: Vec<(String, Pose, f32)>,
     /// Movement speed in scene units per second.
@@ -193,6 +216,8 @@ impl ViewerState {
             method,
             shadows: ShadowMode::Hard,
             overlay: None,
+            scale_locked: false,
+            view_jumps: 0,
             views,
             speed: 0.25 * diag,
         }
@@ -212,6 +237,7 @@ impl ViewerState {
                 Action::NextMethod => self.method = (self.method + 1) % n,
                 Action::PrevMethod => self.method = (self.method + n - 1) % n,
                 Action::NextShadows => self.shadows = self.shadows.next(),
+                Action::LockScale => self.scale_locked = !self.scale_locked,
                 Action::NextOverlay => {
                     self.overlay = match self.overlay {
                         None => Some(Cost::ALL[0]),
@@ -222,6 +248,7 @@ impl ViewerState {
                     if let Some(&(_, pose, fovy)) = self.views.get(i) {
                         self.pose = pose;
                         self.fovy_deg = fovy;
+                        self.view_jumps = self.view_jumps.wrapping_add(1);
                         change.camera = true;
                     }
                     continue;
@@ -287,6 +314,18 @@ mod tests {
         s.apply(&press(Action::PrevMethod));
         assert_eq!(s.method_name(), "mft-16");
         assert_eq!(s.shadows, ShadowMode::Hard);
+        let mut cycle = Vec::new();
+        for _ in 0..4 {
+            assert!(s.apply(&press(Action::NextShadows)).settings);
+            cycle.push(s.shadows);
+        }
+        assert_eq!(cycle, [ShadowMode::EdgeWidth, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]);
+        for m in ShadowMode::ALL {
+            assert_eq!(ShadowMode::from_name(m.name()), Some(m));
+            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 4], m.next());
+        }
+        assert_eq!(ShadowMode::from_name("soft16"), None);
+        s.apply(&press(Action::NextShadows));
         s.apply(&press(Action::NextShadows));
         assert_eq!(s.shadows, ShadowMode::Soft);
         let mut seen = Vec::new();
@@ -295,6 +334,11 @@ mod tests {
             seen.push(s.overlay);
         }
         assert_eq!(seen, [Some(Cost::Nodes), Some(Cost::Leaves), Some(Cost::Isects), Some(Cost::Culled), None]);
+        assert!(!s.scale_locked);
+        assert!(s.apply(&press(Action::LockScale)).settings);
+        assert!(s.scale_locked);
+        s.apply(&press(Action::LockScale));
+        assert!(!s.scale_locked);
         assert_eq!(s.apply(&Input::default()), Change::default(), "no input, no change");
     }
 
@@ -323,6 +367,7 @@ mod tests {
         let c = s.apply(&Input { pressed: vec![Action::View(1)], ..Input::default() });
         assert!(c.camera);
         assert_eq!(s.pose, s.views[1].1);
+        assert_eq!(s.view_jumps, 1);
         assert_eq!(s.apply(&Input { pressed: vec![Action::View(99)], ..Input::default() }), Change::default());
     }
 }

@@ -241,8 +241,9 @@ pub struct RenderArgs {
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
-    /// Shadow rays: none, one per hit to the point light, or 16 per hit to a spherical light
-    /// at the point light (traced with the method's soft-shadow kernel).
+    /// Shadow rays: none, one per hit to the point light, 16 per hit to a spherical light at
+    /// the point light (traced with the method's soft-shadow kernel), or one edge-width ray
+    /// per hit to that light's centre (thesis chapter 5).
     #[arg(long, value_enum, default_value_t = ShadowsArg::Hard)]
     pub shadows: ShadowsArg,
     /// Radius of the soft shadows' spherical light, in Sponza units (scaled by the scene's
@@ -299,6 +300,10 @@ pub enum ShadowsArg {
     Hard,
     /// 16 rays per hit to a spherical light at the point light (thesis Table 4.6).
     Soft16,
+    /// Edge Width Soft Shadows (thesis chapter 5): one edge-width ray per hit to the centre
+    /// of the same spherical light, traced over our kd-tree whatever the method; not counted
+    /// by --counters.
+    EdgeWidth,
 }
 
 impl From<ShadowsArg> for Shadows {
@@ -307,6 +312,7 @@ impl From<ShadowsArg> for Shadows {
             ShadowsArg::None => Shadows::None,
             ShadowsArg::Hard => Shadows::Hard,
             ShadowsArg::Soft16 => Shadows::Soft16,
+            ShadowsArg::EdgeWidth => Shadows::EdgeWidth,
         }
     }
 }
@@ -654,6 +660,9 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     if !(args.light_radius.is_finite() && args.light_radius >= 0.0) {
         return Err(Error::Usage(format!("--light-radius {} must be a finite number >= 0", args.light_radius)));
     }
+    if args.counters && args.shadows == ShadowsArg::EdgeWidth {
+        return Err(Error::Usage("--counters: edge-width shadow rays are not counted; use other --shadows".into()));
+    }
     check_cost_args(args)?;
     let registry = baselines::registry();
     let selected = registry.select(&args.method, Options { tile: args.tile, culling: !args.no_culling })?;
@@ -666,7 +675,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     })?;
     let shadows = Shadows::from(args.shadows);
     let light = trace::soft::scene_light(&built.scene, &built.tree, args.light_radius);
-    let renderer = Renderer::new(&built.scene, &method, camera, shadows).with_light(light);
+    let renderer = Renderer::new(&built.scene, &method, camera, shadows).with_light(light).with_tree(&built.tree);
     let mut buffers = renderer.buffers();
     let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
     let stats = timing.best;
