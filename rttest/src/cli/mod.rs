@@ -23,6 +23,7 @@ use crate::progress::{self, Bar};
 
 pub mod compare;
 pub mod culling;
+pub mod dynamic;
 pub mod heatmap;
 pub mod leaks;
 pub mod main_job;
@@ -89,6 +90,8 @@ pub enum Command {
     SahSweep(sah_sweep::SahSweepArgs),
     /// Pre-BVH culling for shadow rays: culled fraction, build and trace with and without.
     Culling(culling::CullingArgs),
+    /// Pre-BVH culling on an animated scene rebuilt every frame: per frame and in total.
+    Dynamic(dynamic::DynamicArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -423,6 +426,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Compare(args)) => compare::run(&global, &args),
         Some(Command::SahSweep(args)) => sah_sweep::run(&global, &args),
         Some(Command::Culling(args)) => culling::run(&global, &args),
+        Some(Command::Dynamic(args)) => dynamic::run(&global, &args),
         None => main_job::run(&global),
     })
 }
