@@ -25,6 +25,7 @@ use std::fmt::Write as _;
 use glam::Vec3;
 use kdtree::{Aabb, BuildConfig, Hit, KdTree, Ray};
 use mbvh::Mbvh;
+use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
 use serde::Serialize;
 use trace::frame::stream_occluded_pass;
@@ -52,17 +53,22 @@ impl Default for CullingConfig {
 }
 
 /// The shadow rays of a frame: one per primary hit facing the point light (`mono`'s hits).
+/// Rows in parallel (rayon), in row-major order whatever the thread count.
 pub fn shadow_rays(scene: &Scene, tree: &KdTree, camera: &Camera) -> Vec<Ray> {
-    let mut out = Vec::new();
-    for y in 0..camera.height {
-        for x in 0..camera.width {
-            let hit: Option<Hit> = tree.intersect(&primary_ray(camera, x, y));
-            if let Some(ray) = hard_shadow_ray(scene, camera, x, y, &hit) {
-                out.push(ray);
+    let rows: Vec<Vec<Ray>> = (0..camera.height)
+        .into_par_iter()
+        .map(|y| {
+            let mut out = Vec::new();
+            for x in 0..camera.width {
+                let hit: Option<Hit> = tree.intersect(&primary_ray(camera, x, y));
+                if let Some(ray) = hard_shadow_ray(scene, camera, x, y, &hit) {
+                    out.push(ray);
+                }
             }
-        }
-    }
-    out
+            out
+        })
+        .collect();
+    rows.concat()
 }
 
 /// The region the shadow `rays` (segments `t` in `[t_min, t_max]` within `[0, 1]`) sweep:
@@ -168,58 +174,88 @@ pub fn run(config: &CullingConfig, progress: &dyn Progress) -> Result<CullingRep
         let tree = KdTree::build(&mesh.positions, &mesh.triangles, &build_config)?;
         let rays = shadow_rays(&scene, &tree, &camera);
         let bar = progress.task(&format!("culling: {}", scene.name), Some(u64::from(config.rounds)));
-        let mut t = vec![Vec::new(); 9];
-        let mut identical = true;
-        let mut kept = 0;
-        let bvh_err = |e: mbvh::BuildError| Error::Usage(format!("mbvh build: {e}"));
-        for _ in 0..config.rounds.max(1) {
-            // Builds, interleaved: full kd-tree, culled kd-tree, full BVH, culled BVH.
-            let (cull_s, (triangles, k)) = timed(|| cull(mesh, &shadow_region(&rays)));
-            kept = k.len();
-            let (s0, full_kd) = timed(|| KdTree::build(&mesh.positions, &mesh.triangles, &build_config));
-            let (s1, culled_kd) = timed(|| KdTree::build(&mesh.positions, &triangles, &build_config));
-            let (s2, full_bvh) = timed(|| Mbvh::build(&mesh.positions, &mesh.triangles));
-            let (s3, culled_bvh) = timed(|| Mbvh::build(&mesh.positions, &triangles));
-            let (full_kd, culled_kd) = (full_kd?, culled_kd?);
-            let (full_bvh, culled_bvh) = (full_bvh.map_err(bvh_err)?, culled_bvh.map_err(bvh_err)?);
-            // Traces, interleaved likewise.
-            let mut out = vec![vec![false; rays.len()]; 4];
-            let (s4, ()) = timed(|| stream_occluded_pass(&SingleRays(&full_kd), &rays, &mut out[0]));
-            let (s5, ()) = timed(|| stream_occluded_pass(&SingleRays(&culled_kd), &rays, &mut out[1]));
-            let (s6, ()) = timed(|| stream_occluded_pass(&SingleRays(full_bvh.wald()), &rays, &mut out[2]));
-            let (s7, ()) = timed(|| stream_occluded_pass(&SingleRays(culled_bvh.wald()), &rays, &mut out[3]));
-            identical &= out[0] == out[1] && out[2] == out[3];
-            for (v, s) in t.iter_mut().zip([cull_s, s0, s1, s2, s3, s4, s5, s6, s7]) {
-                v.push(s * 1e3);
-            }
-            bar.inc();
-        }
+        rows.push(measure(&scene, &view, &rays, config.rounds, &build_config, || bar.inc())?);
         bar.finish();
-        let m: Vec<f64> = t.iter().map(|v| median(v)).collect();
-        let n = mesh.triangles.len();
-        let build_ms = [m[1], m[3]];
-        let build_culled_ms = [m[0] + m[2], m[0] + m[4]];
-        let trace_ms = [m[5], m[7]];
-        let trace_culled_ms = [m[6], m[8]];
-        rows.push(CullingRow {
-            scene: scene.name.clone(),
-            view,
-            triangles: n as u64,
-            kept: kept as u64,
-            culled_percent: 100.0 * (n - kept) as f64 / n.max(1) as f64,
-            shadow_rays: rays.len() as u64,
-            cull_ms: m[0],
-            build_ms,
-            build_culled_ms,
-            trace_ms,
-            trace_culled_ms,
-            frame_ms: [build_ms[0] + trace_ms[0], build_ms[1] + trace_ms[1]],
-            frame_culled_ms: [build_culled_ms[0] + trace_culled_ms[0], build_culled_ms[1] + trace_culled_ms[1]],
-            identical,
-            threads: rayon::current_num_threads(),
-        });
     }
     Ok(CullingReport { rows, config: config.clone() })
+}
+
+/// Measures pre-BVH culling for the shadow `rays` of one frame of `scene` (seen from `view`):
+/// per round, interleaved, the cull, the four builds (kd-tree and 4-wide BVH, without and with
+/// culling) and the four shadow traces; medians of `rounds` (at least one). `tick` is called
+/// after each round. `identical` says whether every culled answer equals the unculled one.
+pub fn measure(
+    scene: &Scene,
+    view: &str,
+    rays: &[Ray],
+    rounds: u32,
+    build_config: &BuildConfig,
+    mut tick: impl FnMut(),
+) -> Result<CullingRow, Error> {
+    let mesh = &scene.mesh;
+    let mut t = vec![Vec::new(); 9];
+    let mut identical = true;
+    let mut kept = 0;
+    let bvh_err = |e: mbvh::BuildError| Error::Usage(format!("mbvh build: {e}"));
+    for _ in 0..rounds.max(1) {
+        // Builds, interleaved: full kd-tree, culled kd-tree, full BVH, culled BVH.
+        let (cull_s, (triangles, k)) = timed(|| cull(mesh, &shadow_region(rays)));
+        kept = k.len();
+        let (s0, full_kd) = timed(|| KdTree::build(&mesh.positions, &mesh.triangles, build_config));
+        let (s1, culled_kd) = timed(|| KdTree::build(&mesh.positions, &triangles, build_config));
+        let (s2, full_bvh) = timed(|| Mbvh::build(&mesh.positions, &mesh.triangles));
+        let (s3, culled_bvh) = timed(|| Mbvh::build(&mesh.positions, &triangles));
+        let (full_kd, culled_kd) = (full_kd?, culled_kd?);
+        let (full_bvh, culled_bvh) = (full_bvh.map_err(bvh_err)?, culled_bvh.map_err(bvh_err)?);
+        // Traces, interleaved likewise.
+        let mut out = vec![vec![false; rays.len()]; 4];
+        let (s4, ()) = timed(|| stream_occluded_pass(&SingleRays(&full_kd), rays, &mut out[0]));
+        let (s5, ()) = timed(|| stream_occluded_pass(&SingleRays(&culled_kd), rays, &mut out[1]));
+        let (s6, ()) = match build_config.intersector {
+            kdtree::Intersector::Wald => {
+                timed(|| stream_occluded_pass(&SingleRays(full_bvh.wald()), rays, &mut out[2]))
+            }
+            kdtree::Intersector::Watertight => {
+                timed(|| stream_occluded_pass(&SingleRays(full_bvh.watertight()), rays, &mut out[2]))
+            }
+        };
+        let (s7, ()) = match build_config.intersector {
+            kdtree::Intersector::Wald => {
+                timed(|| stream_occluded_pass(&SingleRays(culled_bvh.wald()), rays, &mut out[3]))
+            }
+            kdtree::Intersector::Watertight => {
+                timed(|| stream_occluded_pass(&SingleRays(culled_bvh.watertight()), rays, &mut out[3]))
+            }
+        };
+        identical &= out[0] == out[1] && out[2] == out[3];
+        for (v, s) in t.iter_mut().zip([cull_s, s0, s1, s2, s3, s4, s5, s6, s7]) {
+            v.push(s * 1e3);
+        }
+        tick();
+    }
+    let m: Vec<f64> = t.iter().map(|v| median(v)).collect();
+    let n = mesh.triangles.len();
+    let build_ms = [m[1], m[3]];
+    let build_culled_ms = [m[0] + m[2], m[0] + m[4]];
+    let trace_ms = [m[5], m[7]];
+    let trace_culled_ms = [m[6], m[8]];
+    Ok(CullingRow {
+        scene: scene.name.clone(),
+        view: view.to_string(),
+        triangles: n as u64,
+        kept: kept as u64,
+        culled_percent: 100.0 * (n - kept) as f64 / n.max(1) as f64,
+        shadow_rays: rays.len() as u64,
+        cull_ms: m[0],
+        build_ms,
+        build_culled_ms,
+        trace_ms,
+        trace_culled_ms,
+        frame_ms: [build_ms[0] + trace_ms[0], build_ms[1] + trace_ms[1]],
+        frame_culled_ms: [build_culled_ms[0] + trace_culled_ms[0], build_culled_ms[1] + trace_culled_ms[1]],
+        identical,
+        threads: rayon::current_num_threads(),
+    })
 }
 
 impl std::fmt::Display for CullingReport {

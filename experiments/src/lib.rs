@@ -11,11 +11,13 @@
 //!   [`shadow_plot`]);
 //! - [`leaks`]: watertightness measured, rays aimed at shared edges and vertices;
 //! - [`culling`]: pre-BVH culling for shadow rays (Selgrad et al.): culled fraction, build
-//!   and trace with and without, identical answers checked;
+//!   and trace with and without, identical answers checked; [`dynamic`]: the same on every
+//!   frame of an animated scene rebuilt per frame;
 //! - [`sah_sweep`]: the SAH cost model chosen by measurement (tree shape against speed).
 
 pub mod compare;
 pub mod culling;
+pub mod dynamic;
 pub mod leaks;
 pub mod sah_sweep;
 pub mod scaling;

@@ -142,6 +142,36 @@ fn custom_camera_and_named_out_file() {
 }
 
 #[test]
+fn render_workload_times_the_incoherent_streams() {
+    let dir = scratch("workload");
+    let args = ["render", "--scene", "cube", "--size", "24x16", "--frames", "1", "--json", "--method", "mbvh-4"];
+    let v = json(&rttest(&dir, &[&args[..], &["--workload", "ao,diffuse", "--ao-rays", "3"]].concat()));
+    let (ao, diffuse) = (v["ao_rays"].as_u64().unwrap(), v["diffuse_rays"].as_u64().unwrap());
+    assert!(diffuse > 0 && diffuse <= v["hits"].as_u64().unwrap() && ao == 3 * diffuse, "{v}");
+    assert!(v["ao_mrays_per_s"].as_f64().unwrap() > 0.0 && v["diffuse_mrays_per_s"].as_f64().unwrap() > 0.0);
+    let only_ao = json(&rttest(&dir, &[&args[..], &["--workload", "ao"]].concat()));
+    assert!(only_ao["ao_rays"].as_u64().unwrap() == 4 * diffuse && only_ao.get("diffuse_rays").is_none());
+    let none = json(&rttest(&dir, &args));
+    assert!(none.get("ao_rays").is_none() && none.get("diffuse_mrays_per_s").is_none());
+}
+
+#[test]
+fn dynamic_reports_every_frame_with_identical_shadows() {
+    let dir = scratch("dynamic");
+    let out = rttest(&dir, &["dynamic", "--scene", "arena", "--frames", "2", "--size", "24x16", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&out.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(rows.len(), 2);
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r["frame"], k as u64);
+        assert_eq!(r["scene"], "arena-animated");
+        assert_eq!(r["identical"], true);
+        assert!(r["kept"].as_u64() < r["triangles"].as_u64() && r["frame_culled_ms"].as_array().unwrap().len() == 2);
+    }
+}
+
+#[test]
 fn bad_input_gives_one_line_and_non_zero_exit() {
     let dir = scratch("errors");
     let cases: &[&[&str]] = &[

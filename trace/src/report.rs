@@ -214,6 +214,34 @@ pub struct RenderReport {
     /// Traversal work per ray, with `--counters` (flattened into the JSON object).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub traversal: Option<TraversalReport>,
+    /// The incoherent workload's streams, with `--workload` (flattened into the JSON object).
+    #[serde(flatten)]
+    pub workload: WorkloadReport,
+}
+
+/// The incoherent workload of a frame (`crate::workload`: ambient-occlusion rays, any hit;
+/// one diffuse bounce, closest hit) traced by the method's stream queries, the best of the
+/// frames; each field present only for the streams asked for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct WorkloadReport {
+    /// Ambient-occlusion rays traced per frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ao_rays: Option<u64>,
+    /// Best milliseconds of the AO stream.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ao_ms: Option<f64>,
+    /// `ao_rays / ao_ms / 1e3`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ao_mrays_per_s: Option<f64>,
+    /// Diffuse-bounce rays traced per frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diffuse_rays: Option<u64>,
+    /// Best milliseconds of the diffuse stream.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diffuse_ms: Option<f64>,
+    /// `diffuse_rays / diffuse_ms / 1e3`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diffuse_mrays_per_s: Option<f64>,
 }
 
 /// Mean traversal work per ray, from one counted frame (`--counters`), and for the packet
@@ -356,6 +384,13 @@ impl fmt::Display for RenderReport {
             self.primary_mrays_per_s,
             self.shadow_mrays_per_s
         )?;
+        let w = &self.workload;
+        if let (Some(rays), Some(ms), Some(m)) = (w.ao_rays, w.ao_ms, w.ao_mrays_per_s) {
+            writeln!(f, "ao           {rays} rays, {ms:.2} ms (best of {} frames): {m:.2} Mrays/s", self.frames)?;
+        }
+        if let (Some(rays), Some(ms), Some(m)) = (w.diffuse_rays, w.diffuse_ms, w.diffuse_mrays_per_s) {
+            writeln!(f, "diffuse      {rays} rays, {ms:.2} ms (best of {} frames): {m:.2} Mrays/s", self.frames)?;
+        }
         if let Some(t) = &self.traversal {
             writeln!(
                 f,

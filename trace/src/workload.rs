@@ -50,6 +50,20 @@ pub fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 }
 
 impl Incoherent {
+    /// The incoherent rays of a frame exactly as `rttest compare` makes them: the primary
+    /// hits of single rays on `tree` (the reference every method is checked against), taken
+    /// in the order of the frame's tiles of side [`crate::registry::TILE_SIZE`], then
+    /// [`Incoherent::generate`] with the tree's bounding-box diagonal. `rttest render
+    /// --workload` traces these, so its figures and `compare`'s columns measure the same rays.
+    pub fn of_frame(scene: &Scene, tree: &kdtree::KdTree, camera: &Camera, ao_per_hit: u32, seed: u64) -> Incoherent {
+        let layout = crate::TileLayout::new(camera.width, camera.height, crate::registry::TILE_SIZE);
+        let mut hits = vec![None; layout.pixel_count()];
+        let (_, kdtree::NoCounters) = crate::frame::primary_pass(&crate::SingleRays(tree), &layout, camera, &mut hits);
+        let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
+        let diagonal = (tree.bounds().max - tree.bounds().min).length();
+        Incoherent::generate(scene, camera, pixels, &hits, diagonal, ao_per_hit, seed)
+    }
+
     /// The incoherent rays of the primary `hits` (any order; `pixels[i]` is the pixel of
     /// `hits[i]`) of `camera` on `scene`: `ao_per_hit` AO rays and one diffuse ray per hit
     /// whose origin and normal are finite. `diagonal` is the scene's bounding-box diagonal.
@@ -103,6 +117,28 @@ mod tests {
         }
         // E[cos] = 2/3 under the cosine density (1/2 if uniform over the hemisphere).
         assert!((mean_cos - 2.0 / 3.0).abs() < 0.01, "{mean_cos}");
+    }
+
+    #[test]
+    fn a_frames_rays_are_those_of_its_single_ray_hits_in_tile_order() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        let camera = scene.default_view().camera(40, 24).unwrap();
+        let tree = kdtree::KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let rays = Incoherent::of_frame(&scene, &tree, &camera, 3, SEED);
+        // The same hits, gathered pixel by pixel in the layout's tile order.
+        let layout = crate::TileLayout::new(40, 24, crate::registry::TILE_SIZE);
+        let pixels: Vec<(u32, u32)> = layout.tiles().iter().flat_map(|t| t.pixels()).collect();
+        let hits: Vec<Option<Hit>> =
+            pixels.iter().map(|&(x, y)| tree.intersect(&crate::method::primary_ray(&camera, x, y))).collect();
+        let diag = (tree.bounds().max - tree.bounds().min).length();
+        let expected = Incoherent::generate(&scene, &camera, pixels.iter().copied(), &hits, diag, 3, SEED);
+        assert!(!expected.diffuse.is_empty() && expected.ao.len() == 3 * expected.diffuse.len());
+        let key = |r: &Ray| (r.origin.to_array(), r.dir.to_array(), r.t_min, r.t_max);
+        assert_eq!(rays.ao.iter().map(key).collect::<Vec<_>>(), expected.ao.iter().map(key).collect::<Vec<_>>());
+        assert_eq!(
+            rays.diffuse.iter().map(key).collect::<Vec<_>>(),
+            expected.diffuse.iter().map(key).collect::<Vec<_>>()
+        );
     }
 
     #[test]

@@ -15,14 +15,16 @@ use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
 use trace::registry::{KDTREE, Selected, TILE_SIZE};
-use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary};
+use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, WorkloadReport};
 use trace::timing::mrays_per_s;
+use trace::workload::{self, Incoherent};
 use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, Structures};
 
 use crate::progress::{self, Bar};
 
 pub mod compare;
 pub mod culling;
+pub mod dynamic;
 pub mod heatmap;
 pub mod leaks;
 pub mod main_job;
@@ -89,6 +91,8 @@ pub enum Command {
     SahSweep(sah_sweep::SahSweepArgs),
     /// Pre-BVH culling for shadow rays: culled fraction, build and trace with and without.
     Culling(culling::CullingArgs),
+    /// Pre-BVH culling on an animated scene rebuilt every frame: per frame and in total.
+    Dynamic(dynamic::DynamicArgs),
 }
 
 /// Which scene and how its tree is built.
@@ -289,6 +293,23 @@ pub struct RenderArgs {
     /// (and, for packet methods, per 2x2 packet).
     #[arg(long)]
     pub counters: bool,
+    /// Also time the incoherent workload's streams through the method (`ao`: --ao-rays
+    /// any-hit rays per primary hit, a tenth of the scene's diagonal long; `diffuse`: one
+    /// closest-hit bounce per hit), the same rays as `compare`'s columns, best of --frames.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "ao,diffuse")]
+    pub workload: Vec<WorkloadArg>,
+    /// Ambient-occlusion rays per primary hit for `--workload ao` (1 to 64).
+    #[arg(long, default_value_t = 4, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub ao_rays: u32,
+}
+
+/// `--workload` values: the incoherent streams of `trace::workload`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum WorkloadArg {
+    /// Ambient-occlusion rays (any hit).
+    Ao,
+    /// One diffuse bounce per hit (closest hit).
+    Diffuse,
 }
 
 /// `--shadows` values.
@@ -429,6 +450,7 @@ pub fn run(cli: Cli) -> Result<(), Error> {
         Some(Command::Compare(args)) => compare::run(&global, &args),
         Some(Command::SahSweep(args)) => sah_sweep::run(&global, &args),
         Some(Command::Culling(args)) => culling::run(&global, &args),
+        Some(Command::Dynamic(args)) => dynamic::run(&global, &args),
         None => main_job::run(&global),
     })
 }
@@ -684,6 +706,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         let packets = method.entry.packets.then(|| renderer.packet_count());
         TraversalReport::new(stats.primary_rays, primary, stats.shadow_rays, shadow, packets)
     });
+    let workload = time_workload(built, &method, &camera, args);
     let (shade_secs, write_secs) = match (write, args.aov.cost()) {
         (false, _) => (0.0, 0.0),
         (true, None) => write_image(&renderer, &buffers, args.aov, &out)?,
@@ -720,7 +743,35 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         write_secs,
         out: write.then(|| out.display().to_string()),
         traversal,
+        workload,
     })
+}
+
+/// `--workload`: the incoherent rays of the frame (`Incoherent::of_frame`, as `compare`
+/// makes them) traced by `method`'s stream queries `args.frames` times; the best times.
+fn time_workload(built: &Built, method: &trace::Bound<'_>, camera: &Camera, args: &RenderArgs) -> WorkloadReport {
+    let mut report = WorkloadReport::default();
+    if args.workload.is_empty() {
+        return report;
+    }
+    let rays = Incoherent::of_frame(&built.scene, &built.tree, camera, args.ao_rays, workload::SEED);
+    let best =
+        |f: &mut dyn FnMut()| (0..args.frames).map(|_| trace::timing::timed(&mut *f).0).fold(f64::INFINITY, f64::min);
+    if args.workload.contains(&WorkloadArg::Ao) {
+        let mut out = vec![false; rays.ao.len()];
+        let secs = best(&mut || method.tracer.stream_occluded(&rays.ao, &mut out));
+        report.ao_rays = Some(rays.ao.len() as u64);
+        report.ao_ms = Some(secs * 1e3);
+        report.ao_mrays_per_s = Some(mrays_per_s(rays.ao.len() as u64, secs));
+    }
+    if args.workload.contains(&WorkloadArg::Diffuse) {
+        let mut out = vec![None; rays.diffuse.len()];
+        let secs = best(&mut || method.tracer.stream(&rays.diffuse, &mut out));
+        report.diffuse_rays = Some(rays.diffuse.len() as u64);
+        report.diffuse_ms = Some(secs * 1e3);
+        report.diffuse_mrays_per_s = Some(mrays_per_s(rays.diffuse.len() as u64, secs));
+    }
+    report
 }
 
 /// Rejects a bad `--cost-max`, and `--compare-methods` without a cost `--aov`, before any

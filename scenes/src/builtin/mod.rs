@@ -11,19 +11,22 @@ use glam::{Vec2, Vec3};
 
 use crate::{PointLight, RectLight, Scene, View};
 
+mod animated;
 mod arena;
 mod atrium;
 mod grove;
 pub mod shapes;
 mod small;
 
+pub use animated::animated;
 pub use atrium::{atrium, atrium_at_detail, atrium_rotated};
 pub use grove::{MAX_GROVES, grove_grid};
 
 /// Names of the built-in scenes, the default first.
 ///
-/// [`by_name`] also accepts `atrium-xN` for N = 2, 4, 8, ... (see [`atrium_at_detail`]) and
-/// `grove-xN` for N = 1 to 64 (see [`grove_grid`]).
+/// [`by_name`] also accepts `atrium-xN` for N = 2, 4, 8, ... (see [`atrium_at_detail`]),
+/// `grove-xN` for N = 1 to 64 (see [`grove_grid`]) and `NAME-animated` (frame 0 of
+/// [`animated`] over the built-in `NAME`).
 pub const NAMES: &[&str] = &[
     "atrium",
     "arena",
@@ -51,6 +54,10 @@ pub fn by_name(name: &str) -> Option<Scene> {
         "touching-boxes" => Some(small::touching_boxes()),
         "axis-plane-triangle" => Some(small::axis_plane_triangle()),
         _ => {
+            if let Some(base) = name.strip_suffix("-animated") {
+                // One level: "arena-animated-animated" is not a name.
+                return (!base.ends_with("-animated")).then(|| by_name(base)).flatten().map(|s| animated(&s, 0));
+            }
             if let Some(count) = name.strip_prefix("grove-x") {
                 // Digits only: "+3" or " 3" would parse but are not names.
                 if count.is_empty() || !count.bytes().all(|b| b.is_ascii_digit()) {
