@@ -53,6 +53,14 @@ impl ShadowMethod {
 /// unit square, mapped to the light's disk facing `p` (Shirley's concentric map keeps the
 /// strata of equal area). `None` when `p` is inside the light or the input is not finite.
 pub fn light_samples(p: Vec3, light: &SphereLight) -> Option<[Vec3; SAMPLES]> {
+    jittered_light_samples(p, light, (0.0, 0.0))
+}
+
+/// [`light_samples`] with every sample moved by `jitter` (each component in `[-0.5, 0.5)`,
+/// in units of a stratum) inside its stratum of the square before the concentric map: the
+/// same strata, another point in each (the viewer's progressive soft shadows). A zero jitter
+/// gives exactly [`light_samples`].
+pub fn jittered_light_samples(p: Vec3, light: &SphereLight, jitter: (f64, f64)) -> Option<[Vec3; SAMPLES]> {
     let axis = (light.center - p).as_dvec3();
     let dist = axis.length();
     if !dist.is_finite() || light.radius.is_nan() || light.radius < 0.0 || dist <= f64::from(light.radius) {
@@ -64,10 +72,15 @@ pub fn light_samples(p: Vec3, light: &SphereLight) -> Option<[Vec3; SAMPLES]> {
     let v = w.cross(u);
     let r = f64::from(light.radius);
     let c = light.center.as_dvec3();
+    let (ja, jb) = jitter;
     Some(std::array::from_fn(|i| {
-        let (a, b) = (((i % 4) as f64 + 0.5) / 2.0 - 1.0, ((i / 4) as f64 + 0.5) / 2.0 - 1.0);
-        // Concentric map of [-1, 1]^2 to the unit disk.
-        let (rho, phi) = if a.abs() > b.abs() {
+        let a = ((i % 4) as f64 + 0.5 + ja) / 2.0 - 1.0;
+        let b = ((i / 4) as f64 + 0.5 + jb) / 2.0 - 1.0;
+        // Concentric map of [-1, 1]^2 to the unit disk (the centre of the square, reachable
+        // only with a jitter, maps to the disk's centre).
+        let (rho, phi) = if a == 0.0 && b == 0.0 {
+            (0.0, 0.0)
+        } else if a.abs() > b.abs() {
             (a, std::f64::consts::FRAC_PI_4 * (b / a))
         } else {
             (b, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b))

@@ -153,6 +153,25 @@ pub struct CullingRow {
     pub threads: usize,
 }
 
+impl CullingRow {
+    /// The table cells shared by `rttest culling` and `rttest dynamic` for structure `i`
+    /// (0 kd-tree, 1 mbvh): build, trace and frame ms without and with culling, the speed-up
+    /// and whether the answers were identical.
+    pub(crate) fn timing_cells(&self, i: usize) -> String {
+        format!(
+            "{:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {}",
+            self.build_ms[i],
+            self.build_culled_ms[i],
+            self.trace_ms[i],
+            self.trace_culled_ms[i],
+            self.frame_ms[i],
+            self.frame_culled_ms[i],
+            self.frame_ms[i] / self.frame_culled_ms[i],
+            if self.identical { "yes" } else { "NO" },
+        )
+    }
+}
+
 /// The report: rows and the configuration.
 #[derive(Clone, Debug)]
 pub struct CullingReport {
@@ -275,22 +294,8 @@ impl std::fmt::Display for CullingReport {
         let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
         for r in &self.rows {
             for (i, s) in ["kdtree", "mbvh"].iter().enumerate() {
-                let _ = writeln!(
-                    out,
-                    "| {} | {s} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {} |",
-                    r.scene,
-                    r.triangles,
-                    r.kept,
-                    r.culled_percent,
-                    r.build_ms[i],
-                    r.build_culled_ms[i],
-                    r.trace_ms[i],
-                    r.trace_culled_ms[i],
-                    r.frame_ms[i],
-                    r.frame_culled_ms[i],
-                    r.frame_ms[i] / r.frame_culled_ms[i],
-                    if r.identical { "yes" } else { "NO" },
-                );
+                let (t, k, c, cells) = (r.triangles, r.kept, r.culled_percent, r.timing_cells(i));
+                let _ = writeln!(out, "| {} | {s} | {t} | {k} | {c:.1} | {cells} |", r.scene);
             }
         }
         f.write_str(&out)

@@ -127,23 +127,8 @@ impl std::fmt::Display for DynamicReport {
         for r in &self.rows {
             let c = &r.culling;
             for (i, s) in ["kdtree", "mbvh"].iter().enumerate() {
-                let _ = writeln!(
-                    out,
-                    "| {} | {s} | {} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {} |",
-                    r.frame,
-                    c.triangles,
-                    c.kept,
-                    c.culled_percent,
-                    c.shadow_rays,
-                    c.build_ms[i],
-                    c.build_culled_ms[i],
-                    c.trace_ms[i],
-                    c.trace_culled_ms[i],
-                    c.frame_ms[i],
-                    c.frame_culled_ms[i],
-                    c.frame_ms[i] / c.frame_culled_ms[i],
-                    if c.identical { "yes" } else { "NO" },
-                );
+                let (t, k, p, rays, cells) = (c.triangles, c.kept, c.culled_percent, c.shadow_rays, c.timing_cells(i));
+                let _ = writeln!(out, "| {} | {s} | {t} | {k} | {p:.1} | {rays} | {cells} |", r.frame);
             }
         }
         let n = self.rows.len().max(1) as f64;

@@ -41,31 +41,9 @@ pub const MEDIAN_DEPTH: u32 = 48;
 /// Binary nodes with more triangles than this are split in parallel.
 const PARALLEL: usize = 4096;
 
-/// Why a build failed.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum BuildError {
-    /// A vertex with a NaN or infinite coordinate.
-    #[error("vertex {index} is not finite: {position}")]
-    NonFiniteVertex {
-        /// The vertex's index.
-        index: usize,
-        /// Its position.
-        position: Vec3,
-    },
-    /// A triangle naming a vertex that does not exist.
-    #[error("triangle {triangle} names vertex {vertex}, but there are {count} vertices")]
-    BadIndex {
-        /// The triangle.
-        triangle: usize,
-        /// The vertex it names.
-        vertex: u32,
-        /// How many vertices there are.
-        count: usize,
-    },
-    /// More triangles or nodes than the 31-bit child words hold.
-    #[error("too large for 31-bit node and block indices: {0}")]
-    TooLarge(String),
-}
+/// Why a build failed: the kd-tree's errors (a non-finite vertex, an index out of range,
+/// more than the index widths hold), so that both structures refuse the same input alike.
+pub use kdtree::BuildError;
 
 /// One triangle in the build: its box, centroid and id.
 #[derive(Clone, Copy, Debug)]
@@ -104,7 +82,7 @@ pub(crate) fn prims(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<Pr
     let mut out = Vec::with_capacity(triangles.len());
     for (i, t) in triangles.iter().enumerate() {
         if let Some(&vertex) = t.iter().find(|&&v| v as usize >= positions.len()) {
-            return Err(BuildError::BadIndex { triangle: i, vertex, count: positions.len() });
+            return Err(BuildError::IndexOutOfRange { triangle: i, vertex, vertices: positions.len() });
         }
         let tri = t.map(|v| positions[v as usize]);
         if is_degenerate(&tri) {

@@ -13,6 +13,7 @@ pub mod builtin;
 pub mod camera;
 pub mod colormap;
 pub mod error;
+pub mod files;
 pub mod font;
 pub mod image;
 pub mod light;

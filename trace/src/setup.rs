@@ -61,7 +61,7 @@ pub fn save_tree(path: &Path, tree: &KdTree, scene: &Scene) -> Result<(), Error>
     let file_error = |message: String| Error::File { path: path.to_path_buf(), message };
     let bytes = kdtree::treefile::to_bytes(tree, &scene.mesh.positions, &scene.mesh.triangles)
         .map_err(|e| file_error(format!("cannot save the tree of scene '{}': {e}", scene.name)))?;
-    std::fs::write(path, bytes).map_err(|e| file_error(format!("cannot write the tree file: {e}")))
+    scenes::files::write_bytes(path, &bytes).map_err(|e| file_error(format!("cannot write the tree file: {e}")))
 }
 
 /// Reads the tree file `path` (one read) and loads its tree for `scene`, asking for the
@@ -70,7 +70,7 @@ pub fn save_tree(path: &Path, tree: &KdTree, scene: &Scene) -> Result<(), Error>
 /// problem.
 pub fn load_tree(path: &Path, scene: &Scene, config: &BuildConfig, checks: Checks) -> Result<KdTree, Error> {
     let file_error = |message: String| Error::File { path: path.to_path_buf(), message };
-    let bytes = std::fs::read(path).map_err(|e| file_error(format!("cannot read the tree file: {e}")))?;
+    let bytes = scenes::files::read_bytes(path).map_err(|e| file_error(format!("cannot read the tree file: {e}")))?;
     kdtree::treefile::from_bytes(&bytes, &scene.mesh.positions, &scene.mesh.triangles, config, checks)
         .map_err(|e| file_error(format!("cannot load the tree for scene '{}': {e}", scene.name)))
 }

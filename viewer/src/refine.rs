@@ -9,10 +9,8 @@
 //! (`FrameTracer::stream_occluded`); the running mean converges to the light's visible
 //! fraction.
 
-use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
-
 use cones::shadows::{SAMPLES, shadow_rays};
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use kdtree::Ray;
 use scenes::SphereLight;
 
@@ -39,29 +37,7 @@ pub fn jitter(k: u32) -> (f64, f64) {
 /// [`jitter`]`(k)` inside its stratum. `None` where `light_samples` has none (`p` inside the
 /// light, or not finite).
 pub fn samples(p: Vec3, light: &SphereLight, k: u32) -> Option<[Vec3; SAMPLES]> {
-    let axis = (light.center - p).as_dvec3();
-    let dist = axis.length();
-    if !dist.is_finite() || light.radius.is_nan() || light.radius < 0.0 || dist <= f64::from(light.radius) {
-        return None;
-    }
-    let w = axis / dist;
-    let helper = if w.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-    let u = w.cross(helper).normalize();
-    let v = w.cross(u);
-    let (r, c) = (f64::from(light.radius), light.center.as_dvec3());
-    let (ja, jb) = jitter(k);
-    Some(std::array::from_fn(|i| {
-        let a = ((i % 4) as f64 + 0.5 + ja) / 2.0 - 1.0;
-        let b = ((i / 4) as f64 + 0.5 + jb) / 2.0 - 1.0;
-        let (rho, phi) = if a == 0.0 && b == 0.0 {
-            (0.0, 0.0)
-        } else if a.abs() > b.abs() {
-            (a, FRAC_PI_4 * (b / a))
-        } else {
-            (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
-        };
-        (c + r * rho * (phi.cos() * u + phi.sin() * v)).as_vec3()
-    }))
+    cones::shadows::jittered_light_samples(p, light, jitter(k))
 }
 
 /// The 16 shadow rays of pass `k` from `start` (a point already moved off its surface by
