@@ -371,8 +371,8 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         let build = build_ms.iter().find(|b| b.0 == entry.structure).map_or(0.0, |b| b.1);
         let layout = TileLayout::new(w, h, method.options.tile);
         let hits = vec![None; layout.pixel_count()];
-        let shadow = shadows.get(entry.shadow_kernel, index);
-        let soft = (!config.no_soft).then(|| softs.get(entry.soft_kernel, index));
+        let shadow = shadows.get(&entry.shadow_kernel_for(&method.options), index);
+        let soft = (!config.no_soft).then(|| softs.get(&entry.soft_kernel_for(&method.options), index));
         contenders.push(Contender { method, build_ms: build, layout, hits, shadow, soft });
     }
 
@@ -707,19 +707,26 @@ mod tests {
     }
 
     /// A whole (tiny) run: every method of ours gives the reference hits, and the rows share
-    /// the single-ray shadow kernel and name their soft-shadow kernels.
+    /// their hard-shadow kernels (single rays, 2x2 packets, or each tile's frusta) and name
+    /// their soft-shadow kernels.
     #[test]
     fn a_run_of_ours_has_no_mismatch() {
         let report = run(&config(&["ours"]), &trace::progress::Quiet).unwrap();
-        assert_eq!(report.rows.len(), 3 + 4 * 2 + 1);
+        assert_eq!(report.rows.len(), names(&["ours"]).unwrap().len());
         for r in &report.rows {
             // mbvh-4 traces another structure: at equal distance it may name the other
             // triangle of a tie (the harness's rules); the kd-tree methods name `mono`'s.
             let m = &r.mismatches;
             let differing = if r.method == "mbvh-4" { m.prim_mismatch - m.prim_ties } else { m.prim_mismatch };
             assert_eq!(differing, 0, "{}: {m:?}", r.method);
-            let kernel = if r.method == "mbvh-4" { "mbvh-4" } else { "kd-single" };
-            assert_eq!(r.shadow_kernel.as_deref(), Some(kernel));
+            // Hard shadows: single rays for `mono`, shadow frusta for `multi-frusta-N`, 2x2
+            // packets for the other tiled and packet methods.
+            let kernel = match r.method.as_str() {
+                "mono" => "kd-single".to_string(),
+                "mbvh-4" => "mbvh-4".to_string(),
+                m => m.strip_prefix("multi-frusta-").map_or("kd-packets".to_string(), |t| format!("kd-frusta-{t}")),
+            };
+            assert_eq!(r.shadow_kernel.as_deref(), Some(kernel.as_str()));
             assert!(r.primary_mrays_per_s > 0.0);
             // The incoherent columns: every method timed on the same rays, same answers.
             assert!(r.ao_rays > 0 && r.diffuse_rays > 0 && r.ao_rays == 4 * r.diffuse_rays, "{}", r.method);
@@ -733,8 +740,10 @@ mod tests {
         }
         let soft = |m: &str| report.rows.iter().find(|r| r.method == m).and_then(|r| r.soft16_kernel.clone());
         assert_eq!(soft("mono").as_deref(), Some("kd-single"));
-        assert_eq!(soft("mft-8").as_deref(), Some("kd-pyramid"));
+        assert_eq!(soft("packet").as_deref(), Some("kd-pyramid"));
+        assert_eq!(soft("mft-8").as_deref(), Some("kd-stratum-packets"));
         assert_eq!(soft("cone-16").as_deref(), Some("kd-cone"));
+        assert_eq!(soft("multi-frusta-16").as_deref(), Some("kd-multi-frusta-16"));
         let text = report.to_string();
         assert!(text.contains("| mft-cone-16 |") && text.contains("| mbvh-4 |") && text.contains("ao Mrays/s"));
         let quiet = CompareConfig { no_incoherent: true, ..config(&["mbvh-4"]) };

@@ -4,7 +4,8 @@
 //! `trace::Registry::ours()` (streams of mixed origins and of one origin, tiles 4 and 16)
 //! gives the single-ray hits (or a tie at the same distance, or a difference by a rounding
 //! artefact on a triangle the ray cannot reach: `BruteForce::equivalent_hits`), closest and
-//! any hit; rejected rays still traverse without a panic.
+//! any hit, and the shadow kernels (a shadow frustum of all the rays, 2x2 same-sign any-hit
+//! packets) give the single rays' occlusion; rejected rays still traverse without a panic.
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -12,7 +13,7 @@ use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use libfuzzer_sys::fuzz_target;
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer};
+use packets::{OmniPacket, RayPacket, ShadowFrustum, TileMethod, TileTracer};
 use trace::{Options, Registry, Structures};
 
 #[derive(Arbitrary, Debug)]
@@ -86,6 +87,26 @@ fuzz_target!(|input: Input| {
                     want_any[i]
                 );
             }
+        }
+    }
+
+    // The shadow kernels on the accepted rays (segments from mixed origins, finite or not,
+    // the shadow rays of `trace::shadow_frusta`): Benthin & Wald's shadow frustum over all of
+    // them, and 2x2 same-sign packets, each ray against its single ray's occlusion.
+    let mut frustum = ShadowFrustum::new();
+    for ray in &accepted {
+        frustum.push(*ray);
+    }
+    frustum.trace(&tree, &mut NoCounters);
+    for (i, (ray, &got)) in accepted.iter().zip(frustum.blocked()).enumerate() {
+        let want = tree.occluded(ray);
+        assert!(oracle.equivalent_occlusion(ray, got, want), "shadow frustum ray {i}: {got}, single ray {want}");
+    }
+    for (c, four) in accepted.chunks(4).enumerate() {
+        let found = packets::samesign::occluded(&tree, &RayPacket::new(four), &mut NoCounters).found.bitmask();
+        for (lane, ray) in four.iter().enumerate() {
+            let (got, want) = (found >> lane & 1 != 0, tree.occluded(ray));
+            assert!(oracle.equivalent_occlusion(ray, got, want), "shadow packet {c} lane {lane}: {got}, single {want}");
         }
     }
 

@@ -16,6 +16,9 @@
 //!   of a tile of 2x2 packets, with packet/leaf culling (4.1.4), written once for one frustum
 //!   and for Multiple Frustum Traversal (4.1.5: the tile's four quadrant frusta in the four
 //!   lanes of a `Vec4`, masked when inactive or complete).
+//! - [`shadow_frustum`]: groups of shadow rays that share no origin (a tile's rays to a
+//!   light, or to one cell of an area light) as one frustum from the box of their starts to
+//!   the box of their ends (Benthin & Wald 2009), any hit per ray, exact per ray.
 //! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
 //! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant: the
 //!   scratch state of a trace.
@@ -38,6 +41,7 @@ pub mod mirror;
 pub mod omni;
 pub mod packet;
 pub mod samesign;
+pub mod shadow_frustum;
 pub mod tile;
 pub mod triangle4;
 
@@ -45,4 +49,5 @@ pub use bound::FrustumBound;
 pub use frustum::Frusta;
 pub use method::TileMethod;
 pub use packet::{OmniPacket, PacketHit, RayPacket};
+pub use shadow_frustum::ShadowFrustum;
 pub use tile::TileTracer;

@@ -135,8 +135,22 @@ pub(crate) fn traverse<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters,
     order: &O,
     counters: &mut C,
 ) -> PacketHit {
+    traverse_from::<O, T, C, ANY_HIT>(tree, records, rays, order, (0, root_interval(tree, rays)), counters)
+}
+
+/// [`traverse`] from the node `start` with the lanes' intervals `(near, far)` inside its box
+/// (those from the root box for the root), visiting only its subtree: a group of rays handed
+/// over from a wider traversal (`crate::shadow_frustum`).
+#[inline(always)]
+pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    records: &[T],
+    rays: &RayPacket,
+    order: &O,
+    (start, (mut near, mut far)): (usize, (Vec4, Vec4)),
+    counters: &mut C,
+) -> PacketHit {
     let mut hit = PacketHit::new(rays);
-    let (mut near, mut far) = root_interval(tree, rays);
     // `limit` ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
     let mut limit = rays.t_max;
     let data = T::prepare4(rays);
@@ -144,7 +158,7 @@ pub(crate) fn traverse<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters,
     let refs = tree.prim_refs();
     let mut stack = [Entry::default(); STACK_SIZE];
     let mut sp = 0usize;
-    let mut index = 0usize;
+    let mut index = start;
     if !near.cmple(far).any() {
         return hit;
     }

@@ -29,6 +29,39 @@ use crate::triangle4::PacketTest;
 /// hit.
 #[inline]
 pub fn intersect<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
+    split_by_signs::<C, false>(tree, packet, None, counters)
+}
+
+/// Which of the packet's rays are blocked (any hit, the shadow query), splitting it by
+/// direction signs: the `found` lanes are the blocked rays, each lane leaving at its first
+/// hit. Invalid lanes are never blocked.
+#[inline]
+pub fn occluded<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
+    split_by_signs::<C, true>(tree, packet, None, counters)
+}
+
+/// [`occluded`] inside the subtree of node `from.0` only, the lanes' intervals in its box
+/// being `from.1` (from `RayPacket::clip` against that box): the shadow frusta of
+/// `crate::shadow_frustum` hand their rays over four at a time this way.
+#[inline]
+pub fn occluded_in<C: Counters>(
+    tree: &KdTree,
+    packet: &RayPacket,
+    from: (usize, (Vec4, Vec4)),
+    counters: &mut C,
+) -> PacketHit {
+    split_by_signs::<C, true>(tree, packet, Some(from), counters)
+}
+
+/// [`intersect`] or, with `ANY_HIT`, [`occluded`]; from the root, or from `from` as
+/// [`occluded_in`].
+#[inline(always)]
+fn split_by_signs<C: Counters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    packet: &RayPacket,
+    from: Option<(usize, (Vec4, Vec4))>,
+    counters: &mut C,
+) -> PacketHit {
     let mut hit = PacketHit::new(packet);
     for group in sign_groups(packet) {
         let mut sub = *packet;
@@ -36,8 +69,8 @@ pub fn intersect<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut 
         sub.t_min = Vec4::select(group, sub.t_min, Vec4::INFINITY);
         sub.t_max = Vec4::select(group, sub.t_max, Vec4::NEG_INFINITY);
         let part = match tree.intersector() {
-            Intersector::Wald => traverse(tree, tree.wald_records(), &sub, counters),
-            Intersector::Watertight => traverse(tree, tree.watertight_records(), &sub, counters),
+            Intersector::Wald => traverse::<_, C, ANY_HIT>(tree, tree.wald_records(), &sub, from, counters),
+            Intersector::Watertight => traverse::<_, C, ANY_HIT>(tree, tree.watertight_records(), &sub, from, counters),
         };
         hit.t = Vec4::select(group, part.t, hit.t);
         hit.u = Vec4::select(group, part.u, hit.u);
@@ -93,15 +126,25 @@ impl ChildOrder for SameSign {
 
 /// Traversal of a packet whose valid lanes share direction signs.
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: Counters>(
+fn traverse<T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     records: &[T],
     rays: &RayPacket,
+    from: Option<(usize, (Vec4, Vec4))>,
     counters: &mut C,
 ) -> PacketHit {
     let first = (rays.valid.bitmask().trailing_zeros() as usize).min(3);
     let upper_first = (0..3).fold(0usize, |m, a| m | usize::from(rays.d[a][first].is_sign_negative()) << a);
-    omni::traverse::<_, _, C, false>(tree, records, rays, &SameSign(upper_first), counters)
+    let order = SameSign(upper_first);
+    match from {
+        None => omni::traverse::<_, _, C, ANY_HIT>(tree, records, rays, &order, counters),
+        Some((node, (near, far))) => {
+            // The lanes outside this sign group are empty intervals.
+            let (near, far) =
+                (Vec4::select(rays.valid, near, Vec4::INFINITY), Vec4::select(rays.valid, far, Vec4::NEG_INFINITY));
+            omni::traverse_from::<_, _, C, ANY_HIT>(tree, records, rays, &order, (node, (near, far)), counters)
+        }
+    }
 }
 
 #[cfg(test)]

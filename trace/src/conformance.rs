@@ -836,11 +836,13 @@ fn check_case(
         m.tracer.stream_occluded(&case.rays, &mut occluded);
         (hits, occluded)
     };
-    // The soft-shadow kernel takes no tile: one check per method and rule.
-    let mut soft_done: BTreeSet<(&'static str, String, Rule)> = BTreeSet::new();
+    // Most soft-shadow kernels take no tile: one check per method, kernel (with its tile
+    // where it takes one, `Entry::soft_kernel_for`) and rule.
+    let mut soft_done: BTreeSet<(&'static str, String, String, Rule)> = BTreeSet::new();
     for check in &plan.checks {
         let m = bind(registry, &check.method, check.options, structures);
-        let soft = soft_done.insert((m.entry.name, check.reference.clone(), check.rule));
+        let kernel = m.entry.soft_kernel_for(&m.options);
+        let soft = soft_done.insert((m.entry.name, kernel, check.reference.clone(), check.rule));
         let tile = m.options.tile;
         let reference = bind(registry, &check.reference, Options { tile, culling: true }, structures);
         let label = format!(

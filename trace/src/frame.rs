@@ -14,15 +14,14 @@
 //! same passes behind a `dyn` (one virtual call per pass, never per ray), which is how the
 //! registry hands methods out ([`crate::registry`]).
 
-use cones::shadows::{SAMPLES, light_samples, shadow_rays};
 use kdtree::Counts;
 use kdtree::{Hit, NoCounters, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
 use crate::aov::{Attribution, PixelCost};
-use crate::method::{Method, ShadowJob, TileCounters};
-use crate::soft;
+pub use crate::method::SoftStats;
+use crate::method::{Method, ShadowJob, SoftJob, TileCounters};
 
 /// An image split into tiles, with each tile's offset into tile-ordered per-pixel buffers.
 #[derive(Clone, Debug)]
@@ -102,17 +101,6 @@ impl TileLayout {
         }
         out
     }
-}
-
-/// What a soft-shadow pass traced.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SoftStats {
-    /// Points that traced shadow rays (hits facing the light, outside it).
-    pub points: u64,
-    /// Shadow rays traced (16 per point).
-    pub rays: u64,
-    /// Shadow rays blocked.
-    pub blocked: u64,
 }
 
 /// What a tile's pass returns, summed over tiles.
@@ -217,21 +205,7 @@ pub fn soft_pass<M: Method, C: TileCounters>(
 ) -> (SoftStats, C) {
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(visible)).collect();
     over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
-        let mut stats = SoftStats::default();
-        for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
-            *slot = 0.0;
-            let Some(hit) = hit else { continue };
-            let dir = camera.pixel_ray(x, y).1;
-            let Some((start, cone)) = soft::shadow_start(scene, light, hit, dir) else { continue };
-            let Some(samples) = light_samples(start, light) else { continue };
-            let mask = method.soft_point(scratch, &shadow_rays(start, &samples), &cone, counts);
-            let n = u64::from(mask.count_ones());
-            stats.points += 1;
-            stats.blocked += n;
-            *slot = 1.0 - n as f32 / SAMPLES as f32;
-        }
-        stats.rays = stats.points * SAMPLES as u64;
-        stats
+        method.soft_tile(scratch, &SoftJob { scene, camera, tile, hits, light }, out, counts)
     })
 }
 

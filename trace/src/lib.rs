@@ -42,6 +42,7 @@ pub mod render;
 pub mod report;
 pub mod setup;
 pub mod shade;
+pub mod shadow_frusta;
 pub mod soft;
 pub mod ties;
 pub mod timing;
@@ -49,6 +50,6 @@ pub mod workload;
 
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
-pub use method::{Method, ShadowJob, SingleRays, TileCounters, Tracer};
+pub use method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, Tracer};
 pub use registry::{Bound, Options, Registry, Structures};
 pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

@@ -18,11 +18,11 @@
 //! ([`crate::registry`]) makes one from a name.
 
 use cones::Cone;
-use cones::shadows::SAMPLES;
+use cones::shadows::{SAMPLES, light_samples, shadow_rays};
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
-use scenes::{Camera, Scene, Tile};
+use scenes::{Camera, Scene, SphereLight, Tile};
 
-use crate::shade;
+use crate::{shade, soft};
 
 /// The counters a frame pass sums over tiles on several threads: any [`Counters`] that is
 /// `Send` ([`NoCounters`] for timed frames, where counting compiles away; [`Counts`] for
@@ -111,6 +111,21 @@ pub trait Method: Sync {
         out: &mut [bool],
         counters: &mut C,
     ) -> (u64, u64);
+
+    /// The 16-sample soft shadows of one tile ([`SoftJob`]: the rays of [`SoftJob::point`] at
+    /// its primary hits): the visible fraction per pixel into `visible` (1 minus the share of
+    /// blocked rays; 0 where no ray is cast). The default traces each point's rays with
+    /// [`Method::soft_point`]; a method that bounds several points' rays together (Benthin &
+    /// Wald's multi-frusta) overrides it.
+    fn soft_tile<C: TileCounters>(
+        &self,
+        scratch: &mut Self::Scratch,
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        soft_by_points(self, scratch, job, visible, counters)
+    }
 
     /// Which of the 16 soft-shadow `rays` of one point are blocked, bit `i` for ray `i`;
     /// `cone` holds all of them (thesis 4.1.9, Table 4.6).
@@ -220,6 +235,80 @@ impl ShadowJob<'_> {
     /// Each pixel of the tile with its primary hit: `(x, y, hit)`.
     pub fn pixels(&self) -> impl Iterator<Item = (u32, u32, &Option<Hit>)> {
         self.tile.pixels().zip(self.hits).map(|((x, y), h)| (x, y, h))
+    }
+}
+
+/// What a soft-shadow pass traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SoftStats {
+    /// Points that traced shadow rays (hits facing the light, outside it).
+    pub points: u64,
+    /// Shadow rays traced (16 per point).
+    pub rays: u64,
+    /// Shadow rays blocked.
+    pub blocked: u64,
+}
+
+impl SoftStats {
+    /// Counts a point whose 16 rays gave the blocked mask `mask`; returns its visible
+    /// fraction.
+    #[inline]
+    pub fn add_point(&mut self, mask: u16) -> f32 {
+        let n = u64::from(mask.count_ones());
+        self.points += 1;
+        self.rays += SAMPLES as u64;
+        self.blocked += n;
+        1.0 - n as f32 / SAMPLES as f32
+    }
+}
+
+/// [`Method::soft_tile`] point by point: each point's 16 rays through
+/// [`Method::soft_point`].
+pub fn soft_by_points<M: Method + ?Sized, C: TileCounters>(
+    method: &M,
+    scratch: &mut M::Scratch,
+    job: &SoftJob<'_>,
+    visible: &mut [f32],
+    counters: &mut C,
+) -> SoftStats {
+    let mut stats = SoftStats::default();
+    for (i, slot) in visible.iter_mut().enumerate() {
+        *slot = 0.0;
+        let Some((rays, cone)) = job.point(i) else { continue };
+        *slot = stats.add_point(method.soft_point(scratch, &rays, &cone, counters));
+    }
+    stats
+}
+
+/// The 16-sample soft shadows of one tile: its primary hits and the spherical light.
+#[derive(Clone, Copy, Debug)]
+pub struct SoftJob<'a> {
+    /// The scene (its mesh).
+    pub scene: &'a Scene,
+    /// The camera of the primary rays.
+    pub camera: &'a Camera,
+    /// The tile.
+    pub tile: &'a Tile,
+    /// The tile's primary hits, row-major inside the tile.
+    pub hits: &'a [Option<Hit>],
+    /// The light.
+    pub light: &'a SphereLight,
+}
+
+impl SoftJob<'_> {
+    /// The 16 shadow rays of the tile's `i`-th pixel (row-major) and the cone that holds
+    /// them: from [`soft::shadow_start`] to `cones::shadows::light_samples`, over `t` in
+    /// `[0, 1]`. `None` for misses, surfaces facing away from the light and points inside
+    /// it. Every method traces exactly these rays.
+    #[inline]
+    pub fn point(&self, i: usize) -> Option<([Ray; SAMPLES], Cone)> {
+        let hit = self.hits.get(i)?.as_ref()?;
+        let w = self.tile.width();
+        let (x, y) = (self.tile.x0 + i as u32 % w, self.tile.y0 + i as u32 / w);
+        let dir = self.camera.pixel_ray(x, y).1;
+        let (start, cone) = soft::shadow_start(self.scene, self.light, hit, dir)?;
+        let samples = light_samples(start, self.light)?;
+        Some((shadow_rays(start, &samples), cone))
     }
 }
 

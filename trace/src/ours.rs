@@ -5,10 +5,13 @@
 //! - [`Mono`]: single rays ([`KdTree::intersect`] / [`KdTree::occluded`]), the scalar twin;
 //! - [`Tiled`]: a tile kernel. Each render tile is loaded as 2x2 packets in a
 //!   [`TileTracer`], so the frustum (or cone) of `frustum`, `mft`, `cone` and `mft-cone` is
-//!   the render tile. Hard shadow rays start at different hit points, so they go one by one
-//!   (the single-ray kernel); the 16 soft-shadow rays of a point share an origin and go under
-//!   their pyramid (packets and frusta) or their cone (cones), as in Table 4.6. A ray stream
-//!   is grouped into omni packets and frusta where consecutive rays share an origin.
+//!   the render tile. Hard shadow rays go as 2x2 packets of neighbouring pixels' rays
+//!   ([`crate::shadow_frusta`]); the 16 soft-shadow rays of a point share an origin and go
+//!   under their pyramid (packets) or their cone (cones), as in Table 4.6, while the frustum
+//!   and MFT kernels trace a tile's rays to each light stratum as 2x2 packets. With
+//!   [`TileShadows::Frusta`] (method `multi-frusta`) both go as Benthin & Wald's shadow
+//!   frusta. A ray stream is grouped into omni packets and frusta where consecutive rays
+//!   share an origin.
 
 use cones::shadows::SAMPLES;
 use cones::{Cone, ConeMethod, ShadowMethod, SoftShadowTracer};
@@ -16,7 +19,8 @@ use kdtree::{Hit, KdTree, Ray};
 use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
 use scenes::{Camera, Tile};
 
-use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
+use crate::method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points};
+use crate::shadow_frusta::{self, Grouping, ShadowScratch};
 
 /// Single rays through our kd-tree (thesis 2.2.1).
 pub type Mono<'a> = SingleRays<&'a KdTree>;
@@ -55,13 +59,27 @@ impl Kernel {
     }
 }
 
-/// A tile kernel over our kd-tree, with its tile size and packet/leaf culling switch.
+/// How a [`Tiled`] method traces shadow rays ([`crate::shadow_frusta`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileShadows {
+    /// Hard shadows as 2x2 packets of neighbouring pixels' rays; soft shadows per point
+    /// under the thesis's pyramid or cone ([`Kernel::soft_kernel`], Table 4.6), or, for the
+    /// frustum and MFT kernels, as 2x2 packets per light stratum.
+    Packets,
+    /// Benthin & Wald's shadow frusta: one per tile for hard shadows, one per tile and light
+    /// stratum for soft shadows.
+    Frusta,
+}
+
+/// A tile kernel over our kd-tree, with its tile size, packet/leaf culling switch and shadow
+/// grouping.
 #[derive(Clone, Copy, Debug)]
 pub struct Tiled<'a> {
     tree: &'a KdTree,
     kernel: Kernel,
     tile: u32,
     culling: bool,
+    shadows: TileShadows,
 }
 
 /// Scratch of [`Tiled`]: each part made on first use, once per rayon task.
@@ -71,6 +89,7 @@ pub struct TiledScratch {
     stream: Option<TileTracer>,
     soft: Option<SoftShadowTracer>,
     group: Vec<OmniPacket>,
+    shadows: ShadowScratch,
 }
 
 /// Rays per frustum of a ray stream: up to 16 packets.
@@ -81,7 +100,12 @@ impl<'a> Tiled<'a> {
     /// packet/leaf culling (thesis 4.1.4) on or off.
     pub fn new(tree: &'a KdTree, kernel: Kernel, tile: u32, culling: bool) -> Result<Self, packets::tile::TileError> {
         TileTracer::check_size(tile)?;
-        Ok(Tiled { tree, kernel, tile, culling })
+        Ok(Tiled { tree, kernel, tile, culling, shadows: TileShadows::Packets })
+    }
+
+    /// The same method with its shadow rays grouped by `shadows`.
+    pub fn with_shadows(self, shadows: TileShadows) -> Self {
+        Tiled { shadows, ..self }
     }
 
     fn tile_tracer<'s>(&self, scratch: &'s mut TiledScratch) -> &'s mut TileTracer {
@@ -116,14 +140,38 @@ impl Method for Tiled<'_> {
         tracer.write_hits(out);
     }
 
+    /// The tile's rays as 2x2 packets of neighbours, or as one shadow frustum
+    /// ([`TileShadows`]).
     fn shadow_tile<C: TileCounters>(
         &self,
-        _: &mut TiledScratch,
+        scratch: &mut TiledScratch,
         job: &ShadowJob<'_>,
         out: &mut [bool],
         c: &mut C,
     ) -> (u64, u64) {
-        SingleRays(self.tree).shadow_tile(&mut (), job, out, c)
+        let grouping = match self.shadows {
+            TileShadows::Packets => Grouping::Packets,
+            TileShadows::Frusta => Grouping::Frusta,
+        };
+        shadow_frusta::hard(self.tree, grouping, &mut scratch.shadows, job, out, c)
+    }
+
+    /// Shadow frusta: one per light stratum (Benthin & Wald's multi-frusta). Packets: for the
+    /// frustum and MFT kernels 2x2 packets per light stratum, for the others each point's 16
+    /// rays under their pyramid or cone ([`Method::soft_point`], Table 4.6).
+    fn soft_tile<C: TileCounters>(
+        &self,
+        scratch: &mut TiledScratch,
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        let grouping = match (self.shadows, self.kernel) {
+            (TileShadows::Frusta, _) => Grouping::Frusta,
+            (TileShadows::Packets, Kernel::Packets(TileMethod::Frustum | TileMethod::Mft)) => Grouping::Packets,
+            (TileShadows::Packets, _) => return soft_by_points(self, scratch, job, visible, counters),
+        };
+        shadow_frusta::soft(self.tree, grouping, &mut scratch.shadows, job, visible, counters)
     }
 
     fn soft_point<C: TileCounters>(

@@ -21,7 +21,7 @@ use crate::Error;
 use crate::frame::{Driven, FrameTracer};
 use crate::method::SingleRays;
 use crate::multibvh;
-use crate::ours::{Kernel, Tiled};
+use crate::ours::{Kernel, TileShadows, Tiled};
 
 /// The name of our kd-tree as a structure.
 pub const KDTREE: &str = "kdtree";
@@ -114,12 +114,35 @@ pub struct Entry {
     pub packets: bool,
     /// The structure it traces: [`KDTREE`] or a [`StructureEntry`]'s name.
     pub structure: &'static str,
-    /// Its hard-shadow kernel: methods sharing one are timed once (`rttest compare`).
+    /// Its hard-shadow kernel: methods sharing one are timed once (`rttest compare`). A name
+    /// ending in `-N` is a kernel that takes the tile as its frustum: `N` stands for the tile
+    /// size ([`Entry::shadow_kernel_for`]).
     pub shadow_kernel: &'static str,
     /// Its 16-sample soft-shadow kernel, shared like the hard-shadow one.
     pub soft_kernel: &'static str,
     /// Makes the method.
     pub bind: Bind,
+}
+
+impl Entry {
+    /// The hard-shadow kernel's name with `options`: `kd-frusta-N` with 16-pixel tiles is
+    /// `kd-frusta-16`; a name without `-N` is the same for every tile.
+    pub fn shadow_kernel_for(&self, options: &Options) -> String {
+        with_tile(self.shadow_kernel, options)
+    }
+
+    /// The soft-shadow kernel's name with `options`, as [`Entry::shadow_kernel_for`].
+    pub fn soft_kernel_for(&self, options: &Options) -> String {
+        with_tile(self.soft_kernel, options)
+    }
+}
+
+/// `kernel` with a trailing `-N` replaced by the tile size of `options`.
+fn with_tile(kernel: &str, options: &Options) -> String {
+    match kernel.strip_suffix("-N") {
+        Some(base) => format!("{base}-{}", options.tile),
+        None => kernel.to_string(),
+    }
 }
 
 /// A structure that methods of the registry trace, other than our kd-tree.
@@ -172,18 +195,28 @@ impl Registry {
     /// our kd-tree, and single rays on our 4-wide BVH (`mbvh-4`, structure `mbvh`).
     pub fn ours() -> Registry {
         let mut r = Registry::default();
-        r.add(ours("mono", "single rays, closest and any hit (thesis 2.2.1)", false, false, "kd-single", |s, _| {
-            Ok(Box::new(Driven(SingleRays(s.kdtree()))))
-        }));
-        r.add(ours("packet", "omni-directional 2x2 packets (thesis 4.1.2)", false, true, "kd-pyramid", |s, o| {
-            tiled(s, o, Kernel::Packets(TileMethod::Packet))
-        }));
+        r.add(ours(
+            "mono",
+            "single rays, closest and any hit (thesis 2.2.1)",
+            false,
+            false,
+            ("kd-single", "kd-single"),
+            |s, _| Ok(Box::new(Driven(SingleRays(s.kdtree())))),
+        ));
+        r.add(ours(
+            "packet",
+            "omni-directional 2x2 packets (thesis 4.1.2)",
+            false,
+            true,
+            ("kd-packets", "kd-pyramid"),
+            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Packet)),
+        ));
         r.add(ours(
             "samesign",
             "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)",
             false,
             true,
-            "kd-pyramid",
+            ("kd-packets", "kd-pyramid"),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::SameSign)),
         ));
         r.add(ours(
@@ -191,7 +224,7 @@ impl Registry {
             "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)",
             true,
             true,
-            "kd-pyramid",
+            ("kd-packets", "kd-stratum-packets"),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::Frustum)),
         ));
         r.add(ours(
@@ -199,20 +232,37 @@ impl Registry {
             "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)",
             true,
             true,
-            "kd-pyramid",
+            ("kd-packets", "kd-stratum-packets"),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::Mft)),
+        ));
+        r.add(ours(
+            "multi-frusta",
+            "MFT primaries; shadows as Benthin & Wald's (2009) frusta: one per tile, one per tile and light stratum",
+            true,
+            true,
+            ("kd-frusta-N", "kd-multi-frusta-N"),
+            |s, o| {
+                Ok(Box::new(Driven(
+                    tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Frusta),
+                )))
+            },
         ));
         r.add(ours(
             "cone",
             "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)",
             true,
             true,
-            "kd-cone",
+            ("kd-packets", "kd-cone"),
             |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::Cone)),
         ));
-        r.add(ours("mft-cone", "four quadrant cones per tile (thesis 4.1.9)", true, true, "kd-cone", |s, o| {
-            tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone))
-        }));
+        r.add(ours(
+            "mft-cone",
+            "four quadrant cones per tile (thesis 4.1.9)",
+            true,
+            true,
+            ("kd-packets", "kd-cone"),
+            |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone)),
+        ));
         r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });
         r.add(Entry {
             name: "mbvh-4",
@@ -314,13 +364,13 @@ impl Registry {
     }
 }
 
-/// An entry of ours, on our kd-tree with the single-ray hard-shadow kernel.
+/// An entry of ours on our kd-tree, with its hard- and soft-shadow kernels.
 fn ours(
     name: &'static str,
     summary: &'static str,
     tiled: bool,
     packets: bool,
-    soft: &'static str,
+    (shadow, soft): (&'static str, &'static str),
     bind: Bind,
 ) -> Entry {
     Entry {
@@ -330,7 +380,7 @@ fn ours(
         tiled,
         packets,
         structure: KDTREE,
-        shadow_kernel: "kd-single",
+        shadow_kernel: shadow,
         soft_kernel: soft,
         bind,
     }
@@ -338,8 +388,12 @@ fn ours(
 
 /// A tile kernel of ours bound to the kd-tree.
 fn tiled<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Box<dyn FrameTracer + 's>, Error> {
-    let method = Tiled::new(s.kdtree(), kernel, o.tile, o.culling).map_err(|e| Error::Usage(format!("tile: {e}")))?;
-    Ok(Box::new(Driven(method)))
+    Ok(Box::new(Driven(tiled_method(s, o, kernel)?)))
+}
+
+/// The [`Tiled`] method of `kernel` on the kd-tree, with the tile and culling of `o`.
+fn tiled_method<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Tiled<'s>, Error> {
+    Tiled::new(s.kdtree(), kernel, o.tile, o.culling).map_err(|e| Error::Usage(format!("tile: {e}")))
 }
 
 #[cfg(test)]

@@ -1,9 +1,10 @@
-//! Shared by the packet, frustum, MFT and cone benches.
+//! Shared by the packet, frustum, MFT, cone and shadow benches.
 
 /// The criterion group `group/scene` timing one primary pass of each registered method of
 /// `names` (`packet`, `frustum-8`, ...: ray generation, traversal and intersection of every
 /// pixel; no shading, no shadows), on all cores, with single rays (`mono`) through the same
 /// renderer as the reference.
+#[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
 pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &[&str]) {
     use criterion::Throughput;
     use trace::{Options, Registry, Renderer, Shadows, Structures};
@@ -23,5 +24,52 @@ pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &
             g.bench_function(&bound.name, |b| b.iter(|| renderer.trace(&mut buffers).hits));
         }
         g.finish();
+    }
+}
+
+/// The criterion groups `group-hard/scene` and `group-soft16/scene` timing one hard-shadow
+/// pass and one 16-sample soft-shadow pass (light radius 1 in Sponza units) of each
+/// registered method of `names`, from the same primary hits (made once by single rays), on
+/// all cores, with single rays (`mono`) as the reference.
+#[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
+pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[&str]) {
+    use criterion::Throughput;
+    use trace::frame::View;
+    use trace::{Options, Registry, Structures, TileLayout, soft};
+    let registry = Registry::ours();
+    for (name, scene, tree, camera) in trace::setup::packet_workloads(1024) {
+        let structures = Structures::new(&tree);
+        let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
+        let mono =
+            registry.bind(&registry.select("mono", Options::default()).expect("mono"), &structures).expect("mono");
+        let mut hits = vec![None; layout.pixel_count()];
+        mono.tracer.primary(&layout, &camera, &mut hits, None);
+        let light = soft::scene_light(&scene, &tree, 1.0);
+        let view = View { layout: &layout, scene: &scene, camera: &camera };
+        let mut occluded = vec![false; layout.pixel_count()];
+        let mut visible = vec![0.0f32; layout.pixel_count()];
+        let (rays, _) = mono.tracer.shadow(&view, &hits, &mut occluded, None);
+        let soft_rays = mono.tracer.soft(&view, &hits, &light, &mut visible, None).rays;
+        for (kind, elements) in [("hard", rays), ("soft16", soft_rays)] {
+            let mut g = c.benchmark_group(format!("{group}-{kind}/{name}"));
+            g.sample_size(10)
+                .warm_up_time(std::time::Duration::from_secs(1))
+                .measurement_time(std::time::Duration::from_secs(3));
+            g.throughput(Throughput::Elements(elements));
+            for &method in std::iter::once(&"mono").chain(names) {
+                let selected = registry.select(method, Options::default()).expect("bench methods are registered");
+                let bound = registry.bind(&selected, &structures).expect("bench tile sizes are valid");
+                let layout = TileLayout::new(camera.width, camera.height, bound.options.tile);
+                // The hits in this method's tile order.
+                let mut method_hits = vec![None; layout.pixel_count()];
+                mono.tracer.primary(&layout, &camera, &mut method_hits, None);
+                let view = View { layout: &layout, ..view };
+                g.bench_function(&bound.name, |b| match kind {
+                    "hard" => b.iter(|| bound.tracer.shadow(&view, &method_hits, &mut occluded, None)),
+                    _ => b.iter(|| bound.tracer.soft(&view, &method_hits, &light, &mut visible, None)),
+                });
+            }
+            g.finish();
+        }
     }
 }

@@ -1,0 +1,21 @@
+//! Shadow rays at 1024x1024 (the shadow issue's kernels): hard shadows and 16-sample soft
+//! shadows from the same primary hits, as single rays, as 2x2 packets of neighbouring
+//! pixels' rays (`packet`, `mft-16`: per light stratum for soft shadows), under the thesis's
+//! pyramid and cone (`packet`, `cone-16`, soft), and as Benthin & Wald's shadow frusta
+//! (`multi-frusta-16`), on the atrium and Sponza.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+
+mod common;
+
+fn shadows(c: &mut Criterion) {
+    common::bench_shadow_methods(c, "shadows", &["packet", "mft-16", "cone-16", "multi-frusta-16"]);
+}
+
+/// The bench group (`criterion_group!` makes an undocumented public function).
+#[allow(missing_docs)]
+mod group {
+    use super::*;
+    criterion_group!(benches, shadows);
+}
+criterion_main!(group::benches);

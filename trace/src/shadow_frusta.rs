@@ -1,0 +1,186 @@
+//! A tile's shadow rays traced together: as 2x2 packets, or as Benthin & Wald's shadow
+//! frusta (`packets::shadow_frustum`).
+//!
+//! Every shadow ray of a tile ends at the point light (hard shadows), or at one stratum of
+//! the light's 4x4 stratified samples (soft shadows, ray `k` of every point going to stratum
+//! `k`, `cones::shadows::light_samples`). So the rays of neighbouring pixels run side by side
+//! to nearly the same end, and are traced in groups of neighbours: the tile's pixels are
+//! taken in Morton (Z) order, so that each run of 4, 16 or 64 rays is a 2x2, 4x4 or 8x8
+//! block of the tile.
+//!
+//! - [`Grouping::Packets`]: each run of four as a same-sign 2x2 packet (thesis 2.3.1,
+//!   `packets::samesign::occluded`): one traversal for four rays, each lane in its own
+//!   interval, finished at its first hit.
+//! - [`Grouping::Frusta`] (Benthin & Wald 2009): the tile's rays (per light stratum, for soft
+//!   shadows: "multi-frusta") as one frustum from the box of their starts to the box of their
+//!   ends, split into its 4x4 and 2x2 blocks where it is much wider than a voxel (MFT's
+//!   quadrants, thesis 4.1.5, applied again), 2x2 blocks handed over as packets.
+//!
+//! Every ray is the one single rays trace ([`crate::method::hard_shadow_ray`],
+//! [`SoftJob::point`]), and every kernel here answers each ray exactly as the single ray does
+//! (the conformance harness checks it).
+
+use cones::shadows::SAMPLES;
+use kdtree::{KdTree, Ray};
+use packets::{RayPacket, ShadowFrustum, samesign};
+use scenes::Tile;
+
+use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters, hard_shadow_ray};
+
+/// How a tile's shadow rays are grouped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Grouping {
+    /// 2x2 packets of neighbouring pixels' rays.
+    Packets,
+    /// One shadow frustum per tile (and light stratum), split where wide.
+    Frusta,
+}
+
+/// Per-thread space for one tile's shadow rays.
+#[derive(Debug, Default)]
+pub struct ShadowScratch {
+    frustum: ShadowFrustum,
+    /// The rays of one group, and the pixel (tile index) of each.
+    rays: Vec<Ray>,
+    slots: Vec<u32>,
+    blocked: Vec<bool>,
+    /// Per pixel: its hard shadow ray or its 16 soft ones, `None` where none is cast.
+    hard: Vec<Option<Ray>>,
+    soft: Vec<Option<[Ray; SAMPLES]>>,
+    masks: Vec<u16>,
+    /// The tile's pixels (row-major indices) in Morton order, for tiles of `order_size`.
+    order: Vec<u32>,
+    order_size: (u32, u32),
+}
+
+impl ShadowScratch {
+    /// Computes the Morton (Z) order of `tile`'s pixels (row-major indices) into `order`,
+    /// unless it holds that of a tile of the same size.
+    fn morton_order(&mut self, tile: &Tile) {
+        let size = (tile.width(), tile.height());
+        if self.order_size != size || self.order.is_empty() {
+            let (w, h) = size;
+            self.order = (0..w * h).collect();
+            self.order.sort_by_key(|&i| morton(i % w, i / w));
+            self.order_size = size;
+        }
+    }
+
+    /// Traces the group in `rays` with `grouping`, the answers into `blocked`.
+    fn trace<C: TileCounters>(&mut self, tree: &KdTree, grouping: Grouping, counters: &mut C) {
+        self.blocked.clear();
+        match grouping {
+            Grouping::Packets => {
+                for four in self.rays.chunks(4) {
+                    let found = samesign::occluded(tree, &RayPacket::new(four), counters).found.bitmask();
+                    self.blocked.extend((0..four.len()).map(|lane| found >> lane & 1 != 0));
+                }
+            }
+            Grouping::Frusta => {
+                self.frustum.clear();
+                for ray in &self.rays {
+                    self.frustum.push(*ray);
+                }
+                self.frustum.trace(tree, counters);
+                self.blocked.extend_from_slice(self.frustum.blocked());
+            }
+        }
+    }
+}
+
+/// The Morton code of `(x, y)` (16 bits each).
+fn morton(x: u32, y: u32) -> u64 {
+    let spread = |v: u32| {
+        let mut v = u64::from(v & 0xffff);
+        v = (v | v << 8) & 0x00ff_00ff;
+        v = (v | v << 4) & 0x0f0f_0f0f;
+        v = (v | v << 2) & 0x3333_3333;
+        (v | v << 1) & 0x5555_5555
+    };
+    spread(x) | spread(y) << 1
+}
+
+/// The hard shadow rays of `job`, grouped by `grouping`, into `out`; returns (rays traced,
+/// rays blocked) as [`crate::Method::shadow_tile`].
+pub fn hard<C: TileCounters>(
+    tree: &KdTree,
+    grouping: Grouping,
+    scratch: &mut ShadowScratch,
+    job: &ShadowJob<'_>,
+    out: &mut [bool],
+    counters: &mut C,
+) -> (u64, u64) {
+    scratch.hard.clear();
+    scratch.hard.extend(job.pixels().map(|(x, y, hit)| hard_shadow_ray(job.scene, job.camera, x, y, hit)));
+    scratch.morton_order(job.tile);
+    scratch.rays.clear();
+    scratch.slots.clear();
+    for &i in &scratch.order {
+        if let Some(ray) = scratch.hard[i as usize] {
+            scratch.rays.push(ray);
+            scratch.slots.push(i);
+        }
+    }
+    scratch.trace(tree, grouping, counters);
+    out.fill(false);
+    let mut blocked = 0;
+    for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
+        out[slot as usize] = b;
+        blocked += u64::from(b);
+    }
+    (scratch.rays.len() as u64, blocked)
+}
+
+/// The 16-sample soft shadows of `job`, the tile's rays to each light stratum grouped by
+/// `grouping` (Benthin & Wald's multi-frusta for [`Grouping::Frusta`]), the visible fraction
+/// per pixel into `visible`, as [`crate::Method::soft_tile`].
+pub fn soft<C: TileCounters>(
+    tree: &KdTree,
+    grouping: Grouping,
+    scratch: &mut ShadowScratch,
+    job: &SoftJob<'_>,
+    visible: &mut [f32],
+    counters: &mut C,
+) -> SoftStats {
+    scratch.soft.clear();
+    scratch.soft.extend((0..visible.len()).map(|i| job.point(i).map(|(rays, _)| rays)));
+    scratch.masks.clear();
+    scratch.masks.resize(visible.len(), 0);
+    scratch.morton_order(job.tile);
+    for k in 0..SAMPLES {
+        scratch.rays.clear();
+        scratch.slots.clear();
+        for &i in &scratch.order {
+            if let Some(rays) = &scratch.soft[i as usize] {
+                scratch.rays.push(rays[k]);
+                scratch.slots.push(i);
+            }
+        }
+        scratch.trace(tree, grouping, counters);
+        for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
+            scratch.masks[slot as usize] |= u16::from(b) << k;
+        }
+    }
+    let mut stats = SoftStats::default();
+    for ((slot, rays), &mask) in visible.iter_mut().zip(&scratch.soft).zip(&scratch.masks) {
+        *slot = if rays.is_some() { stats.add_point(mask) } else { 0.0 };
+    }
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_order_visits_blocks_of_four_together() {
+        let tile = Tile { x0: 0, y0: 0, x1: 4, y1: 4 };
+        let mut s = ShadowScratch::default();
+        s.morton_order(&tile);
+        // The first 2x2 block, then the one to its right.
+        assert_eq!(s.order[..8], [0, 1, 4, 5, 2, 3, 6, 7]);
+        let mut sorted = s.order.clone();
+        sorted.sort();
+        assert_eq!(sorted, (0..16).collect::<Vec<_>>());
+    }
+}
