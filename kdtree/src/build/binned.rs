@@ -95,15 +95,25 @@ pub(crate) fn build_binned(
         ctx.meter.give(item_bytes);
         return Err(e);
     }
-    let parts: Vec<(Vec<Item>, Vec<Item>)> = items
-        .par_chunks(CHUNK)
-        .map(|c| {
-            let mut polys = [Polygon::default(); 2];
-            let (mut l, mut r) = (Vec::with_capacity(c.len()), Vec::with_capacity(c.len()));
-            partition(ctx.tris, c, &b, &s, &mut polys, &mut l, &mut r);
-            (l, r)
-        })
-        .collect();
+    let split_chunk = |c: &[Item]| {
+        let mut polys = [Polygon::default(); 2];
+        let (mut l, mut r) = (Vec::with_capacity(c.len()), Vec::with_capacity(c.len()));
+        partition(ctx.tris, c, &b, &s, &mut polys, &mut l, &mut r);
+        (l, r)
+    };
+    if n <= CHUNK {
+        // One chunk: its outputs are the children's items (the bytes already taken).
+        let (left, right) = split_chunk(&items);
+        drop(items);
+        ctx.meter.give(item_bytes);
+        let (bl, br) = child_boxes(&b, &s);
+        let (l, r) = rayon::join(
+            || build_binned(ctx, left, bl, depth + 1, binning),
+            || build_binned(ctx, right, br, depth + 1, binning),
+        );
+        return Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) });
+    }
+    let parts: Vec<(Vec<Item>, Vec<Item>)> = items.par_chunks(CHUNK).map(split_chunk).collect();
     drop(items);
     ctx.meter.give(item_bytes);
     let (nl, nr) = parts.iter().fold((0, 0), |(a, b), (l, r)| (a + l.len(), b + r.len()));
@@ -165,12 +175,14 @@ fn hand_off(ctx: &Ctx, items: &[Item]) -> Result<Lists, BuildError> {
 /// the bin.
 type Counts = Vec<[u32; 2]>;
 
-/// The bin of `x` among `bins` bins from `lo` of width `1 / inv`, clamped.
+/// The bin of `x` among `bins` bins from `lo` of width `1 / inv`, clamped. In `f32`: a
+/// box edge within rounding of a boundary may be counted in the bin on its other side,
+/// which only moves the cost estimate (the split classifies exactly).
 #[inline(always)]
-fn bin_of(x: f32, lo: f64, inv: f64, bins: usize) -> usize {
-    let f = (f64::from(x) - lo) * inv;
-    // `as` saturates: negative values (and NaN) give 0.
-    (f as usize).min(bins - 1)
+fn bin_of(x: f32, lo: f32, inv: f32, bins: usize) -> usize {
+    let f = (x - lo) * inv;
+    // `as` saturates: negative values (and NaN) give 0, huge ones `u32::MAX`.
+    (f as u32 as usize).min(bins - 1)
 }
 
 /// The cheapest bin boundary of the node `items` in `b` (min-max binning, see the module
@@ -182,13 +194,16 @@ pub(crate) fn binned_split(items: &[Item], b: &Aabb, costs: &Costs, bins: usize)
         return None;
     }
     let lo = [0, 1, 2].map(|k| f64::from(b.min[k]));
-    let inv = [0, 1, 2].map(|k| if e[k] > 0.0 { bins as f64 / e[k] } else { 0.0 });
+    let lo32 = b.min.to_array();
+    // Infinite for extents of a few f32 steps near zero: then `bin_of` clamps (0 * inf is
+    // NaN, which counts as bin 0), and only the estimate is coarser.
+    let inv32 = [0, 1, 2].map(|k| if e[k] > 0.0 { (bins as f64 / e[k]) as f32 } else { 0.0 });
     let count = |c: &[Item]| -> [Counts; 3] {
         let mut h: [Counts; 3] = std::array::from_fn(|_| vec![[0u32; 2]; bins]);
         for it in c {
             for k in 0..3 {
-                h[k][bin_of(it.lo[k], lo[k], inv[k], bins)][0] += 1;
-                h[k][bin_of(it.hi[k], lo[k], inv[k], bins)][1] += 1;
+                h[k][bin_of(it.lo[k], lo32[k], inv32[k], bins)][0] += 1;
+                h[k][bin_of(it.hi[k], lo32[k], inv32[k], bins)][1] += 1;
             }
         }
         h
