@@ -133,7 +133,7 @@ pub struct SceneArgs {
     /// Bins per axis of `--build binned` (2 to 65536; default 256).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=65536))]
     pub bins: Option<u32>,
-    /// Nodes with at least this many triangles are binned by `--build binned` (default 4096).
+    /// Nodes with at least this many triangles are binned by `--build binned` (default 1024).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub bin_min_tris: Option<u32>,
     /// Load the tree from this file (written by `rttest build --save`) instead of building
