@@ -177,6 +177,16 @@ pub enum BuildStrategyArg {
     Binned,
 }
 
+impl BuildStrategyArg {
+    /// The strategy with its default parameters ([`BuildStrategy::BINNED`] for `binned`).
+    pub fn strategy(self) -> BuildStrategy {
+        match self {
+            BuildStrategyArg::Exact => BuildStrategy::Exact,
+            BuildStrategyArg::Binned => BuildStrategy::BINNED,
+        }
+    }
+}
+
 impl Default for BuildStrategyArg {
     /// The library's default strategy.
     fn default() -> Self {
