@@ -18,7 +18,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use cones::ShadowMethod;
-use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
+use kdtree::{BuildConfig, BuildStrategy, CostModel, Intersector, KdTree};
 use scenes::Scene;
 use trace::progress::Progress;
 use trace::setup::view_camera;
@@ -38,6 +38,8 @@ pub struct TablesConfig {
     pub intersector: Intersector,
     /// The SAH cost model of the trees (`CostModel::Thesis` for the thesis's own trees).
     pub cost_model: CostModel,
+    /// How the trees' planes are found (`BuildStrategy::Exact` for the thesis's build).
+    pub strategy: BuildStrategy,
     /// CSV instead of markdown: one table of the primary-ray rows, then (after a blank line)
     /// one of the soft-shadow rows of Table 4.6.
     pub csv: bool,
@@ -55,6 +57,7 @@ impl Default for TablesConfig {
             frames: 5,
             intersector: Intersector::Wald,
             cost_model: CostModel::default(),
+            strategy: BuildStrategy::default(),
             csv: false,
             no_soft_shadows: false,
             no_scaling: false,
@@ -305,7 +308,8 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
     let mut scaling_rows = Vec::new();
-    let build = BuildConfig { intersector: config.intersector, ..config.cost_model.config() };
+    let build =
+        BuildConfig { intersector: config.intersector, strategy: config.strategy, ..config.cost_model.config() };
     for spec in scene_list(config) {
         let scene = scenes::load_scene(&spec)?;
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &build)?;

@@ -37,9 +37,9 @@ fuzz_target!(|data: &[u8]| {
     let Some((&mode, rest)) = data.split_first() else { return };
     let (config, valid) = &fx.files[usize::from(mode & 1)];
     let bytes: Vec<u8> = if mode & 2 == 0 {
-        // Arbitrary bytes, half of the time behind a valid header's first 72 bytes so that
+        // Arbitrary bytes, half of the time behind a valid header's first 84 bytes so that
         // the arrays' checks are reached.
-        if mode & 4 == 0 { rest.to_vec() } else { valid[..72].iter().chain(rest).copied().collect() }
+        if mode & 4 == 0 { rest.to_vec() } else { valid[..84].iter().chain(rest).copied().collect() }
     } else {
         // A valid file with edits: (offset u16, xor byte) triples, then an optional cut and,
         // with bit 3, the checksum recomputed so that the checks behind it are reached.

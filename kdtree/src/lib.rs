@@ -33,7 +33,7 @@ pub mod triangle;
 mod validate;
 
 pub use aabb::Aabb;
-pub use build::{BuildConfig, BuildError, CostModel, first_phase_bytes, human_bytes};
+pub use build::{BuildConfig, BuildError, BuildStrategy, CostModel, first_phase_bytes, human_bytes};
 pub use counters::{Counters, Counts, NoCounters};
 pub use node::KdNode;
 pub use oracle::BruteForce;

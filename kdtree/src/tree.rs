@@ -57,17 +57,19 @@ impl KdTree {
         if !(0.0..1.0).contains(&config.empty_bonus) {
             return Err(BuildError::BadConfig(format!("empty_bonus = {} must be in [0, 1)", config.empty_bonus)));
         }
+        config.strategy.check()?;
         if u32::try_from(triangles.len()).is_err() {
             return Err(BuildError::TooLarge(format!("{} triangles do not fit 32-bit ids", triangles.len())));
         }
         if let Some(budget) = config.memory_budget {
-            let estimate = build::first_phase_bytes(positions, triangles);
+            let estimate = build::first_phase_bytes(positions, triangles, config.strategy);
             if estimate > budget {
                 return Err(BuildError::OverBudget {
                     estimate,
                     budget,
                     stage: format!(
-                        "estimate before the build: {} triangles' vertices, root events and their sort",
+                        "estimate before the {} build: {} triangles' vertices, the root's events and their sort, or its items",
+                        config.strategy.name(),
                         triangles.len()
                     ),
                 });

@@ -7,6 +7,7 @@
 //! ```text
 //! header   magic "RTKDTREE" (8 bytes)  version u32  intersector u32 (0 wald, 1 watertight)
 //!          c_trav f32  c_isect f32  empty_bonus f32  max_depth u32 (0: the default 8 + log2 N)
+//!          strategy u32 (0 exact, 1 binned)  bins u32  min_tris u32 (both 0 for exact)
 //!          triangle count u64  scene hash u64 (scene_hash: FNV-1a 64 over words of positions and indices)
 //!          bounds: min x y z, max x y z (6 f32)
 //! arrays   one section each: tag (4 bytes)  element size u32  count u64  count * size bytes
@@ -32,13 +33,13 @@
 use glam::Vec3;
 
 use crate::triangle::{Intersector, WaldTriangle, WatertightTriangle, is_degenerate};
-use crate::{Aabb, BuildConfig, KdNode, KdTree};
+use crate::{Aabb, BuildConfig, BuildStrategy, KdNode, KdTree};
 
 /// The first 8 bytes of every tree file.
 pub const MAGIC: [u8; 8] = *b"RTKDTREE";
 
 /// The layout version this code writes and reads. Bump it when the layout changes.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Section tag of the node array.
 const NODES: [u8; 4] = *b"NODE";
@@ -90,7 +91,7 @@ pub enum TreeFileError {
     /// The tree was built with other SAH terms than the ones asked for.
     #[error("the tree was built with {field} = {file}, but {expected} is asked for")]
     ConfigMismatch {
-        /// The configuration field (`c_trav`, `c_isect`, `empty_bonus`, `max_depth`).
+        /// The configuration field (`c_trav`, `c_isect`, `empty_bonus`, `max_depth`, `strategy`).
         field: &'static str,
         /// The file's value.
         file: String,
@@ -358,6 +359,10 @@ pub fn to_bytes(tree: &KdTree, positions: &[Vec3], triangles: &[[u32; 3]]) -> Re
     put_f32(&mut out, config.c_isect);
     put_f32(&mut out, config.empty_bonus);
     put_u32(&mut out, config.max_depth.unwrap_or(0));
+    let (code, bins, min_tris) = strategy_fields(config.strategy);
+    put_u32(&mut out, code);
+    put_u32(&mut out, bins);
+    put_u32(&mut out, min_tris);
     out.extend_from_slice(&(triangles.len() as u64).to_le_bytes());
     out.extend_from_slice(&scene_hash(positions, triangles).to_le_bytes());
     for v in tree.bounds.min.to_array().into_iter().chain(tree.bounds.max.to_array()) {
@@ -548,6 +553,14 @@ fn same_wald(a: &WaldTriangle, b: &WaldTriangle) -> bool {
     bits(a) == bits(b)
 }
 
+/// The header's strategy fields: code (0 exact, 1 binned), bins, min_tris.
+fn strategy_fields(s: BuildStrategy) -> (u32, u32, u32) {
+    match s {
+        BuildStrategy::Exact => (0, 0, 0),
+        BuildStrategy::Binned { bins, min_tris } => (1, bins, min_tris),
+    }
+}
+
 /// Compares a header value with the asked-for one (floats by their bits).
 fn expect_same(field: &'static str, file: f32, expected: f32) -> Result<(), TreeFileError> {
     if file.to_bits() != expected.to_bits() {
@@ -643,6 +656,21 @@ pub fn from_bytes(
             expected: show(expected.max_depth),
         });
     }
+    let strategy = match (r.u32("the strategy")?, r.u32("bins")?, r.u32("min_tris")?) {
+        (0, 0, 0) => BuildStrategy::Exact,
+        (1, bins, min_tris) => BuildStrategy::Binned { bins, min_tris },
+        (code, bins, min_tris) => {
+            return Err(TreeFileError::BadConfig(format!("strategy {code} with bins = {bins}, min_tris = {min_tris}")));
+        }
+    };
+    strategy.check().map_err(|e| TreeFileError::BadConfig(e.to_string()))?;
+    if strategy != expected.strategy {
+        return Err(TreeFileError::ConfigMismatch {
+            field: "strategy",
+            file: format!("{strategy:?}"),
+            expected: format!("{:?}", expected.strategy),
+        });
+    }
     let file_triangles = r.u64("the triangle count")?;
     let file_hash = r.u64("the scene hash")?;
     let hash = scene_hash(positions, triangles);
@@ -702,8 +730,15 @@ pub fn from_bytes(
     if bits(&scene_bounds) != bits(&bounds) {
         return Err(TreeFileError::Mismatch(format!("the bounds {bounds:?} (the scene's are {scene_bounds:?})")));
     }
-    let config =
-        BuildConfig { c_trav, c_isect, empty_bonus, max_depth, intersector, memory_budget: expected.memory_budget };
+    let config = BuildConfig {
+        c_trav,
+        c_isect,
+        empty_bonus,
+        max_depth,
+        intersector,
+        memory_budget: expected.memory_budget,
+        strategy,
+    };
     let (file_nodes, file_refs) = (nodes.clone(), prim_refs.clone());
     let tree = KdTree::from_parts(tris, nodes, prim_refs, bounds, &config).map_err(TreeFileError::Structure)?;
     // `from_parts` lays the references out in node order, aligned to the SIMD groups; a file

@@ -6,7 +6,7 @@ mod common;
 
 use common::Rng;
 use glam::Vec3;
-use kdtree::{BuildConfig, KdTree};
+use kdtree::{BuildConfig, BuildStrategy, KdTree};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 
@@ -77,6 +77,15 @@ fn check(tris: &[[Vec3; 3]], config: &BuildConfig) -> KdTree {
     tree
 }
 
+/// The exact build, and binned builds with binned nodes at these soups' sizes (a few bins,
+/// down to a few triangles; Mitsuba's 128 bins) and the default.
+const STRATEGIES: [BuildStrategy; 4] = [
+    BuildStrategy::Exact,
+    BuildStrategy::Binned { bins: 4, min_tris: 4 },
+    BuildStrategy::Binned { bins: 128, min_tris: 64 },
+    BuildStrategy::BINNED,
+];
+
 fn config() -> Config {
     Config { cases: 48, rng_seed: RngSeed::Fixed(0x6b64_7472), failure_persistence: None, ..Config::default() }
 }
@@ -91,27 +100,48 @@ proptest! {
         scale in prop::sample::select(vec![1.0f32, 1e30, 1e-12, 3e5, 1e37]),
         c_isect in prop::sample::select(vec![1.0f32, 5.0, 80.0]),
         empty_bonus in prop::sample::select(vec![0.0f32, 0.5, 0.9]),
+        strategy in prop::sample::select(STRATEGIES.to_vec()),
     ) {
         let tris = soup(seed, n, scale, 100);
-        let config = BuildConfig { c_isect, empty_bonus, ..BuildConfig::default() };
+        let config = BuildConfig { c_isect, empty_bonus, strategy, ..BuildConfig::default() };
         check(&tris, &config);
     }
 }
 
 #[test]
 fn larger_soups_validate() {
-    for (seed, n) in [(1u64, 5_000usize), (2, 20_000)] {
-        check(&soup(seed, n, 1.0, 5), &BuildConfig::default());
+    for strategy in [BuildStrategy::Exact, BuildStrategy::BINNED] {
+        let config = BuildConfig { strategy, ..BuildConfig::default() };
+        for (seed, n) in [(1u64, 5_000usize), (2, 20_000)] {
+            check(&soup(seed, n, 1.0, 5), &config);
+        }
+        // Offset far from the origin: small extents relative to the coordinates.
+        let tris: Vec<_> = soup(3, 3000, 1.0, 20).iter().map(|t| t.map(|p| p + Vec3::splat(1e4))).collect();
+        check(&tris, &config);
     }
-    // Offset far from the origin: small extents relative to the coordinates.
-    let tris: Vec<_> = soup(3, 3000, 1.0, 20).iter().map(|t| t.map(|p| p + Vec3::splat(1e4))).collect();
-    check(&tris, &BuildConfig::default());
+}
+
+/// The binned build's SAH cost stays near the exact build's on a soup (the measured figures
+/// on the real scenes are in `docs/results/build-and-large-scenes.md`).
+#[test]
+fn binned_trees_cost_about_the_exact_ones() {
+    let tris = soup(7, 20_000, 1.0, 5);
+    let cost = |strategy| check(&tris, &BuildConfig { strategy, ..BuildConfig::default() }).stats().sah_cost;
+    let (exact, binned) = (cost(BuildStrategy::Exact), cost(BuildStrategy::BINNED));
+    assert!(binned != exact, "the binned build changes the tree: {binned} vs {exact}");
+    assert!((binned / exact - 1.0).abs() < 0.05, "binned {binned} vs exact {exact}");
 }
 
 #[test]
 fn identical_across_thread_counts() {
+    for strategy in [BuildStrategy::Exact, BuildStrategy::BINNED, BuildStrategy::Binned { bins: 32, min_tris: 200 }] {
+        identical_across_thread_counts_with(strategy);
+    }
+}
+
+fn identical_across_thread_counts_with(strategy: BuildStrategy) {
     let tris = soup(42, 40_000, 1.0, 3);
-    let config = BuildConfig::default();
+    let config = BuildConfig { strategy, ..BuildConfig::default() };
     let build = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| KdTree::build_soup(&tris, &config).unwrap())
@@ -120,7 +150,7 @@ fn identical_across_thread_counts() {
     reference.validate().unwrap();
     let bytes = reference.layout_bytes();
     for threads in [2, 4, 3] {
-        assert!(build(threads).layout_bytes() == bytes, "tree differs with {threads} threads");
+        assert!(build(threads).layout_bytes() == bytes, "{strategy:?}: tree differs with {threads} threads");
     }
     // And with the global pool, twice.
     assert!(KdTree::build_soup(&tris, &config).unwrap().layout_bytes() == bytes);

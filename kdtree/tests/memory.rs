@@ -2,23 +2,34 @@
 //! phase alone is over it, stopped during it when a buffer would pass it, and no effect on
 //! the tree when it is not reached.
 
-use kdtree::{BuildConfig, BuildError, KdTree, first_phase_bytes};
+use kdtree::{BuildConfig, BuildError, BuildStrategy, KdTree, first_phase_bytes};
 
 /// Builds on one thread, so that the order of the buffers, and the peak, are the same on
 /// every run.
-fn build_one_thread(mesh: &scenes::Mesh, budget: Option<u64>) -> Result<KdTree, BuildError> {
+fn build_one_thread(mesh: &scenes::Mesh, strategy: BuildStrategy, budget: Option<u64>) -> Result<KdTree, BuildError> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let config = BuildConfig { memory_budget: budget, ..BuildConfig::default() };
+    let config = BuildConfig { memory_budget: budget, strategy, ..BuildConfig::default() };
     pool.install(|| KdTree::build(&mesh.positions, &mesh.triangles, &config))
 }
 
+/// The exact build, and the binned one with binned nodes down to 512 triangles (several
+/// binned levels on the arena).
+const STRATEGIES: [BuildStrategy; 2] = [BuildStrategy::Exact, BuildStrategy::Binned { bins: 64, min_tris: 512 }];
+
 #[test]
 fn the_budget_stops_the_build_before_and_during_and_is_exact_at_the_peak() {
+    for strategy in STRATEGIES {
+        budget_at_its_limits(strategy);
+    }
+}
+
+fn budget_at_its_limits(strategy: BuildStrategy) {
+    let build_one_thread = |mesh: &scenes::Mesh, budget| build_one_thread(mesh, strategy, budget);
     let mesh = scenes::builtin::by_name("arena").unwrap().mesh;
-    let first = first_phase_bytes(&mesh.positions, &mesh.triangles);
+    let first = first_phase_bytes(&mesh.positions, &mesh.triangles, strategy);
     let free = build_one_thread(&mesh, None).unwrap();
     let peak = free.build_peak_bytes().expect("a built tree has a peak");
-    println!("arena: {} triangles, first phase {first} bytes, peak {peak} bytes", mesh.triangle_count());
+    println!("arena, {strategy:?}: {} triangles, first phase {first} bytes, peak {peak} bytes", mesh.triangle_count());
     assert!(peak >= first && peak < 4 * first, "peak {peak}, first phase {first}");
     // The tree's own arrays are part of the peak.
     assert!(peak >= free.stats().bytes as u64);
@@ -44,9 +55,16 @@ fn the_budget_stops_the_build_before_and_during_and_is_exact_at_the_peak() {
 
 #[test]
 fn a_budget_far_above_the_need_changes_nothing() {
+    for strategy in [BuildStrategy::Exact, BuildStrategy::Binned { bins: 16, min_tris: 64 }] {
+        far_above_the_need(strategy);
+    }
+}
+
+fn far_above_the_need(strategy: BuildStrategy) {
     let mesh = scenes::builtin::by_name("sphere").unwrap().mesh;
-    let free = KdTree::build(&mesh.positions, &mesh.triangles, &BuildConfig::default()).unwrap();
-    let config = BuildConfig { memory_budget: Some(1 << 40), ..BuildConfig::default() };
+    let free =
+        KdTree::build(&mesh.positions, &mesh.triangles, &BuildConfig { strategy, ..BuildConfig::default() }).unwrap();
+    let config = BuildConfig { memory_budget: Some(1 << 40), strategy, ..BuildConfig::default() };
     let budgeted = KdTree::build(&mesh.positions, &mesh.triangles, &config).unwrap();
     assert_eq!(free.layout_bytes(), budgeted.layout_bytes());
     let e =

@@ -6,7 +6,7 @@ mod common;
 
 use common::check_rays;
 use glam::Vec3;
-use kdtree::{BuildConfig, Intersector, KdTree, Ray, ray::offset_origin};
+use kdtree::{BuildConfig, BuildStrategy, Intersector, KdTree, Ray, ray::offset_origin};
 use scenes::Scene;
 
 /// Camera rays on a sparse pixel grid of every view, plus the shadow rays of their hits.
@@ -31,13 +31,24 @@ fn scene_rays(scene: &Scene, tree: &KdTree, grid: u32) -> Vec<Ray> {
     rays
 }
 
+/// The default (binned) build with both intersectors, and the exact build with Wald's test.
+/// Scenes below the default's size threshold are binned down to 32 triangles instead, so
+/// that their trees have binned nodes.
 fn check_scene(scene: &Scene, grid: u32) {
-    for intersector in [Intersector::Wald, Intersector::Watertight] {
-        let config = BuildConfig { intersector, ..BuildConfig::default() };
+    let binned = match BuildStrategy::default() {
+        BuildStrategy::Binned { min_tris, .. } if (min_tris as usize) < scene.mesh.triangle_count() => {
+            BuildStrategy::default()
+        }
+        _ => BuildStrategy::Binned { bins: 16, min_tris: 32 },
+    };
+    for (intersector, strategy) in
+        [(Intersector::Wald, binned), (Intersector::Watertight, binned), (Intersector::Wald, BuildStrategy::Exact)]
+    {
+        let config = BuildConfig { intersector, strategy, ..BuildConfig::default() };
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).expect("build");
         tree.validate().unwrap_or_else(|e| panic!("{}: {e}", scene.name));
         let rays = scene_rays(scene, &tree, grid);
-        check_rays(&tree, &rays).unwrap_or_else(|e| panic!("{} ({intersector:?}): {e}", scene.name));
+        check_rays(&tree, &rays).unwrap_or_else(|e| panic!("{} ({intersector:?}, {strategy:?}): {e}", scene.name));
     }
 }
 

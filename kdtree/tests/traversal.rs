@@ -6,11 +6,21 @@ mod common;
 
 use common::{check_rays, median_tree, rays_for, triangle, vertex};
 use glam::Vec3;
-use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, Ray};
+use kdtree::{BruteForce, BuildConfig, BuildStrategy, Intersector, KdTree, Ray};
 use proptest::prelude::*;
 
+/// The exact build with Wald's test, and a binned build (binned down to 8 triangles, so the
+/// soups here have binned nodes) with the watertight test: the strategy only moves planes,
+/// the intersector only the records, so each pairing covers both.
 fn configs() -> [BuildConfig; 2] {
-    [BuildConfig::default(), BuildConfig { intersector: Intersector::Watertight, ..BuildConfig::default() }]
+    [
+        BuildConfig { strategy: BuildStrategy::Exact, ..BuildConfig::default() },
+        BuildConfig {
+            intersector: Intersector::Watertight,
+            strategy: BuildStrategy::Binned { bins: 8, min_tris: 8 },
+            ..BuildConfig::default()
+        },
+    ]
 }
 
 /// Checks `rays` against the oracle on the SAH tree and the median-split tree of `tris`, with

@@ -2,13 +2,14 @@
 //! every kind of damage is refused with its own error, without a panic.
 
 use kdtree::treefile::{self, Checks, TreeFileError};
-use kdtree::{BuildConfig, Intersector, KdTree};
+use kdtree::{BuildConfig, BuildStrategy, Intersector, KdTree};
 use scenes::Mesh;
 
 /// Header layout (see the module docs): bytes 0..8 magic, 8 version, 12 intersector,
-/// 16 c_trav, 20 c_isect, 24 empty_bonus, 28 max_depth, 32 triangle count, 40 scene hash,
-/// 48..72 bounds; the node section starts at 72 (tag, size, count), nodes at 88.
-const HEADER_FIELDS: [(usize, &str); 10] = [
+/// 16 c_trav, 20 c_isect, 24 empty_bonus, 28 max_depth, 32 strategy, 36 bins, 40 min_tris,
+/// 44 triangle count, 52 scene hash, 60..84 bounds; the node section starts at 84 (tag, size,
+/// count), nodes at 100.
+const HEADER_FIELDS: [(usize, &str); 13] = [
     (0, "magic"),
     (8, "version"),
     (12, "intersector"),
@@ -16,12 +17,16 @@ const HEADER_FIELDS: [(usize, &str); 10] = [
     (20, "c_isect"),
     (24, "empty_bonus"),
     (28, "max_depth"),
-    (32, "triangle count"),
-    (40, "scene hash"),
-    (48, "bounds"),
+    (32, "strategy"),
+    (36, "bins"),
+    (40, "min_tris"),
+    (44, "triangle count"),
+    (52, "scene hash"),
+    (60, "bounds"),
 ];
-const NODE_SECTION: usize = 72;
-const FIRST_NODE: usize = 88;
+const BOUNDS: usize = 60;
+const NODE_SECTION: usize = 84;
+const FIRST_NODE: usize = 100;
 
 fn mesh(name: &str) -> Mesh {
     scenes::builtin::by_name(name).unwrap().mesh
@@ -122,6 +127,37 @@ fn non_default_terms_round_trip_and_must_match() {
     }
     // The memory budget is not part of the tree.
     assert!(load(&bytes, &mesh, &BuildConfig { memory_budget: Some(1), ..config.clone() }).is_ok());
+}
+
+/// The build strategy is in the header: a binned tree round-trips, loads only as the same
+/// strategy with the same parameters, and a damaged strategy field is refused.
+#[test]
+fn the_build_strategy_round_trips_and_must_match() {
+    let mesh = mesh("sphere");
+    let binned = BuildStrategy::Binned { bins: 32, min_tris: 100 };
+    let config = BuildConfig { strategy: binned, ..BuildConfig::default() };
+    let tree = build(&mesh, &config);
+    let bytes = save(&mesh, &tree);
+    assert_identical(&tree, &load(&bytes, &mesh, &config).unwrap());
+    for other in [
+        BuildStrategy::Exact,
+        BuildStrategy::Binned { bins: 33, min_tris: 100 },
+        BuildStrategy::Binned { bins: 32, min_tris: 99 },
+    ] {
+        let e = load(&bytes, &mesh, &BuildConfig { strategy: other, ..config.clone() }).unwrap_err();
+        assert!(matches!(&e, TreeFileError::ConfigMismatch { field: "strategy", .. }), "{e}");
+    }
+    // Unknown codes and out-of-range parameters (checksum resealed).
+    for (at, v) in [(32, 2), (36, 1), (36, BuildStrategy::MAX_BINS + 1), (40, 0)] {
+        let mut b = bytes.clone();
+        set_word(&mut b, at, v);
+        treefile::reseal(&mut b);
+        let e = load(&b, &mesh, &config).unwrap_err();
+        assert!(matches!(&e, TreeFileError::BadConfig(_)), "{at} = {v}: {e}");
+    }
+    // An exact tree's file says so (code 0, bins and min_tris 0).
+    let exact = save(&mesh, &build(&mesh, &BuildConfig { strategy: BuildStrategy::Exact, ..config }));
+    assert_eq!([word(&exact, 32), word(&exact, 36), word(&exact, 40)], [0, 0, 0]);
 }
 
 /// The sphere's tree (several levels, triangles crossing the node boxes) and its file.
@@ -269,12 +305,12 @@ fn corrupt_indices_nan_splits_and_boxes_are_refused() {
 
     // A NaN bound.
     let mut b = bytes.clone();
-    set_word(&mut b, 48, f32::NAN.to_bits());
+    set_word(&mut b, BOUNDS, f32::NAN.to_bits());
     assert!(matches!(load(&b, &mesh, &config), Err(TreeFileError::NonFinite(_))));
     // A finite bound other than the scene's.
     let mut b = bytes.clone();
-    let lower = (f32::from_bits(word(&b, 48)) - 1.0).to_bits();
-    set_word(&mut b, 48, lower);
+    let lower = (f32::from_bits(word(&b, BOUNDS)) - 1.0).to_bits();
+    set_word(&mut b, BOUNDS, lower);
     treefile::reseal(&mut b);
     assert!(matches!(load(&b, &mesh, &config), Err(TreeFileError::Mismatch(_))));
 }

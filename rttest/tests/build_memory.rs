@@ -73,6 +73,7 @@ fn a_memory_budget_stops_the_build_with_one_clear_line() {
     let first = kdtree::first_phase_bytes(
         &scenes::builtin::by_name("arena").unwrap().mesh.positions,
         &scenes::builtin::by_name("arena").unwrap().mesh.triangles,
+        kdtree::BuildConfig::default().strategy,
     );
     let out =
         rttest(&dir, &["build", "--scene", "arena", "--threads", "1", "--memory-budget", &(first + 100).to_string()]);

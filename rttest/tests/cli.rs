@@ -74,6 +74,36 @@ fn sah_options_reach_the_builder() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--empty-bonus 1.5"));
 }
 
+/// `--build`, `--bins` and `--bin-min-tris` reach the builder and the report: the sphere
+/// (1280 triangles) binned from 64 triangles is another tree than the exact one, and the
+/// binned default (from 1024 triangles) bins its root.
+#[test]
+fn build_strategy_options_reach_the_builder() {
+    let dir = scratch("build-strategy");
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", "--scene", "sphere", "--json"];
+        args.extend_from_slice(extra);
+        json(&rttest(&dir, &args))
+    };
+    let exact = build(&["--build", "exact"]);
+    assert_eq!(exact["build_strategy"], "exact");
+    assert!(exact["bins"].is_null() && exact["bin_min_tris"].is_null());
+    let binned = build(&["--build", "binned", "--bins", "16", "--bin-min-tris", "64"]);
+    assert_eq!((binned["build_strategy"].as_str(), binned["bins"].as_u64()), (Some("binned"), Some(16)));
+    assert_eq!(binned["bin_min_tris"].as_u64(), Some(64));
+    assert_ne!(binned["sah_cost"], exact["sah_cost"], "binned from 64 triangles changes the tree");
+    let default = build(&[]);
+    assert_eq!((default["build_strategy"].as_str(), default["bins"].as_u64()), (Some("binned"), Some(256)));
+    assert_eq!(default["bin_min_tris"].as_u64(), Some(1024));
+    // Bins without binning, and out-of-range bins, are usage errors.
+    for (args, says) in [(&["--build", "exact", "--bins", "8"][..], "--bins"), (&["--bins", "1"][..], "--bins")] {
+        let mut all = vec!["build", "--scene", "sphere"];
+        all.extend_from_slice(args);
+        let out = rttest(&dir, &all);
+        assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains(says), "{args:?}");
+    }
+}
+
 #[test]
 fn render_json_reports_rays_and_writes_the_png() {
     let dir = scratch("render");

@@ -145,6 +145,13 @@ pub struct BuildReport {
     pub c_isect: f32,
     /// See `c_trav`.
     pub empty_bonus: f32,
+    /// How the planes of large nodes were found (`exact` or `binned`,
+    /// [`kdtree::BuildStrategy`]).
+    pub build_strategy: String,
+    /// Bins per axis of a binned build (`None` for exact).
+    pub bins: Option<u32>,
+    /// The smallest node a binned build bins (`None` for exact).
+    pub bin_min_tris: Option<u32>,
     /// The tree's statistics (flattened into the JSON object).
     #[serde(flatten)]
     pub tree: TreeSummary,
@@ -326,8 +333,18 @@ impl fmt::Display for BuildReport {
             }
             _ => writeln!(
                 f,
-                "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {})",
-                self.build_ms, self.threads, self.intersector, self.c_trav, self.c_isect, self.empty_bonus
+                "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {}, {} build{})",
+                self.build_ms,
+                self.threads,
+                self.intersector,
+                self.c_trav,
+                self.c_isect,
+                self.empty_bonus,
+                self.build_strategy,
+                match (self.bins, self.bin_min_tris) {
+                    (Some(b), Some(m)) => format!(" with {b} bins from {m} triangles"),
+                    _ => String::new(),
+                }
             )?,
         }
         if let Some(ms) = self.load_tree_ms {

@@ -154,18 +154,34 @@ pub(crate) fn push_box_events(lists: &mut [Vec<u64>; 3], prim: u32, lo: [f32; 3]
 /// ascending triangles), into the full `u64` order. An LSD radix sort (stable) on the bits
 /// above the triangle index, position key and type, leaves equal keys in triangle order, which
 /// is the rest of the `u64` order. `tmp` is scratch.
+///
+/// The 34 bits are sorted in three digits of 11, 11 and 12 bits for long lists (the root's)
+/// and in four of 8, 8, 8 and 10 bits for short ones (a binned build's subtrees, from a few
+/// hundred events), where clearing and scanning the larger histograms would cost more than
+/// the extra pass. Either way the result is the sorted list.
 pub(crate) fn radix_sort_events(v: &mut Vec<u64>, tmp: &mut Vec<u64>) {
-    // Digits of the 34 bits above the triangle index: 11 + 11 + 12.
-    const DIGITS: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
-    let mut hist = [[0usize; 1 << 12]; 3];
+    const LONG: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
+    const SHORT: [(u32, u32); 4] = [(PRIM_BITS, 8), (PRIM_BITS + 8, 8), (PRIM_BITS + 16, 8), (PRIM_BITS + 24, 10)];
+    if v.len() >= 1 << 16 {
+        radix_sort_digits::<3, { 1 << 12 }>(v, tmp, &LONG);
+    } else {
+        radix_sort_digits::<4, { 1 << 10 }>(v, tmp, &SHORT);
+    }
+}
+
+/// [`radix_sort_events`] with `D` digits `(shift, bits)` (least significant first, covering
+/// the 34 bits above the triangle index), `H` at least the largest `1 << bits`.
+fn radix_sort_digits<const D: usize, const H: usize>(v: &mut Vec<u64>, tmp: &mut Vec<u64>, digits: &[(u32, u32); D]) {
+    let mut hist = [[0usize; H]; D];
     for &e in v.iter() {
-        for (h, &(shift, bits)) in hist.iter_mut().zip(&DIGITS) {
+        for (h, &(shift, bits)) in hist.iter_mut().zip(digits) {
             h[((e >> shift) & ((1 << bits) - 1)) as usize] += 1;
         }
     }
     tmp.clear();
     tmp.resize(v.len(), 0);
-    for (h, &(shift, bits)) in hist.iter_mut().zip(&DIGITS) {
+    for (h, &(shift, bits)) in hist.iter_mut().zip(digits) {
+        let h = &mut h[..1 << bits];
         // A digit shared by all events leaves the order as it is.
         if h.contains(&v.len()) {
             continue;
@@ -213,7 +229,7 @@ mod tests {
     fn radix_sort_matches_sort() {
         let mut s = 0x9e37_79b9_7f4a_7c15u64;
         let mut lists: [Vec<u64>; 3] = Default::default();
-        for prim in 0..5000u32 {
+        for prim in 0..40_000u32 {
             let mut r = || {
                 s ^= s << 13;
                 s ^= s >> 7;
@@ -231,6 +247,33 @@ mod tests {
             want.sort_unstable();
             radix_sort_events(l, &mut tmp);
             assert_eq!(*l, want);
+        }
+    }
+
+    /// Both digit layouts (short and long lists) on positions spread over every exponent.
+    #[test]
+    fn radix_sort_matches_sort_on_wide_positions() {
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        for n in [1usize, 300, 3000, 40_000] {
+            let mut l: [Vec<u64>; 3] = Default::default();
+            for prim in 0..n as u32 {
+                let mut r = || {
+                    s ^= s << 13;
+                    s ^= s >> 7;
+                    s ^= s << 17;
+                    let x = f32::from_bits((s >> 32) as u32);
+                    if x.is_finite() { x } else { 1.5 }
+                };
+                let (a, b) = (r(), r());
+                push_box_events(&mut l, prim, [a.min(b), a, b], [a.max(b), a, b.max(a)]);
+            }
+            let mut tmp = Vec::new();
+            for v in &mut l {
+                let mut want = v.clone();
+                want.sort_unstable();
+                radix_sort_events(v, &mut tmp);
+                assert_eq!(*v, want, "{n} triangles");
+            }
         }
     }
 

@@ -17,12 +17,18 @@
 //!   buffers below. Which nodes run in parallel depends only on their triangle counts, and
 //!   the subtrees are assembled in a fixed depth-first order, so the tree is bit-identical
 //!   whatever the number of threads.
+//! - Binned top ([`BuildStrategy::Binned`], the default): nodes with at least `min_tris`
+//!   triangles choose their plane by min-max binning ([`binned`]: Shevtsov et al. 2007),
+//!   parallel over the triangles, and still clip their straddling triangles; their subtrees
+//!   below the size get their own sorted events and the sweep above. [`BuildStrategy::Exact`]
+//!   sweeps from the root.
 //! - Memory ([`BuildConfig::memory_budget`]): a [`Meter`] counts the bytes of the build's
 //!   large buffers (the triangles, event lists and their sort, per-thread scratch, subtree
 //!   arrays, the final arrays and the intersection records) and stops the build with
 //!   [`BuildError::OverBudget`] before a buffer would take it over the budget. The first
 //!   phase's needs are computed before anything is allocated ([`first_phase_bytes`]).
 
+mod binned;
 mod clip;
 mod events;
 mod sah;
@@ -65,6 +71,68 @@ pub struct BuildConfig {
     /// mesh is not counted, nor small buffers (a sequential subtree's reused event lists, a
     /// few MiB per thread).
     pub memory_budget: Option<u64>,
+    /// How the planes of the large nodes are found: the exact event sweep everywhere, or
+    /// min-max binning above a size ([`BuildStrategy`]).
+    pub strategy: BuildStrategy,
+}
+
+/// How the builder finds the planes of large nodes. Both make perfect-split trees (every
+/// straddling triangle clipped to the children, thesis 3.2.1); they differ in where the
+/// planes of the top nodes may lie.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BuildStrategy {
+    /// The exact SAH event sweep (Wald & Havran 2006) at every node: each plane is the
+    /// cheapest among all the faces of the triangles' clipped boxes.
+    Exact,
+    /// Min-max binning (Shevtsov et al. 2007, section 3) for the nodes with at least
+    /// `min_tris` triangles, `bins` bins per axis, the plane on a bin boundary; the exact
+    /// sweep below, its events made for each subtree only (`binned`).
+    Binned {
+        /// Bins per axis, 2 to [`BuildStrategy::MAX_BINS`].
+        bins: u32,
+        /// Nodes with at least this many triangles are binned (at least 1).
+        min_tris: u32,
+    },
+}
+
+impl Default for BuildStrategy {
+    /// [`BuildStrategy::BINNED`]: on Sponza, the kitchen and the atrium its trees have SAH
+    /// costs from 5% below to 0.2% above the exact build's, fewer traversal steps per ray
+    /// and Mrays/s within the measurement's spread or above, and it takes 7-15% less CPU
+    /// time (`docs/results/build-and-large-scenes.md`).
+    fn default() -> Self {
+        BuildStrategy::BINNED
+    }
+}
+
+impl BuildStrategy {
+    /// The most bins per axis.
+    pub const MAX_BINS: u32 = 1 << 16;
+
+    /// [`BuildStrategy::Binned`] with the measured default bins and size threshold
+    /// (`docs/results/build-and-large-scenes.md`).
+    pub const BINNED: BuildStrategy = BuildStrategy::Binned { bins: 256, min_tris: 1024 };
+
+    /// The name used on the command line and in reports: `exact` or `binned`.
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildStrategy::Exact => "exact",
+            BuildStrategy::Binned { .. } => "binned",
+        }
+    }
+
+    /// An error naming the field when the parameters are out of range.
+    pub fn check(self) -> Result<(), BuildError> {
+        if let BuildStrategy::Binned { bins, min_tris } = self {
+            if !(2..=Self::MAX_BINS).contains(&bins) {
+                return Err(BuildError::BadConfig(format!("bins = {bins} must be in 2..={}", Self::MAX_BINS)));
+            }
+            if min_tris == 0 {
+                return Err(BuildError::BadConfig("min_tris = 0 must be at least 1".into()));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for BuildConfig {
@@ -111,6 +179,7 @@ impl CostModel {
             max_depth: None,
             intersector: Intersector::Wald,
             memory_budget: None,
+            strategy: BuildStrategy::default(),
         }
     }
 }
@@ -191,19 +260,24 @@ pub fn human_bytes(bytes: u64) -> String {
     if unit == "bytes" { format!("{bytes} bytes") } else { format!("{value:.1} {unit} ({bytes} bytes)") }
 }
 
-/// The bytes the build of triangles `triangles` (indices into `positions`) holds in its first
-/// phase, before any node is split: the triangles' vertices (36 bytes each, kept by the
-/// tree), the list of non-degenerate triangles (4 each), the root's event lists (48 per
-/// non-degenerate triangle: two events of 8 bytes per axis reserved) and the radix sort's
-/// second buffer (8 per event: a triangle flat on an axis has one event there, else two).
+/// The bytes the build of triangles `triangles` (indices into `positions`) with `strategy`
+/// holds in its first phase, before any node is split: the triangles' vertices (36 bytes
+/// each, kept by the tree), the list of non-degenerate triangles (4 each), and then
+/// - exact (or binned with fewer non-degenerate triangles than `min_tris`): the root's event
+///   lists (48 per non-degenerate triangle: two events of 8 bytes per axis reserved) and the
+///   radix sort's second buffer (8 per event: a triangle flat on an axis has one event
+///   there, else two);
+/// - binned: the root's items (a triangle and its box, 28 bytes per non-degenerate
+///   triangle).
 ///
-/// This is exactly what the build's meter holds when the root's events are sorted, and a
-/// lower bound of the build's peak: on the built-in scenes the peak (`build_peak_bytes` of
-/// `rttest build`) is 1.3 to 2 times this. A build whose first phase is over
-/// [`BuildConfig::memory_budget`] is refused with this figure before anything is allocated.
-/// One pass over the triangles, no allocation; `u64` arithmetic, so no count overflows (an
-/// index out of range is skipped here and reported by the build).
-pub fn first_phase_bytes(positions: &[Vec3], triangles: &[[u32; 3]]) -> u64 {
+/// This is exactly what the build's meter holds when the root's events are sorted (the
+/// root's items made), and a lower bound of the build's peak: on the built-in scenes the
+/// exact build's peak (`build_peak_bytes` of `rttest build`) is 1.3 to 2 times this. A build
+/// whose first phase is over [`BuildConfig::memory_budget`] is refused with this figure
+/// before anything is allocated. One pass over the triangles, no allocation; `u64`
+/// arithmetic, so no count overflows (an index out of range is skipped here and reported by
+/// the build).
+pub fn first_phase_bytes(positions: &[Vec3], triangles: &[[u32; 3]], strategy: BuildStrategy) -> u64 {
     let (mut in_tree, mut events) = (0u64, 0u64);
     for tri in triangles {
         let [Some(a), Some(b), Some(c)] = tri.map(|i| positions.get(i as usize).copied()) else { continue };
@@ -215,7 +289,11 @@ pub fn first_phase_bytes(positions: &[Vec3], triangles: &[[u32; 3]]) -> u64 {
         let (lo, hi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
         events += (0..3).map(|k| if lo[k] == hi[k] { 1 } else { 2 }).sum::<u64>();
     }
-    36 * triangles.len() as u64 + (4 + 48) * in_tree + 8 * events
+    let root = match strategy {
+        BuildStrategy::Binned { min_tris, .. } if in_tree >= u64::from(min_tris) => binned::ITEM_BYTES * in_tree,
+        _ => 48 * in_tree + 8 * events,
+    };
+    36 * triangles.len() as u64 + 4 * in_tree + root
 }
 
 /// Counts the bytes of the build's large buffers against the budget (see the module docs).
@@ -653,6 +731,36 @@ fn build_nodes_from(
         pool: Mutex::new(Vec::new()),
         meter,
     };
+    let sub = match config.strategy {
+        BuildStrategy::Binned { bins, min_tris } if n >= min_tris as usize => {
+            let items_bytes = binned::ITEM_BYTES * n as u64;
+            meter.take(items_bytes, "the root's items")?;
+            let items = binned::root_items(tris, prims);
+            let binning = binned::Binning { bins: bins as usize, min_tris: min_tris as usize };
+            binned::build_binned(&ctx, items, bounds, 0, &binning)
+        }
+        _ => exact_root(&ctx, prims, bounds),
+    };
+    let scratch_bytes: u64 =
+        ctx.pool.lock().unwrap_or_else(|e| e.into_inner()).drain(..).map(|s| 5 * s.class.len() as u64).sum();
+    meter.give(scratch_bytes);
+    let sub = sub?;
+    let (n_nodes, n_refs) = sub.size();
+    let chunk_bytes = sub.heap_bytes();
+    let final_bytes = (n_nodes as u64).saturating_mul(8).saturating_add((n_refs as u64).saturating_mul(4));
+    meter.take(final_bytes, "the tree's node and reference arrays")?;
+    let mut nodes = vec![KdNode::leaf(0, 0); n_nodes];
+    let mut prim_refs = vec![0; n_refs];
+    let (root, rest) = nodes.split_at_mut(1);
+    let done = flatten(sub, &mut root[0], rest, start.0, &mut prim_refs, start.1);
+    meter.give(chunk_bytes);
+    done?;
+    Ok(BuiltNodes { nodes, prim_refs })
+}
+
+/// The exact build's root: the events of all triangles, sorted once, then [`build_par`].
+fn exact_root(ctx: &Ctx, prims: &[u32], bounds: Aabb) -> Result<Sub, BuildError> {
+    let (tris, meter, n) = (ctx.tris, ctx.meter, prims.len());
     let root_bytes = 3 * 2 * 8 * n as u64;
     meter.take(root_bytes, "the root's event lists")?;
     let mut lists: [Vec<u64>; 3] = Default::default();
@@ -686,22 +794,7 @@ fn build_nodes_from(
     let lists = Lists::from_vecs(lists);
     meter.give(root_bytes);
     meter.take(lists.heap_bytes(), "the root's event lists")?;
-    let sub = build_par(&ctx, lists, n, bounds, 0);
-    let scratch_bytes: u64 =
-        ctx.pool.lock().unwrap_or_else(|e| e.into_inner()).drain(..).map(|s| 5 * s.class.len() as u64).sum();
-    meter.give(scratch_bytes);
-    let sub = sub?;
-    let (n_nodes, n_refs) = sub.size();
-    let chunk_bytes = sub.heap_bytes();
-    let final_bytes = (n_nodes as u64).saturating_mul(8).saturating_add((n_refs as u64).saturating_mul(4));
-    meter.take(final_bytes, "the tree's node and reference arrays")?;
-    let mut nodes = vec![KdNode::leaf(0, 0); n_nodes];
-    let mut prim_refs = vec![0; n_refs];
-    let (root, rest) = nodes.split_at_mut(1);
-    let done = flatten(sub, &mut root[0], rest, start.0, &mut prim_refs, start.1);
-    meter.give(chunk_bytes);
-    done?;
-    Ok(BuiltNodes { nodes, prim_refs })
+    build_par(ctx, lists, n, bounds, 0)
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use std::time::Instant;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
 use kdtree::treefile::Checks;
-use kdtree::{BuildConfig, CostModel, Intersector, KdTree};
+use kdtree::{BuildConfig, BuildStrategy, CostModel, Intersector, KdTree};
 use scenes::{Camera, Scene};
 use serde::Serialize;
 use trace::registry::{KDTREE, Selected, TILE_SIZE};
@@ -124,9 +124,22 @@ pub struct SceneArgs {
     /// pass this many bytes: a number, or with KiB, MiB, GiB or TiB (e.g. 512MiB, 2GiB).
     #[arg(long, value_name = "BYTES", value_parser = trace::report::parse_bytes)]
     pub memory_budget: Option<u64>,
+    /// How the planes of large nodes are found: `exact` (the SAH event sweep at every node)
+    /// or `binned` (min-max binning of the nodes with at least --bin-min-tris triangles,
+    /// --bins bins per axis, the exact sweep below them). Both clip straddling triangles
+    /// (perfect splits).
+    #[arg(long = "build", value_enum, default_value_t = BuildStrategyArg::default(), value_name = "STRATEGY")]
+    pub strategy: BuildStrategyArg,
+    /// Bins per axis of `--build binned` (2 to 65536; default 256).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=65536))]
+    pub bins: Option<u32>,
+    /// Nodes with at least this many triangles are binned by `--build binned` (default 1024).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub bin_min_tris: Option<u32>,
     /// Load the tree from this file (written by `rttest build --save`) instead of building
     /// it. The file must have been built for this scene with the same --intersector,
-    /// --c-isect, --empty-bonus and --max-depth; it is checked in full before use.
+    /// --c-isect, --empty-bonus, --max-depth and --build (with its --bins, --bin-min-tris);
+    /// it is checked in full before use.
     #[arg(long, value_name = "FILE")]
     pub tree: Option<PathBuf>,
     /// How a tree file is checked when loaded: `full` (every check of the file, then the
@@ -151,6 +164,35 @@ impl From<TreeChecksArg> for Checks {
         match a {
             TreeChecksArg::Full => Checks::Full,
             TreeChecksArg::File => Checks::File,
+        }
+    }
+}
+
+/// `--build` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BuildStrategyArg {
+    /// The exact SAH event sweep at every node (Wald & Havran 2006).
+    Exact,
+    /// Min-max binning above a size, the exact sweep below (Shevtsov et al. 2007).
+    Binned,
+}
+
+impl BuildStrategyArg {
+    /// The strategy with its default parameters ([`BuildStrategy::BINNED`] for `binned`).
+    pub fn strategy(self) -> BuildStrategy {
+        match self {
+            BuildStrategyArg::Exact => BuildStrategy::Exact,
+            BuildStrategyArg::Binned => BuildStrategy::BINNED,
+        }
+    }
+}
+
+impl Default for BuildStrategyArg {
+    /// The library's default strategy.
+    fn default() -> Self {
+        match BuildConfig::default().strategy {
+            BuildStrategy::Exact => BuildStrategyArg::Exact,
+            BuildStrategy::Binned { .. } => BuildStrategyArg::Binned,
         }
     }
 }
@@ -187,7 +229,25 @@ impl SceneArgs {
         if !(0.0..1.0).contains(&empty_bonus) {
             return Err(Error::Usage(format!("--empty-bonus {empty_bonus} must be in [0, 1)")));
         }
+        let strategy = match self.strategy {
+            BuildStrategyArg::Exact => {
+                if self.bins.is_some() || self.bin_min_tris.is_some() {
+                    return Err(Error::Usage("--bins and --bin-min-tris need --build binned".into()));
+                }
+                BuildStrategy::Exact
+            }
+            BuildStrategyArg::Binned => {
+                let BuildStrategy::Binned { bins, min_tris } = BuildStrategy::BINNED else {
+                    unreachable!("BuildStrategy::BINNED is binned")
+                };
+                BuildStrategy::Binned {
+                    bins: self.bins.unwrap_or(bins),
+                    min_tris: self.bin_min_tris.unwrap_or(min_tris),
+                }
+            }
+        };
         Ok(BuildConfig {
+            strategy,
             intersector: self.intersector.into(),
             max_depth: self.max_depth,
             c_isect,
@@ -554,6 +614,15 @@ fn build_report(scene: &Scene, tree: &KdTree, build_ms: f64, load_ms: f64) -> Bu
         c_trav: tree.config().c_trav,
         c_isect: tree.config().c_isect,
         empty_bonus: tree.config().empty_bonus,
+        build_strategy: tree.config().strategy.name().to_string(),
+        bins: match tree.config().strategy {
+            BuildStrategy::Binned { bins, .. } => Some(bins),
+            BuildStrategy::Exact => None,
+        },
+        bin_min_tris: match tree.config().strategy {
+            BuildStrategy::Binned { min_tris, .. } => Some(min_tris),
+            BuildStrategy::Exact => None,
+        },
         tree: TreeSummary::of(tree),
     }
 }

@@ -4,7 +4,7 @@ use clap::Args;
 use experiments::tables::{self, TablesConfig};
 use trace::Error;
 
-use super::{CostModelArg, GlobalArgs, IntersectorArg, parse_size};
+use super::{BuildStrategyArg, CostModelArg, GlobalArgs, IntersectorArg, parse_size};
 use crate::progress::{self, Bars};
 
 /// `rttest tables` options.
@@ -26,6 +26,10 @@ pub struct TablesArgs {
     /// The trees' SAH cost model (`thesis` builds the thesis's own trees).
     #[arg(long, value_enum, default_value_t = CostModelArg::WaldHavran)]
     pub cost_model: CostModelArg,
+    /// How the trees' planes are found: `binned` (the default) or `exact` (the SAH event
+    /// sweep at every node, the thesis's build).
+    #[arg(long = "build", value_enum, default_value_t = BuildStrategyArg::default(), value_name = "STRATEGY")]
+    pub strategy: BuildStrategyArg,
     /// Print the rows as CSV instead of the markdown tables: one table of the primary-ray
     /// rows, then (after a blank line) one of the soft-shadow rows of Table 4.6.
     #[arg(long)]
@@ -46,6 +50,7 @@ impl From<&TablesArgs> for TablesConfig {
             frames: a.frames,
             intersector: a.intersector.into(),
             cost_model: a.cost_model.into(),
+            strategy: a.strategy.strategy(),
             csv: a.csv,
             no_soft_shadows: a.no_soft_shadows,
             no_scaling: a.no_scaling,
