@@ -1,9 +1,9 @@
-//! The 4-wide BVH (`mbvh-4`, Wald, Benthin & Boulos 2008) against our kd-tree (`mono`,
-//! `mft-16`) on the incoherent workload at 512x512: the ambient-occlusion rays (4 per primary
-//! hit, any hit) and the diffuse bounces (1 per hit, closest hit) of `trace::workload`, made
-//! once outside the timed loop from single-ray primary hits; the loop times one stream pass
-//! of each method (traversal and intersection only), on all cores. The atrium, and Sponza
-//! from its benchmark view when the shared scenes are present.
+//! The 4- and 8-wide BVHs (`mbvh-4`, `mbvh-8`, Wald, Benthin & Boulos 2008) against our
+//! kd-tree (`mono`, `mft-16`) on the incoherent workload at 512x512: the ambient-occlusion
+//! rays (4 per primary hit, any hit) and the diffuse bounces (1 per hit, closest hit) of
+//! `trace::workload`, made once outside the timed loop from single-ray primary hits; the loop
+//! times one stream pass of each method (traversal and intersection only), on all cores. The
+//! atrium, and Sponza from its benchmark view when the shared scenes are present.
 
 use std::time::Duration;
 
@@ -28,7 +28,7 @@ fn incoherent(c: &mut Criterion) {
         let rays = Incoherent::generate(&scene, &camera, pixels, &hits, diagonal, 4, workload::SEED);
         let mut g = c.benchmark_group(format!("incoherent/{name}"));
         g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
-        for method in ["mono", "mft-16", "mbvh-4"] {
+        for method in ["mono", "mft-16", "mbvh-4", "mbvh-8"] {
             let bound = registry
                 .bind(&registry.select(method, Options::default()).expect("registered"), &structures)
                 .expect("binds");
