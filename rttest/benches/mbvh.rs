@@ -3,14 +3,18 @@
 //! rays (4 per primary hit, any hit) and the diffuse bounces (1 per hit, closest hit) of
 //! `trace::workload`, made once outside the timed loop from single-ray primary hits; the loop
 //! times one stream pass of each method (traversal and intersection only), on all cores. The
-//! atrium, and Sponza from its benchmark view when the shared scenes are present.
+//! atrium, and Sponza from its benchmark view when the shared scenes are present. Also the
+//! 8-wide tree with its scalar node test (`mbvh-8-scalar-nodes`: `mbvh-8` on a CPU without
+//! AVX2), to tell the AVX2 node test's share from the wider tree's.
 
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kdtree::Hit;
+use mbvh::Mbvh8;
+use trace::frame::Driven;
 use trace::workload::{self, Incoherent};
-use trace::{Options, Registry, Structures, TileLayout};
+use trace::{FrameTracer, Options, Registry, Structures, TileLayout};
 
 const SIZE: u32 = 512;
 
@@ -41,6 +45,21 @@ fn incoherent(c: &mut Criterion) {
             g.throughput(Throughput::Elements(rays.diffuse.len() as u64));
             g.bench_function(format!("diffuse/{method}"), |b| b.iter(|| bound.tracer.stream(&rays.diffuse, &mut out)));
         }
+        // The 8-wide tree with its scalar node test instead of AVX2 (what `mbvh-8` runs on a
+        // CPU without AVX2): what the 256-bit node test itself is worth here.
+        let bvh8 = structures.get::<Mbvh8>(trace::multibvh::MBVH8).expect("built above");
+        let scalar_nodes: Box<dyn FrameTracer> = match tree.intersector() {
+            kdtree::Intersector::Wald => Box::new(Driven(trace::SingleRays(bvh8.wald()))),
+            kdtree::Intersector::Watertight => Box::new(Driven(trace::SingleRays(bvh8.watertight()))),
+        };
+        let mut occluded = vec![false; rays.ao.len()];
+        g.throughput(Throughput::Elements(rays.ao.len() as u64));
+        g.bench_function("ao/mbvh-8-scalar-nodes", |b| {
+            b.iter(|| scalar_nodes.stream_occluded(&rays.ao, &mut occluded))
+        });
+        let mut out: Vec<Option<Hit>> = vec![None; rays.diffuse.len()];
+        g.throughput(Throughput::Elements(rays.diffuse.len() as u64));
+        g.bench_function("diffuse/mbvh-8-scalar-nodes", |b| b.iter(|| scalar_nodes.stream(&rays.diffuse, &mut out)));
         g.finish();
     }
 }
