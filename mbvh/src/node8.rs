@@ -245,49 +245,51 @@ impl BoxTest for Avx2 {
 
     #[inline(always)]
     fn hit(self, node: &Node8, r: &RayBoxes8, t_min: f32, t_max: f32) -> (u32, [f32; WIDTH8]) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: `self` exists, so `Avx2::detect` found AVX2 on this CPU.
-            unsafe { hit8_avx2(node, r, t_min, t_max) }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            // Unreachable: `Avx2::detect` makes no token here.
-            hit8_scalar(node, r, t_min, t_max)
-        }
+        avx2::hit(self, node, r, t_min, t_max)
     }
 
     #[inline]
     fn closest<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Avx2>, ray: &Ray, counters: &mut C) -> Option<Hit> {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: `tr` holds an `Avx2`, so `Avx2::detect` found AVX2 on this CPU.
-            unsafe { avx2::closest(tr, ray, counters) }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        tr.closest_loop::<true, C>(ray, counters)
+        avx2::closest(tr, ray, counters)
     }
 
     #[inline]
     fn any<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Avx2>, ray: &Ray, counters: &mut C) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: `tr` holds an `Avx2`, so `Avx2::detect` found AVX2 on this CPU.
-            unsafe { avx2::any(tr, ray, counters) }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        tr.any_loop::<true, C>(ray, counters)
+        avx2::any(tr, ray, counters)
     }
 }
 
-/// The traversal loops compiled for AVX2: the loop (`#[inline(always)]`) and the node test
-/// inline into these, so the whole descent runs with 256-bit registers and no call per node.
+/// What an [`Avx2`] token runs on x86-64: the node test, and the traversal loops compiled
+/// for AVX2 (the loop, `#[inline(always)]`, and the node test inline into them, so the whole
+/// descent runs with 256-bit registers and no call per node).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::*;
 
-    #[target_feature(enable = "avx2")]
+    #[inline(always)]
+    pub(super) fn hit(_: Avx2, node: &Node8, r: &RayBoxes8, t_min: f32, t_max: f32) -> (u32, [f32; WIDTH8]) {
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 on this CPU.
+        unsafe { hit8_avx2(node, r, t_min, t_max) }
+    }
+
+    #[inline(always)]
     pub(super) fn closest<B: LeafBlock, C: Counters>(
+        tr: &Traversal<'_, B, Avx2>,
+        ray: &Ray,
+        counters: &mut C,
+    ) -> Option<Hit> {
+        // SAFETY: `tr` holds an `Avx2`, so `Avx2::detect` found AVX2 on this CPU.
+        unsafe { closest_avx2(tr, ray, counters) }
+    }
+
+    #[inline(always)]
+    pub(super) fn any<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Avx2>, ray: &Ray, counters: &mut C) -> bool {
+        // SAFETY: `tr` holds an `Avx2`, so `Avx2::detect` found AVX2 on this CPU.
+        unsafe { any_avx2(tr, ray, counters) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn closest_avx2<B: LeafBlock, C: Counters>(
         tr: &Traversal<'_, B, Avx2>,
         ray: &Ray,
         counters: &mut C,
@@ -296,6 +298,29 @@ mod avx2 {
     }
 
     #[target_feature(enable = "avx2")]
+    fn any_avx2<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Avx2>, ray: &Ray, counters: &mut C) -> bool {
+        tr.any_loop::<true, C>(ray, counters)
+    }
+}
+
+/// Elsewhere no [`Avx2`] token is ever made ([`Avx2::detect`] returns `None`); these keep
+/// the type usable: the scalar test and the plain loops.
+#[cfg(not(target_arch = "x86_64"))]
+mod avx2 {
+    use super::*;
+
+    pub(super) fn hit(_: Avx2, node: &Node8, r: &RayBoxes8, t_min: f32, t_max: f32) -> (u32, [f32; WIDTH8]) {
+        hit8_scalar(node, r, t_min, t_max)
+    }
+
+    pub(super) fn closest<B: LeafBlock, C: Counters>(
+        tr: &Traversal<'_, B, Avx2>,
+        ray: &Ray,
+        counters: &mut C,
+    ) -> Option<Hit> {
+        tr.closest_loop::<true, C>(ray, counters)
+    }
+
     pub(super) fn any<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Avx2>, ray: &Ray, counters: &mut C) -> bool {
         tr.any_loop::<true, C>(ray, counters)
     }
