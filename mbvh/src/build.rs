@@ -1,6 +1,6 @@
 //! The build: a binary BVH by binned SAH, collapsed top-down into 4- or 8-wide multi-nodes (Wald,
-//! Benthin & Boulos 2008, section 4: "build a binary BVH [with] SAH-based binning, ... copy
-//! [it] into our multi-node layout ..., which we can then collapse").
+//! Benthin & Boulos 2008, section 4: "build a binary BVH \[with\] SAH-based binning, ... copy
+//! \[it\] into our multi-node layout ..., which we can then collapse").
 //!
 //! - **Binned SAH** (Wald 2007, "On fast construction of SAH-based bounding volume
 //!   hierarchies"): per node, the triangles' centroids are put into [`BINS`] bins along each
