@@ -1,6 +1,6 @@
-//! The build: a binary BVH by binned SAH, collapsed top-down into 4-wide multi-nodes (Wald,
-//! Benthin & Boulos 2008, section 4: "build a binary BVH [with] SAH-based binning, ... copy
-//! [it] into our multi-node layout ..., which we can then collapse").
+//! The build: a binary BVH by binned SAH, collapsed top-down into 4- or 8-wide multi-nodes (Wald,
+//! Benthin & Boulos 2008, section 4: "build a binary BVH \[with\] SAH-based binning, ... copy
+//! \[it\] into our multi-node layout ..., which we can then collapse").
 //!
 //! - **Binned SAH** (Wald 2007, "On fast construction of SAH-based bounding volume
 //!   hierarchies"): per node, the triangles' centroids are put into [`BINS`] bins along each
@@ -14,20 +14,22 @@
 //!   leaf, which the SIMD cost always prefers (one chunk). Large nodes are split in parallel
 //!   (`rayon::join`); the result does not depend on the thread count.
 //! - **Depth.** Beyond binary depth [`MEDIAN_DEPTH`] nodes are split at the object median,
-//!   so the binary depth stays below `MEDIAN_DEPTH + 33` and the 4-wide tree's below
-//!   [`crate::MAX_DEPTH`]: the traversal's fixed stack ([`crate::STACK_SIZE`]) cannot
-//!   overflow.
+//!   so the binary depth stays below `MEDIAN_DEPTH + 33` and the multi-node tree's (each
+//!   multi-node takes at least one binary level) below [`crate::MAX_DEPTH`]: the traversal's
+//!   fixed stack ([`crate::STACK_SIZE`]) cannot overflow.
 //! - **Collapse** (section 4.2, "merging a child node into its parent", top-down): starting
 //!   at the root, the inner child of largest surface area is replaced by its two children
-//!   while the node has fewer than four; then each inner child is collapsed the same way.
-//!   The paper's other two moves (merging two leaves, two inner nodes) serve 16-wide leaves;
-//!   with leaves of one 4-wide block they do not apply.
+//!   while the node has fewer than its width (`MultiNode::WIDTH`: 4 or 8); then each inner
+//!   child is collapsed the same way. The 4- and 8-wide trees are collapsed from the same
+//!   binary BVH (the build is deterministic) and have the same leaves. The paper's other two
+//!   moves (merging two leaves, two inner nodes) serve 16-wide leaves; with leaves of one
+//!   4-wide block they do not apply.
 
 use glam::Vec3;
 use kdtree::Aabb;
 use kdtree::triangle::is_degenerate;
 
-use crate::node::{LEAF, Node4, WIDTH};
+use crate::node::{LEAF, MultiNode};
 
 /// Bins per axis of the binned SAH.
 pub const BINS: usize = 32;
@@ -194,18 +196,18 @@ fn median(prims: &mut [Prim], axis: usize) -> usize {
 }
 
 /// The collapsed tree: multi-nodes (root at 0) and, per leaf, the ids of its triangles.
-pub(crate) struct Collapsed {
-    pub nodes: Vec<Node4>,
+pub(crate) struct Collapsed<N> {
+    pub nodes: Vec<N>,
     pub leaves: Vec<Vec<u32>>,
     pub depth: u32,
 }
 
 /// Collapses `root` into multi-nodes.
-pub(crate) fn collapse(root: &Binary, prims: &[Prim]) -> Result<Collapsed, BuildError> {
+pub(crate) fn collapse<N: MultiNode>(root: &Binary, prims: &[Prim]) -> Result<Collapsed<N>, BuildError> {
     let mut out = Collapsed { nodes: Vec::new(), leaves: Vec::new(), depth: 0 };
     match root {
         Binary::Leaf { .. } => {
-            let mut node = Node4::empty();
+            let mut node = N::empty();
             if let Some(child) = leaf(root, prims, &mut out)? {
                 node.set(0, child, root.bounds());
             }
@@ -220,7 +222,7 @@ pub(crate) fn collapse(root: &Binary, prims: &[Prim]) -> Result<Collapsed, Build
 }
 
 /// A leaf child word (`LEAF | block`), or `None` for an empty leaf.
-fn leaf(b: &Binary, prims: &[Prim], out: &mut Collapsed) -> Result<Option<u32>, BuildError> {
+fn leaf<N>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>) -> Result<Option<u32>, BuildError> {
     let Binary::Leaf { start, len, .. } = b else { unreachable!("leaf() takes leaves") };
     if *len == 0 {
         return Ok(None);
@@ -235,10 +237,10 @@ fn leaf(b: &Binary, prims: &[Prim], out: &mut Collapsed) -> Result<Option<u32>, 
 
 /// The multi-node of inner binary node `b` (section 4.2: pull up the largest inner child
 /// while there is room), then its inner children recursively. Returns its index.
-fn multi(b: &Binary, prims: &[Prim], out: &mut Collapsed, depth: u32) -> Result<u32, BuildError> {
+fn multi<N: MultiNode>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>, depth: u32) -> Result<u32, BuildError> {
     let Binary::Inner { kids, .. } = b else { unreachable!("multi() takes inner nodes") };
     let mut slots: Vec<&Binary> = kids.iter().collect();
-    while slots.len() < WIDTH {
+    while slots.len() < N::WIDTH {
         let largest = slots
             .iter()
             .enumerate()
@@ -253,7 +255,7 @@ fn multi(b: &Binary, prims: &[Prim], out: &mut Collapsed, depth: u32) -> Result<
     if index >= LEAF as usize - 1 {
         return Err(BuildError::TooLarge(format!("{index} nodes")));
     }
-    out.nodes.push(Node4::empty());
+    out.nodes.push(N::empty());
     out.depth = out.depth.max(depth);
     for (i, s) in slots.iter().enumerate() {
         let child = match s {

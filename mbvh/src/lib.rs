@@ -8,29 +8,39 @@
 //! needs no coherence between rays, so it is the structure for incoherent rays (ambient
 //! occlusion, diffuse bounces), where packets and frusta fall apart.
 //!
-//! - [`build`]: binned SAH binary BVH collapsed top-down into 4-wide multi-nodes (section 4).
+//! - [`build`]: binned SAH binary BVH collapsed top-down into 4- or 8-wide multi-nodes
+//!   (section 4).
 //! - [`node`]: [`Node4`], the SoA multi-node (one `Vec4` per box coordinate of the four
-//!   children) and its conservative slab test, SIMD ([`node::hit4`]) and scalar.
+//!   children) and its conservative slab test, SIMD ([`node::hit4`]) and scalar; the traits
+//!   every width implements ([`MultiNode`], [`BoxTest`]).
+//! - [`node8`]: [`Node8`], eight children (one 256-bit register per coordinate), its test
+//!   in AVX2 ([`Avx2`], chosen at run time) and scalar ([`Scalar8`]).
 //! - [`leaf`]: leaf blocks of up to four triangles SoA for both of `kdtree`'s intersectors,
 //!   each lane bit-identical to the scalar test.
 //! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), with a
 //!   scalar twin.
 //!
 //! **Where this CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
-//! and builds 16-wide nodes and leaves. This machine (AMD Zen 1) has SSE4.2 and AVX2, and
-//! executes every 256-bit operation as two 128-bit halves: an 8-wide node test costs about
-//! two 4-wide ones, so 8 wide buys no throughput, only fewer, fatter nodes. We build 4 wide
-//! (one SSE register per coordinate, glam's `Vec4`), the width at which a node test is one
-//! instruction per step here; an 8-wide variant was not built. With four children the
-//! paper's unsorted active list (section 5.3) is replaced by a sort of at most four entries.
+//! and builds 16-wide nodes and leaves. This machine (AMD Zen 1) has SSE4.2 and AVX2, no
+//! 16-wide SIMD, and executes every 256-bit operation as two 128-bit halves: an 8-wide node
+//! test costs about two 4-wide ones, so 8 wide buys no arithmetic throughput, only fewer,
+//! fatter nodes (fewer traversal steps and stack operations). We build both widths over the
+//! same binary BVH: [`Mbvh`], 4 wide (one SSE register per coordinate, glam's `Vec4`), and
+//! [`Mbvh8`], 8 wide (AVX2 where the CPU has it, checked once when the traversal is made).
+//! Measured here (`docs/results/incoherent-mbvh.md`), 8 wide is the faster, 1.1-1.6x on
+//! primary, shadow, AO and diffuse rays: a ray visits about a third fewer nodes, and a single
+//! ray's node step costs its latency more than its arithmetic. Leaves stay one 4-wide
+//! block of triangles in both. With at most eight children the paper's unsorted active list
+//! (section 5.3) is replaced by an insertion sort of the entered children onto the stack.
 //!
 //! The tree is independent of the triangle test; its leaves are stored once per intersector
-//! ([`Mbvh::wald`], [`Mbvh::watertight`]) so that a method can answer with the test of the
+//! ([`MultiBvh::wald`], [`MultiBvh::watertight`]) so that a method can answer with the test of the
 //! kd-tree it is compared with. Kernels never allocate, lock or dispatch dynamically.
 
 pub mod build;
 pub mod leaf;
 pub mod node;
+pub mod node8;
 pub mod traverse;
 
 use glam::Vec3;
@@ -39,21 +49,32 @@ use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
 
 pub use build::BuildError;
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
-pub use node::{Node4, WIDTH};
+pub use node::{BoxTest, MultiNode, Node4, Scalar4, Simd4, WIDTH};
+pub use node8::{Avx2, Node8, Scalar8, WIDTH8};
 pub use traverse::Traversal;
 
-/// The deepest 4-wide tree the build makes (the binary build's median fallback keeps it
-/// below, see [`build`]).
+/// The deepest multi-node tree the build makes, of any width (the binary build's median
+/// fallback keeps the binary depth, which bounds it, below, see [`build`]).
 pub const MAX_DEPTH: u32 = build::MEDIAN_DEPTH + 37;
 
-/// Entries of the traversal's fixed stack: a node pushes at most three entries more than it
-/// pops, so `3 * MAX_DEPTH + 1` suffice.
-pub const STACK_SIZE: usize = 3 * MAX_DEPTH as usize + 1;
+/// The widest node ([`Node8`]).
+pub const MAX_WIDTH: usize = WIDTH8;
 
-/// A 4-wide BVH over a triangle mesh, with leaf blocks for both intersectors.
+/// Entries of the traversal's fixed stack: a node pushes at most `MAX_WIDTH - 1` entries more
+/// than it pops, so `(MAX_WIDTH - 1) * MAX_DEPTH + 1` suffice for every width.
+pub const STACK_SIZE: usize = (MAX_WIDTH - 1) * MAX_DEPTH as usize + 1;
+
+/// The 4-wide BVH ([`Node4`]).
+pub type Mbvh = MultiBvh<Node4>;
+
+/// The 8-wide BVH ([`Node8`]), collapsed from the same binary BVH as [`Mbvh`].
+pub type Mbvh8 = MultiBvh<Node8>;
+
+/// A multi-branching BVH over a triangle mesh, nodes of type `N` (4 or 8 children), with leaf
+/// blocks for both intersectors.
 #[derive(Clone, Debug)]
-pub struct Mbvh {
-    nodes: Vec<Node4>,
+pub struct MultiBvh<N: MultiNode> {
+    nodes: Vec<N>,
     wald: Vec<WaldBlock>,
     watertight: Vec<WatertightBlock>,
     bounds: Aabb,
@@ -70,7 +91,7 @@ pub struct MbvhStats {
     pub leaves: usize,
     /// Triangles in the leaves (the non-degenerate ones).
     pub leaf_triangles: usize,
-    /// The 4-wide tree's depth (the root alone is 1).
+    /// The multi-node tree's depth (the root alone is 1).
     pub depth: u32,
     /// Mean used child slots per multi-node.
     pub branching: f64,
@@ -78,15 +99,15 @@ pub struct MbvhStats {
     pub bytes: usize,
 }
 
-impl Mbvh {
+impl<N: MultiNode> MultiBvh<N> {
     /// Builds the tree over `triangles` (indices into `positions`). Degenerate triangles
     /// (zero area) are left out, as from the kd-tree; `Hit::prim` is the index into
     /// `triangles`. A non-finite vertex or an index out of range is an error naming it.
-    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Mbvh, BuildError> {
+    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<MultiBvh<N>, BuildError> {
         let mut prims = build::prims(positions, triangles)?;
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
         let binary = build::binary(&mut prims, 0, 1);
-        let collapsed = build::collapse(&binary, &prims)?;
+        let collapsed = build::collapse::<N>(&binary, &prims)?;
         let tri = |id: u32| triangles[id as usize].map(|v| positions[v as usize]);
         let wald = collapsed
             .leaves
@@ -102,7 +123,7 @@ impl Mbvh {
                 )
             })
             .collect();
-        Ok(Mbvh {
+        Ok(MultiBvh {
             nodes: collapsed.nodes,
             wald,
             watertight,
@@ -112,18 +133,20 @@ impl Mbvh {
         })
     }
 
-    /// The tree with Wald's test in the leaves (thesis 4.2).
-    pub fn wald(&self) -> Traversal<'_, WaldBlock> {
-        Traversal::new(self, &self.wald)
+    /// The tree with Wald's test in the leaves (thesis 4.2) and the width's portable node
+    /// test (`Traversal::with_test` picks another, e.g. [`Avx2`]).
+    pub fn wald(&self) -> Traversal<'_, WaldBlock, N::Test> {
+        Traversal::new(self, &self.wald, N::Test::default())
     }
 
-    /// The tree with the watertight test in the leaves (Woop et al. 2013).
-    pub fn watertight(&self) -> Traversal<'_, WatertightBlock> {
-        Traversal::new(self, &self.watertight)
+    /// The tree with the watertight test in the leaves (Woop et al. 2013) and the width's
+    /// portable node test.
+    pub fn watertight(&self) -> Traversal<'_, WatertightBlock, N::Test> {
+        Traversal::new(self, &self.watertight, N::Test::default())
     }
 
     /// The multi-nodes; the root is the first.
-    pub fn nodes(&self) -> &[Node4] {
+    pub fn nodes(&self) -> &[N] {
         &self.nodes
     }
 
@@ -134,7 +157,7 @@ impl Mbvh {
 
     /// Sizes and shape.
     pub fn stats(&self) -> MbvhStats {
-        let used: usize = self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != node::EMPTY).count()).sum();
+        let used: usize = self.nodes.iter().map(|n| n.children().iter().filter(|&&c| c != node::EMPTY).count()).sum();
         let leaf_triangles =
             self.wald.iter().map(|b| (0..leaf::LANES).filter(|&l| b.record_prim(l) != u32::MAX).count()).sum();
         MbvhStats {
@@ -143,7 +166,7 @@ impl Mbvh {
             leaf_triangles,
             depth: self.depth,
             branching: used as f64 / self.nodes.len().max(1) as f64,
-            bytes: self.nodes.len() * size_of::<Node4>() + self.wald.len() * size_of::<WaldBlock>(),
+            bytes: self.nodes.len() * size_of::<N>() + self.wald.len() * size_of::<WaldBlock>(),
         }
     }
 
@@ -170,7 +193,7 @@ impl Mbvh {
                 return Err(format!("node {index} reached twice"));
             }
             let node = &self.nodes[index as usize];
-            for (slot, &child) in node.child.iter().enumerate() {
+            for (slot, &child) in node.children().iter().enumerate() {
                 let b = node.child_box(slot);
                 if child == node::EMPTY {
                     if !b.is_empty() {
@@ -263,8 +286,36 @@ mod tests {
             bvh.validate(&p, &t).unwrap();
             let s = bvh.stats();
             assert_eq!(s.leaf_triangles, n);
+            let bvh8 = Mbvh8::build(&p, &t).unwrap();
+            bvh8.validate(&p, &t).unwrap();
+            let s8 = bvh8.stats();
+            // The same binary BVH collapsed: the same leaves, fewer and wider nodes.
+            assert_eq!((s8.leaves, s8.leaf_triangles), (s.leaves, s.leaf_triangles));
+            assert!(s8.nodes <= s.nodes && s8.depth <= s.depth, "{s:?} {s8:?}");
             if n >= 1000 {
                 assert!(s.branching > 3.5, "{s:?}");
+                // 250 leaves in a balanced binary tree: 8-wide nodes take three binary levels,
+                // so the last ones hold four leaves.
+                assert!(s8.branching > 4.0 && s8.nodes < s.nodes, "{s:?} {s8:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_widths_give_the_same_hits() {
+        let (p, t) = quad_mesh(300);
+        let (b4, b8) = (Mbvh::build(&p, &t).unwrap(), Mbvh8::build(&p, &t).unwrap());
+        let avx = Avx2::detect();
+        for i in 0..600 {
+            let x = i as f32 * 0.5 + 0.13;
+            let ray = Ray::new(Vec3::new(x, 0.2, -1.0), Vec3::new(0.01 * (i % 7) as f32, 0.0, 1.0), 0.0, f32::INFINITY);
+            let want = b4.wald().intersect_counted(&ray, &mut NoCounters);
+            assert_eq!(b8.wald().intersect_counted(&ray, &mut NoCounters), want, "{ray:?}");
+            assert_eq!(b8.wald().occluded_counted(&ray, &mut NoCounters), want.is_some());
+            if let Some(avx) = avx {
+                let tr = b8.watertight().with_test(avx);
+                assert_eq!(tr.intersect_counted(&ray, &mut NoCounters), tr.intersect_scalar(&ray, &mut NoCounters));
+                assert_eq!(tr.occluded_counted(&ray, &mut NoCounters), want.is_some());
             }
         }
     }
@@ -302,6 +353,16 @@ mod tests {
         let slot = lost.nodes[0].child.iter().position(|&c| c != node::EMPTY).unwrap();
         lost.nodes[0].child[slot] = node::EMPTY;
         assert!(lost.validate(&p, &t).is_err());
+
+        let bvh8 = Mbvh8::build(&p, &t).unwrap();
+        bvh8.validate(&p, &t).unwrap();
+        let mut shrunk = bvh8.clone();
+        shrunk.nodes[0].bounds[1][1].0[0] = -100.0;
+        assert!(shrunk.validate(&p, &t).unwrap_err().contains("outside"));
+        let mut twice = bvh8.clone();
+        let used: Vec<usize> = (0..WIDTH8).filter(|&i| twice.nodes[0].child[i] != node::EMPTY).collect();
+        twice.nodes[0].child[used[0]] = twice.nodes[0].child[used[1]];
+        assert!(twice.validate(&p, &t).is_err());
     }
 
     /// Sets one lane of a `Vec4` (for damaging trees in tests).
@@ -327,6 +388,12 @@ mod tests {
         ] {
             assert!(bvh.wald().intersect_counted(&ray, &mut NoCounters).is_none());
             assert!(!bvh.watertight().occluded_counted(&ray, &mut NoCounters));
+            let bvh8 = Mbvh8::build(&p, &t).unwrap();
+            assert!(bvh8.wald().intersect_counted(&ray, &mut NoCounters).is_none());
+            if let Some(avx) = Avx2::detect() {
+                assert!(bvh8.wald().with_test(avx).intersect_counted(&ray, &mut NoCounters).is_none());
+                assert!(!bvh8.watertight().with_test(avx).occluded_counted(&ray, &mut NoCounters));
+            }
         }
     }
 }

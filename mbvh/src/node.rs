@@ -1,5 +1,6 @@
 //! The 4-wide multi-node (Wald, Benthin & Boulos 2008, section 3: the "multi-node" SoA
-//! layout) and its ray-box test, SIMD and scalar.
+//! layout) and its ray-box test (section 5.2), SIMD and scalar; and the two traits every
+//! width implements ([`MultiNode`], [`BoxTest`]; the 8-wide node is in [`crate::node8`]).
 //!
 //! A [`Node4`] holds the boxes of its four children structure-of-arrays: one `Vec4` per box
 //! coordinate (`min.x` of the four children, then `min.y`, ...), so one SSE register holds one
@@ -25,8 +26,14 @@
 //! and the scalar twin says the same with an explicit test. `node_test_matches_scalar_twin`
 //! and `rays_in_face_planes_enter_the_box` check both.
 
+use std::fmt::Debug;
+use std::ops::Index;
+
 use glam::{BVec4A, Vec3, Vec4};
-use kdtree::{Aabb, Ray};
+use kdtree::{Aabb, Counters, Hit, Ray};
+
+use crate::leaf::LeafBlock;
+use crate::traverse::Traversal;
 
 /// The branching factor of [`Node4`].
 pub const WIDTH: usize = 4;
@@ -75,6 +82,130 @@ impl Node4 {
     pub fn child_box(&self, i: usize) -> Aabb {
         let c = |k: usize| Vec3::new(self.bounds[0][k][i], self.bounds[1][k][i], self.bounds[2][k][i]);
         Aabb { min: c(0), max: c(1) }
+    }
+}
+
+/// A multi-node of some width (section 3): what the build, `validate` and the traversal need.
+pub trait MultiNode: Copy + Debug + Send + Sync + 'static {
+    /// Child slots per node.
+    const WIDTH: usize;
+    /// The box test used when no wider instruction set is asked for: portable, on every CPU.
+    type Test: BoxTest<Node = Self> + Default;
+    /// A node with every slot empty.
+    fn empty() -> Self;
+    /// Sets slot `i` to `child` with box `b`.
+    fn set(&mut self, i: usize, child: u32, b: &Aabb);
+    /// The box of slot `i` (empty for an empty slot).
+    fn child_box(&self, i: usize) -> Aabb;
+    /// Per slot: [`EMPTY`], a leaf (`LEAF | block`) or the index of an inner node.
+    fn children(&self) -> &[u32];
+}
+
+impl MultiNode for Node4 {
+    const WIDTH: usize = WIDTH;
+    type Test = Simd4;
+
+    fn empty() -> Node4 {
+        Node4::empty()
+    }
+
+    fn set(&mut self, i: usize, child: u32, b: &Aabb) {
+        Node4::set(self, i, child, b);
+    }
+
+    fn child_box(&self, i: usize) -> Aabb {
+        Node4::child_box(self, i)
+    }
+
+    #[inline(always)]
+    fn children(&self) -> &[u32] {
+        &self.child
+    }
+}
+
+/// One ray against every child box of a node (section 5.2): the mask of the slots whose box
+/// the ray's interval enters (bit `i` for slot `i`) and their widened entry distances, every
+/// implementation of one node type giving the same bits (the module docs' conservative test).
+///
+/// A test is a value: [`crate::node8::Avx2`] can only be made after the CPU was found to
+/// have AVX2, so holding one proves its instructions may run. [`BoxTest::closest`] and
+/// [`BoxTest::any`] are the traversal's entry points, so that a test can run the whole loop
+/// under its target features (one check when the traversal is made, none per ray).
+pub trait BoxTest: Copy + Debug + Send + Sync + 'static {
+    /// The node it tests.
+    type Node: MultiNode;
+    /// What it precomputes once per ray.
+    type RayData: Copy;
+    /// Entry distances, one per slot.
+    type Nears: Copy + Index<usize, Output = f32>;
+    /// The scalar twin: the same arithmetic lane by lane (bit-identical masks and distances).
+    type Twin: BoxTest<Node = Self::Node>;
+    /// This test's scalar twin.
+    fn twin(self) -> Self::Twin;
+    /// The per-ray precomputation.
+    fn prepare(ray: &Ray) -> Self::RayData;
+    /// The slots of `node` whose box `[t_min, t_max]` enters, and the entry distances.
+    fn hit(self, node: &Self::Node, r: &Self::RayData, t_min: f32, t_max: f32) -> (u32, Self::Nears);
+    /// The closest hit of `ray` through `tr` ([`Traversal::intersect_counted`]).
+    #[inline(always)]
+    fn closest<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Self>, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        tr.closest_loop::<true, C>(ray, counters)
+    }
+    /// Whether `ray` hits anything through `tr` ([`Traversal::occluded_counted`]).
+    #[inline(always)]
+    fn any<B: LeafBlock, C: Counters>(tr: &Traversal<'_, B, Self>, ray: &Ray, counters: &mut C) -> bool {
+        tr.any_loop::<true, C>(ray, counters)
+    }
+}
+
+/// [`hit4`]: the 4-wide node test in glam's `Vec4` (SSE on x86-64), the default of [`Node4`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Simd4;
+
+/// [`hit4_scalar`]: the scalar twin of [`Simd4`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Scalar4;
+
+impl BoxTest for Simd4 {
+    type Node = Node4;
+    type RayData = RayBoxes;
+    type Nears = [f32; 4];
+    type Twin = Scalar4;
+
+    fn twin(self) -> Scalar4 {
+        Scalar4
+    }
+
+    #[inline(always)]
+    fn prepare(ray: &Ray) -> RayBoxes {
+        RayBoxes::new(ray)
+    }
+
+    #[inline(always)]
+    fn hit(self, node: &Node4, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
+        let (mask, near) = hit4(node, r, t_min, t_max);
+        (mask, near.to_array())
+    }
+}
+
+impl BoxTest for Scalar4 {
+    type Node = Node4;
+    type RayData = Ray;
+    type Nears = [f32; 4];
+    type Twin = Scalar4;
+
+    fn twin(self) -> Scalar4 {
+        Scalar4
+    }
+
+    #[inline(always)]
+    fn prepare(ray: &Ray) -> Ray {
+        *ray
+    }
+
+    #[inline(always)]
+    fn hit(self, node: &Node4, ray: &Ray, t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
+        hit4_scalar(node, ray, t_min, t_max)
     }
 }
 

@@ -1,42 +1,48 @@
-//! Single-ray traversal of the 4-wide BVH (Wald, Benthin & Boulos 2008, section 5): one ray,
-//! the SIMD lanes spent on the four children of a node and the four triangles of a leaf.
+//! Single-ray traversal of the multi-branching BVH (Wald, Benthin & Boulos 2008, section 5):
+//! one ray, the SIMD lanes spent on the children of a node (4 or 8, [`BoxTest`]) and the four
+//! triangles of a leaf.
 //!
 //! - **Closest hit** ([`Traversal::intersect_counted`]): depth-first with a fixed stack of
 //!   `(node, entry distance)`; the children a ray enters are visited nearest first (the
 //!   others pushed farthest first), and an entry whose distance is beyond the closest hit so
 //!   far is dropped when popped. The paper keeps an unsorted active list scanned 16 wide for
-//!   the nearest entry (section 5.3); with at most four children per node the sort of two
-//!   to four entries is cheaper on this CPU than a scan, and gives the same front-to-back
-//!   order within a node.
+//!   the nearest entry (section 5.3); with at most eight children per node the entries are
+//!   insertion-sorted straight onto the stack (two to eight of them), which is cheaper on
+//!   this CPU than a scan and gives the same front-to-back order within a node.
 //! - **Any hit** ([`Traversal::occluded_counted`]): the same descent without ordering, and
 //!   the first hit ends it.
 //!
-//! Both are generic over the leaf block (the intersector) and over `SIMD`: `false` is the
-//! scalar twin (`node::hit4_scalar`, the scalar triangle records one by one), which must give
-//! the same answers bit for bit (tested in `tests/oracle.rs`). No allocation, no locking, no
-//! dynamic dispatch; counting compiles away with `kdtree::NoCounters`.
+//! Both are generic over the leaf block (the intersector), the node test ([`BoxTest`]: 4-wide
+//! SSE or scalar, 8-wide AVX2 or scalar) and over `SIMD` leaves. The scalar twin
+//! ([`Traversal::intersect_scalar`]) runs the test's scalar twin and the scalar triangle
+//! records one by one, and must give the same answers bit for bit (tested in
+//! `tests/oracle.rs`). No allocation (the stack is a fixed array, left uninitialised: only
+//! entries below the stack pointer are read), no locking, no dynamic dispatch; counting
+//! compiles away with `kdtree::NoCounters`.
 
-use glam::Vec4;
+use std::mem::MaybeUninit;
+
 use kdtree::{Counters, Hit, Ray};
 
 use crate::leaf::{LANES, LeafBlock};
-use crate::node::{EMPTY, LEAF, Node4, RayBoxes, hit4, hit4_scalar};
-use crate::{Mbvh, STACK_SIZE};
+use crate::node::{BoxTest, LEAF, MultiNode, Simd4};
+use crate::{MultiBvh, STACK_SIZE};
 
-/// The tree bound to one intersector's leaf blocks: what a method traces.
+/// The tree bound to one intersector's leaf blocks and one node test: what a method traces.
 #[derive(Debug)]
-pub struct Traversal<'a, B> {
-    pub(crate) nodes: &'a [Node4],
+pub struct Traversal<'a, B, K: BoxTest = Simd4> {
+    pub(crate) nodes: &'a [K::Node],
     pub(crate) blocks: &'a [B],
+    pub(crate) test: K,
 }
 
-impl<B> Clone for Traversal<'_, B> {
+impl<B, K: BoxTest> Clone for Traversal<'_, B, K> {
     fn clone(&self) -> Self {
         *self
     }
 }
 
-impl<B> Copy for Traversal<'_, B> {}
+impl<B, K: BoxTest> Copy for Traversal<'_, B, K> {}
 
 /// Whether a ray can hit anything: finite origin and direction, a non-NaN interval. Others
 /// get "no hit" (as from `kdtree::KdTree::intersect`).
@@ -45,60 +51,65 @@ fn traceable(ray: &Ray) -> bool {
     ray.origin.is_finite() && ray.dir.is_finite() && !ray.t_min.is_nan() && !ray.t_max.is_nan()
 }
 
-/// The box test of `SIMD` or its scalar twin: slot mask and entry distances.
-#[inline(always)]
-fn boxes<const SIMD: bool>(node: &Node4, rb: &RayBoxes, ray: &Ray, t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
-    if SIMD {
-        let (m, near): (u32, Vec4) = hit4(node, rb, t_min, t_max);
-        (m, near.to_array())
-    } else {
-        hit4_scalar(node, ray, t_min, t_max)
+impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
+    /// The tree `bvh` with the blocks `blocks` (one of its intersectors) and the test `test`.
+    pub(crate) fn new(bvh: &'a MultiBvh<K::Node>, blocks: &'a [B], test: K) -> Self {
+        Traversal { nodes: &bvh.nodes, blocks, test }
     }
-}
 
-impl<'a, B: LeafBlock> Traversal<'a, B> {
-    /// The tree `bvh` with the blocks `blocks` (one of its intersectors).
-    pub(crate) fn new(bvh: &'a Mbvh, blocks: &'a [B]) -> Self {
-        Traversal { nodes: &bvh.nodes, blocks }
+    /// The same tree and blocks traversed with another node test of the same width (e.g.
+    /// [`crate::Avx2`] instead of the portable [`crate::Scalar8`]).
+    pub fn with_test<T: BoxTest<Node = K::Node>>(self, test: T) -> Traversal<'a, B, T> {
+        Traversal { nodes: self.nodes, blocks: self.blocks, test }
+    }
+
+    /// The node test.
+    pub fn test(&self) -> K {
+        self.test
     }
 
     /// The closest hit of `ray` in `[t_min, t_max]` (SIMD node and leaf tests).
     #[inline]
     pub fn intersect_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
-        self.closest::<true, C>(ray, counters)
+        K::closest(self, ray, counters)
     }
 
     /// Whether anything is hit in `[t_min, t_max]` (SIMD node and leaf tests).
     #[inline]
     pub fn occluded_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
-        self.any::<true, C>(ray, counters)
+        K::any(self, ray, counters)
     }
 
-    /// The scalar twin of [`Traversal::intersect_counted`].
+    /// The scalar twin of [`Traversal::intersect_counted`]: the node test's scalar twin and
+    /// the scalar triangle tests.
     pub fn intersect_scalar<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
-        self.closest::<false, C>(ray, counters)
+        self.with_test(self.test.twin()).closest_loop::<false, C>(ray, counters)
     }
 
     /// The scalar twin of [`Traversal::occluded_counted`].
     pub fn occluded_scalar<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
-        self.any::<false, C>(ray, counters)
+        self.with_test(self.test.twin()).any_loop::<false, C>(ray, counters)
     }
 
+    /// The closest-hit loop; `SIMD`: the leaves' SIMD test, else the scalar records. Called
+    /// through [`BoxTest::closest`] (in the test's target features).
     #[inline(always)]
-    fn closest<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+    pub(crate) fn closest_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
         if !traceable(ray) {
             return None;
         }
-        let rb = RayBoxes::new(ray);
+        let rb = K::prepare(ray);
         let data = B::prepare(ray);
-        let mut stack = [(0u32, 0.0f32); STACK_SIZE];
+        // Invariant: `stack[..sp]` is initialised.
+        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK_SIZE];
         let mut sp = 1;
-        stack[0] = (0, ray.t_min);
+        stack[0].write((0, ray.t_min));
         let mut best: Option<Hit> = None;
         let mut t_max = ray.t_max;
         while sp > 0 {
             sp -= 1;
-            let (mut child, near) = stack[sp];
+            // SAFETY: below the stack pointer (invariant).
+            let (mut child, near) = unsafe { stack[sp].assume_init() };
             if near > t_max {
                 continue;
             }
@@ -118,51 +129,56 @@ impl<'a, B: LeafBlock> Traversal<'a, B> {
                 }
                 counters.node();
                 let node = &self.nodes[child as usize];
-                let (mask, nears) = boxes::<SIMD>(node, &rb, ray, ray.t_min, t_max);
+                let (mut mask, nears) = self.test.hit(node, &rb, ray.t_min, t_max);
                 if mask == 0 {
                     break;
                 }
+                let slots = node.children();
                 if mask & (mask - 1) == 0 {
-                    child = node.child[(mask.trailing_zeros() & 3) as usize];
+                    child = slots[mask.trailing_zeros() as usize];
                     continue;
                 }
-                // Two to four children: sort by entry distance, farthest first.
-                let mut order = [(EMPTY, 0.0f32); 4];
-                let mut k = 0;
-                for (i, &near) in nears.iter().enumerate() {
-                    if mask & (1 << i) != 0 {
-                        let mut j = k;
-                        while j > 0 && order[j - 1].1 < near {
-                            order[j] = order[j - 1];
-                            j -= 1;
-                        }
-                        order[j] = (node.child[i], near);
-                        k += 1;
+                // Two or more children: insertion-sorted onto the stack by entry distance,
+                // farthest lowest, so the nearest is on top (equal distances: the higher slot
+                // above); it is taken at once.
+                let base = sp;
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let entry = (slots[i], nears[i]);
+                    let mut j = sp;
+                    // SAFETY: `base <= j - 1 < sp`: below the stack pointer (invariant).
+                    while j > base && unsafe { stack[j - 1].assume_init() }.1 < entry.1 {
+                        stack[j] = stack[j - 1];
+                        j -= 1;
                     }
-                }
-                for &entry in &order[..k - 1] {
-                    stack[sp] = entry;
+                    stack[j].write(entry);
                     sp += 1;
                 }
-                child = order[k - 1].0;
+                sp -= 1;
+                // SAFETY: below the old stack pointer, written above.
+                child = unsafe { stack[sp].assume_init() }.0;
             }
         }
         best
     }
 
+    /// The any-hit loop (see [`Traversal::closest_loop`]).
     #[inline(always)]
-    fn any<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
+    pub(crate) fn any_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
         if !traceable(ray) {
             return false;
         }
-        let rb = RayBoxes::new(ray);
+        let rb = K::prepare(ray);
         let data = B::prepare(ray);
-        let mut stack = [0u32; STACK_SIZE];
+        // Invariant: `stack[..sp]` is initialised.
+        let mut stack = [const { MaybeUninit::<u32>::uninit() }; STACK_SIZE];
         let mut sp = 1;
-        stack[0] = 0;
+        stack[0].write(0);
         while sp > 0 {
             sp -= 1;
-            let child = stack[sp];
+            // SAFETY: below the stack pointer (invariant).
+            let child = unsafe { stack[sp].assume_init() };
             if child & LEAF != 0 {
                 let block = &self.blocks[(child & !LEAF) as usize];
                 counters.leaf();
@@ -181,9 +197,10 @@ impl<'a, B: LeafBlock> Traversal<'a, B> {
             }
             counters.node();
             let node = &self.nodes[child as usize];
-            let (mut mask, _) = boxes::<SIMD>(node, &rb, ray, ray.t_min, ray.t_max);
+            let (mut mask, _) = self.test.hit(node, &rb, ray.t_min, ray.t_max);
+            let slots = node.children();
             while mask != 0 {
-                stack[sp] = node.child[(mask.trailing_zeros() & 3) as usize];
+                stack[sp].write(slots[mask.trailing_zeros() as usize]);
                 sp += 1;
                 mask &= mask - 1;
             }

@@ -1,12 +1,13 @@
-//! The 4-wide BVH against the brute-force oracle (`kdtree::oracle::BruteForce`, same triangle
-//! test) and against its scalar twin, with both intersectors: on the small built-in scenes
-//! (every view, primary rays and random rays from and to surfaces, axis-parallel rays) and on
-//! random soups. Every closest hit must pass `BruteForce::check`, and the SIMD traversal must
-//! give the scalar twin's answers bit for bit.
+//! The 4- and 8-wide BVHs against the brute-force oracle (`kdtree::oracle::BruteForce`, same
+//! triangle test) and against their scalar twins, with both intersectors: on the small
+//! built-in scenes (every view, primary rays and random rays from and to surfaces,
+//! axis-parallel rays) and on random soups. Every closest hit must pass `BruteForce::check`,
+//! and every traversal (4-wide SSE, 8-wide scalar, 8-wide AVX2 where the CPU has it) must give
+//! its scalar twin's answers bit for bit.
 
 use glam::Vec3;
 use kdtree::{BruteForce, Hit, Intersector, NoCounters, Ray};
-use mbvh::{LeafBlock, Mbvh, Traversal};
+use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
 use proptest::prelude::*;
 use scenes::builtin::shapes::Rng;
 
@@ -15,7 +16,7 @@ fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
 }
 
 /// Checks every ray; returns the number of hits.
-fn check<B: LeafBlock>(what: &str, tr: Traversal<'_, B>, oracle: &BruteForce, rays: &[Ray]) -> usize {
+fn check<B: LeafBlock, K: BoxTest>(what: &str, tr: Traversal<'_, B, K>, oracle: &BruteForce, rays: &[Ray]) -> usize {
     let mut hits = 0;
     for (i, ray) in rays.iter().enumerate() {
         let got = tr.intersect_counted(ray, &mut NoCounters);
@@ -30,13 +31,23 @@ fn check<B: LeafBlock>(what: &str, tr: Traversal<'_, B>, oracle: &BruteForce, ra
     hits
 }
 
+/// Every width and node test, both intersectors; returns the 4-wide Wald hits.
 fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) -> usize {
     let bvh = Mbvh::build(positions, triangles).unwrap();
     bvh.validate(positions, triangles).unwrap();
+    let bvh8 = Mbvh8::build(positions, triangles).unwrap();
+    bvh8.validate(positions, triangles).unwrap();
     let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
-    let wald = check(&format!("{what} wald"), bvh.wald(), &BruteForce::new(&tris, Intersector::Wald), rays);
-    let wt = BruteForce::new(&tris, Intersector::Watertight);
-    wald + check(&format!("{what} watertight"), bvh.watertight(), &wt, rays)
+    let (w, wt) = (BruteForce::new(&tris, Intersector::Wald), BruteForce::new(&tris, Intersector::Watertight));
+    let hits = check(&format!("{what} wald"), bvh.wald(), &w, rays);
+    check(&format!("{what} watertight"), bvh.watertight(), &wt, rays);
+    check(&format!("{what} 8-wide wald"), bvh8.wald(), &w, rays);
+    check(&format!("{what} 8-wide watertight"), bvh8.watertight(), &wt, rays);
+    if let Some(avx) = Avx2::detect() {
+        check(&format!("{what} 8-wide avx2 wald"), bvh8.wald().with_test(avx), &w, rays);
+        check(&format!("{what} 8-wide avx2 watertight"), bvh8.watertight().with_test(avx), &wt, rays);
+    }
+    hits
 }
 
 /// Primary rays of every view, rays between random surface points (starting on surfaces),

@@ -6,8 +6,8 @@
 //!   a point's 16 soft-shadow rays, a stream of arbitrary rays).
 //! - [`ours`]: our kd-tree methods (single rays, packets, frusta, MFT, cones; thesis 2.2.1,
 //!   4.1.2-4.1.9) as `Method`s.
-//! - [`multibvh`]: our 4-wide BVH (crate `mbvh`, Wald, Benthin & Boulos 2008) as the
-//!   single-ray method `mbvh-4`.
+//! - [`multibvh`]: our 4- and 8-wide BVHs (crate `mbvh`, Wald, Benthin & Boulos 2008) as
+//!   the single-ray methods `mbvh-4` and `mbvh-8`.
 //! - [`registry`]: names to methods (`mono`, `mft-16`, `embree-8`, ...), the structures they
 //!   trace, and the name list for `--help`.
 //! - [`frame`]: the frame driver: primary, hard-shadow and soft-shadow passes over tiles with

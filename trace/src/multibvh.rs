@@ -1,14 +1,18 @@
-//! Our 4-wide BVH (crate `mbvh`, Wald, Benthin & Boulos 2008) as single-ray [`Tracer`]s: the
-//! registry's method `mbvh-4` traces it one ray at a time ([`crate::SingleRays`]), the SIMD
-//! lanes spent on a node's four children and a leaf's four triangles.
+//! Our multi-branching BVHs (crate `mbvh`, Wald, Benthin & Boulos 2008) as single-ray
+//! [`Tracer`]s: the registry's methods `mbvh-4` (4-wide nodes) and `mbvh-8` (8-wide nodes)
+//! trace them one ray at a time ([`crate::SingleRays`]), the SIMD lanes spent on a node's
+//! children and a leaf's four triangles.
 //!
-//! The tree is a structure of the registry (`mbvh`, built from the scene like Embree's, so
-//! `rttest compare` times its build). Its leaves hold both intersectors' records; a method
-//! answers with the triangle test of the frame's kd-tree ([`kdtree::KdTree::intersector`]),
-//! so that its answers are comparable with `mono`'s under the conformance rules.
+//! Each tree is a structure of the registry (`mbvh`, `mbvh8`, built from the scene like
+//! Embree's, so `rttest compare` times its build). Their leaves hold both intersectors'
+//! records; a method answers with the triangle test of the frame's kd-tree
+//! ([`kdtree::KdTree::intersector`]), so that its answers are comparable with `mono`'s under
+//! the conformance rules. `mbvh-8` tests its nodes in AVX2 where the CPU has it, asked once
+//! when the method is bound ([`mbvh::Avx2::detect`]), and with the scalar 8-wide test
+//! elsewhere.
 
 use kdtree::{Hit, Ray};
-use mbvh::{LeafBlock, Mbvh, Traversal};
+use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
 use scenes::Scene;
 
 use crate::Error;
@@ -19,7 +23,10 @@ use crate::registry::Structures;
 /// The registry's name of the 4-wide BVH structure.
 pub const MBVH: &str = "mbvh";
 
-impl<B: LeafBlock> Tracer for Traversal<'_, B> {
+/// The registry's name of the 8-wide BVH structure.
+pub const MBVH8: &str = "mbvh8";
+
+impl<B: LeafBlock, K: BoxTest> Tracer for Traversal<'_, B, K> {
     #[inline]
     fn intersect_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
         Traversal::intersect_counted(self, ray, counters)
@@ -36,11 +43,33 @@ pub fn build(scene: &Scene) -> Result<Mbvh, Error> {
     Mbvh::build(&scene.mesh.positions, &scene.mesh.triangles).map_err(|e| Error::Usage(format!("mbvh build: {e}")))
 }
 
+/// Builds the 8-wide BVH of `scene` (the registry's structure [`MBVH8`]).
+pub fn build8(scene: &Scene) -> Result<Mbvh8, Error> {
+    Mbvh8::build(&scene.mesh.positions, &scene.mesh.triangles).map_err(|e| Error::Usage(format!("mbvh8 build: {e}")))
+}
+
+/// A traversal's frame passes, one ray at a time.
+fn driven<'s, B: LeafBlock, K: BoxTest>(tr: Traversal<'s, B, K>) -> Box<dyn FrameTracer + 's> {
+    Box::new(Driven(SingleRays(tr)))
+}
+
 /// `mbvh-4`: single rays through the 4-wide BVH with the kd-tree's triangle test.
 pub fn bind<'s>(s: &'s Structures<'_>) -> Result<Box<dyn FrameTracer + 's>, Error> {
     let bvh = s.get::<Mbvh>(MBVH)?;
     Ok(match s.kdtree().intersector() {
-        kdtree::Intersector::Wald => Box::new(Driven(SingleRays(bvh.wald()))),
-        kdtree::Intersector::Watertight => Box::new(Driven(SingleRays(bvh.watertight()))),
+        kdtree::Intersector::Wald => driven(bvh.wald()),
+        kdtree::Intersector::Watertight => driven(bvh.watertight()),
+    })
+}
+
+/// `mbvh-8`: single rays through the 8-wide BVH with the kd-tree's triangle test, the node
+/// test in AVX2 if this CPU has it (checked here, once), else scalar.
+pub fn bind8<'s>(s: &'s Structures<'_>) -> Result<Box<dyn FrameTracer + 's>, Error> {
+    let bvh = s.get::<Mbvh8>(MBVH8)?;
+    Ok(match (s.kdtree().intersector(), Avx2::detect()) {
+        (kdtree::Intersector::Wald, Some(avx2)) => driven(bvh.wald().with_test(avx2)),
+        (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
+        (kdtree::Intersector::Watertight, Some(avx2)) => driven(bvh.watertight().with_test(avx2)),
+        (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
     })
 }

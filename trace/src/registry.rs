@@ -192,7 +192,8 @@ pub struct Registry {
 
 impl Registry {
     /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9) on
-    /// our kd-tree, and single rays on our 4-wide BVH (`mbvh-4`, structure `mbvh`).
+    /// our kd-tree, and single rays on our 4- and 8-wide BVHs (`mbvh-4`, structure `mbvh`;
+    /// `mbvh-8`, structure `mbvh8`).
     pub fn ours() -> Registry {
         let mut r = Registry::default();
         r.add(ours(
@@ -274,6 +275,21 @@ impl Registry {
             shadow_kernel: "mbvh-4",
             soft_kernel: "mbvh-4",
             bind: |s, _| multibvh::bind(s),
+        });
+        r.add_structure(StructureEntry {
+            name: multibvh::MBVH8,
+            build: |scene| Ok(Box::new(multibvh::build8(scene)?)),
+        });
+        r.add(Entry {
+            name: "mbvh-8",
+            family: "ours",
+            summary: "8-wide BVH, single rays, AVX2 over children (chosen at run time), SIMD over leaf triangles (Wald, Benthin & Boulos 2008)",
+            tiled: false,
+            packets: false,
+            structure: multibvh::MBVH8,
+            shadow_kernel: "mbvh-8",
+            soft_kernel: "mbvh-8",
+            bind: |s, _| multibvh::bind8(s),
         });
         r
     }
