@@ -27,17 +27,18 @@ use crate::shadow_plot::{Point, plot};
 use edgewidth::analytic::sphere_visible_fraction;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
-use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, visible_fraction};
+use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
 use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
 use glam::Vec3;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, Ray};
-use packets::RayPacket;
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use packets::{RayPacket, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
 use trace::method::primary_ray;
 use trace::progress::Progress;
+use trace::shadow_frusta::morton;
 use trace::{TileLayout, shade};
 
 use crate::Error;
@@ -164,6 +165,10 @@ pub enum ShadowMethod {
     EdgeWidthPacket,
     /// `N` stratified samples of the light.
     Sampled(u32),
+    /// The same `N` samples (the same rays, so the same image), traced per stratum as 2x2
+    /// packets of neighbouring pixels' rays (`trace::shadow_frusta`'s grouping, Benthin &
+    /// Wald 2009).
+    SampledPackets(u32),
     /// 4x4 interleaved sampling (16 samples), unfiltered.
     InterleavedRaw,
     /// 4x4 interleaved sampling (16 samples) and the 4x4 discontinuity filter.
@@ -171,13 +176,14 @@ pub enum ShadowMethod {
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 10] = [
+pub const METHODS: [ShadowMethod; 11] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
     ShadowMethod::Sampled(4),
     ShadowMethod::Sampled(8),
     ShadowMethod::Sampled(16),
+    ShadowMethod::SampledPackets(16),
     ShadowMethod::Sampled(32),
     ShadowMethod::Sampled(256),
     ShadowMethod::InterleavedRaw,
@@ -192,6 +198,7 @@ impl ShadowMethod {
             ShadowMethod::EdgeWidth => "edge-width".into(),
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Sampled(n) => format!("sampled-{n}"),
+            ShadowMethod::SampledPackets(n) => format!("sampled-{n}-packets"),
             ShadowMethod::InterleavedRaw => "interleaved-16-raw".into(),
             ShadowMethod::Interleaved => "interleaved-16".into(),
         }
@@ -329,6 +336,7 @@ impl<'a> ShadowSetup<'a> {
                     }
                 }
             }
+            ShadowMethod::SampledPackets(n) => rays = self.sampled_packets(n, tile, hits, out),
             _ => {
                 let mut scratch = EdgeScratch::default();
                 for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
@@ -357,12 +365,58 @@ impl<'a> ShadowSetup<'a> {
                             rays += 16;
                             sets.visible_fraction(tree, &self.light, &p, x, y)
                         }
-                        ShadowMethod::EdgeWidthPacket => unreachable!("handled above"),
+                        ShadowMethod::EdgeWidthPacket | ShadowMethod::SampledPackets(_) => {
+                            unreachable!("handled above")
+                        }
                     };
                 }
             }
         }
         rays
+    }
+
+    /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as
+    /// `visible_fraction` makes them (same seed), then, stratum by stratum, the tile's rays
+    /// in Morton order of their pixels as 2x2 same-sign any-hit packets. Returns the rays
+    /// traced (`n` per hit, as [`ShadowMethod::Sampled`] counts them).
+    fn sampled_packets(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
+        let grid = strata(n);
+        let w = tile.width();
+        // Per pixel, its rays (`None` for samples behind the surface: blocked).
+        let mut rays: Vec<Vec<Option<Ray>>> = Vec::with_capacity(hits.len());
+        for (i, hit) in hits.iter().enumerate() {
+            let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
+            let pixel = hit.as_ref().map(|hit| {
+                let p = self.shading_point(x, y, hit);
+                let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
+                (0..n).map(|k| p.shadow_ray(self.light.sample(p.point, stratified(k, grid, &mut rng)))).collect()
+            });
+            rays.push(pixel.unwrap_or_default());
+        }
+        let mut order: Vec<usize> = (0..hits.len()).collect();
+        order.sort_by_key(|&i| morton(i as u32 % w, i as u32 / w));
+        let mut visible = vec![0u32; hits.len()];
+        let (mut group, mut slots) = (Vec::new(), Vec::new());
+        for k in 0..n as usize {
+            group.clear();
+            slots.clear();
+            for &i in &order {
+                if let Some(Some(ray)) = rays[i].get(k) {
+                    group.push(*ray);
+                    slots.push(i);
+                }
+            }
+            for (four, slots) in group.chunks(4).zip(slots.chunks(4)) {
+                let found = samesign::occluded(self.tree, &RayPacket::new(four), &mut NoCounters).found.bitmask();
+                for (lane, &i) in slots.iter().enumerate() {
+                    visible[i] += u32::from(found >> lane & 1 == 0);
+                }
+            }
+        }
+        for ((slot, hit), v) in out.iter_mut().zip(hits).zip(visible) {
+            *slot = if hit.is_some() { v as f32 / n as f32 } else { 0.0 };
+        }
+        u64::from(n) * hits.iter().filter(|h| h.is_some()).count() as u64
     }
 
     /// The discontinuity filter (`edgewidth::filter`, default thresholds) over a row-major
@@ -907,6 +961,22 @@ mod tests {
         assert!(!cached_reference(&other, &dir, 4).unwrap().1);
         assert!(!cached_reference(&setup, &dir, 8).unwrap().1);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn sampled_packets_give_the_sampled_frame() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let config = BuildConfig { intersector, ..BuildConfig::default() };
+            let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
+            let camera = scene.default_view().camera(40, 30).unwrap();
+            let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+            let single = setup.frame(ShadowMethod::Sampled(16));
+            let packets = setup.frame(ShadowMethod::SampledPackets(16));
+            assert_eq!(single.visibility, packets.visibility);
+            assert_eq!(single.shadow_rays, packets.shadow_rays);
+            assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
+        }
     }
 
     #[test]

@@ -88,8 +88,9 @@ impl ShadowScratch {
     }
 }
 
-/// The Morton code of `(x, y)` (16 bits each).
-fn morton(x: u32, y: u32) -> u64 {
+/// The Morton (Z-order) code of `(x, y)` (16 bits each): sorting a tile's pixels by it makes
+/// each run of 4, 16, 64 pixels a 2x2, 4x4, 8x8 block.
+pub fn morton(x: u32, y: u32) -> u64 {
     let spread = |v: u32| {
         let mut v = u64::from(v & 0xffff);
         v = (v | v << 8) & 0x00ff_00ff;
