@@ -28,10 +28,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::clip::{Polygon, clipped_split_bounds};
+use super::clip::Polygon;
 use super::events::{Lists, push_box_events, radix_sort_events};
 use super::sah::{Costs, Split, extent64};
-use super::small::Item;
+use super::small::{Item, partition};
 use super::split::child_boxes;
 use super::{BuildError, Ctx, Sub, build_par};
 use crate::Aabb;
@@ -250,40 +250,6 @@ pub(crate) fn binned_split(items: &[Item], b: &Aabb, costs: &Costs, bins: usize)
         }
     }
     pick
-}
-
-/// Splits `items` (a node in `b`) at `s` into `left` and `right`, in order: an item on one
-/// side keeps its box (no clipping where the box lies inside a child), a straddling one is
-/// clipped to both children (thesis 3.2.1). The rule is [`super::small::small_partition`]'s.
-fn partition(
-    tris: &[[Vec3; 3]],
-    items: &[Item],
-    b: &Aabb,
-    s: &Split,
-    polys: &mut [Polygon; 2],
-    left: &mut Vec<Item>,
-    right: &mut Vec<Item>,
-) {
-    let (k, p) = (s.axis, s.pos);
-    let (blo, bhi) = (b.min.to_array(), b.max.to_array());
-    for it in items {
-        let (l, h) = (it.lo[k], it.hi[k]);
-        let to_left = if l == h { l < p || (l == p && s.planar_left) } else { h <= p };
-        let to_right = if l == h { l > p || (l == p && !s.planar_left) } else { l >= p };
-        if to_left {
-            left.push(*it);
-        } else if to_right {
-            right.push(*it);
-        } else {
-            let (cl, cr) = clipped_split_bounds(&tris[it.prim as usize], blo, bhi, k, p, polys);
-            if let Some((lo, hi)) = cl {
-                left.push(Item { prim: it.prim, lo, hi });
-            }
-            if let Some((lo, hi)) = cr {
-                right.push(Item { prim: it.prim, lo, hi });
-            }
-        }
-    }
 }
 
 #[cfg(test)]

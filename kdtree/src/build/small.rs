@@ -159,9 +159,29 @@ pub(crate) fn small_partition(
     left: &mut Vec<Item>,
     out: &mut Vec<Item>,
 ) -> (usize, usize) {
-    let (k, p) = (s.axis, s.pos);
     let start = out.len();
     left.clear();
+    partition(tris, items, b, s, polys, left, out);
+    let nr = out.len() - start;
+    out.extend_from_slice(left);
+    (left.len(), nr)
+}
+
+/// Splits `items` (a node in `b`) at `s`, appending to `left` and `right` in order: an item
+/// on one side keeps its box (no clipping where the box lies inside a child), a straddling
+/// one is clipped to both children (thesis 3.2.1); planar items in the plane go where the
+/// split's `planar_left` says. The one classification rule of the small-node and the
+/// binned builds.
+pub(crate) fn partition(
+    tris: &[[Vec3; 3]],
+    items: &[Item],
+    b: &Aabb,
+    s: &Split,
+    polys: &mut [Polygon; 2],
+    left: &mut Vec<Item>,
+    right: &mut Vec<Item>,
+) {
+    let (k, p) = (s.axis, s.pos);
     let (blo, bhi) = (b.min.to_array(), b.max.to_array());
     for it in items {
         let (l, h) = (it.lo[k], it.hi[k]);
@@ -170,20 +190,17 @@ pub(crate) fn small_partition(
         if to_left {
             left.push(*it);
         } else if to_right {
-            out.push(*it);
+            right.push(*it);
         } else {
             let (cl, cr) = clipped_split_bounds(&tris[it.prim as usize], blo, bhi, k, p, polys);
             if let Some((lo, hi)) = cl {
                 left.push(Item { prim: it.prim, lo, hi });
             }
             if let Some((lo, hi)) = cr {
-                out.push(Item { prim: it.prim, lo, hi });
+                right.push(Item { prim: it.prim, lo, hi });
             }
         }
     }
-    let nr = out.len() - start;
-    out.extend_from_slice(left);
-    (left.len(), nr)
 }
 
 #[cfg(test)]
