@@ -38,7 +38,7 @@ use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
 use trace::method::primary_ray;
 use trace::progress::Progress;
-use trace::shadow_frusta::morton;
+use trace::shadow_frusta::morton_order;
 use trace::{TileLayout, shade};
 
 use crate::Error;
@@ -393,24 +393,21 @@ impl<'a> ShadowSetup<'a> {
             });
             rays.push(pixel.unwrap_or_default());
         }
-        let mut order: Vec<usize> = (0..hits.len()).collect();
-        order.sort_by_key(|&i| morton(i as u32 % w, i as u32 / w));
+        let order = morton_order(w, tile.height());
         let mut visible = vec![0u32; hits.len()];
-        let (mut group, mut slots) = (Vec::new(), Vec::new());
+        let (mut group, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new());
         for k in 0..n as usize {
             group.clear();
             slots.clear();
             for &i in &order {
-                if let Some(Some(ray)) = rays[i].get(k) {
+                if let Some(Some(ray)) = rays[i as usize].get(k) {
                     group.push(*ray);
-                    slots.push(i);
+                    slots.push(i as usize);
                 }
             }
-            for (four, slots) in group.chunks(4).zip(slots.chunks(4)) {
-                let found = samesign::occluded(self.tree, &RayPacket::new(four), &mut NoCounters).found.bitmask();
-                for (lane, &i) in slots.iter().enumerate() {
-                    visible[i] += u32::from(found >> lane & 1 == 0);
-                }
+            samesign::occluded_fours(self.tree, &group, &mut blocked, &mut NoCounters);
+            for (&i, &b) in slots.iter().zip(&blocked) {
+                visible[i] += u32::from(!b);
             }
         }
         for ((slot, hit), v) in out.iter_mut().zip(hits).zip(visible) {

@@ -40,6 +40,17 @@ pub fn occluded<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C
     split_by_signs::<C, true>(tree, packet, None, counters)
 }
 
+/// Whether each ray of `rays` is blocked, four consecutive rays at a time as one packet
+/// ([`occluded`]): the answers, in order, appended to `blocked` after clearing it. Rays of
+/// neighbouring pixels (a tile's shadow rays in Morton order) make coherent packets.
+pub fn occluded_fours<C: Counters>(tree: &KdTree, rays: &[kdtree::Ray], blocked: &mut Vec<bool>, counters: &mut C) {
+    blocked.clear();
+    for four in rays.chunks(4) {
+        let found = occluded(tree, &RayPacket::new(four), counters).found.bitmask();
+        blocked.extend((0..four.len()).map(|lane| found >> lane & 1 != 0));
+    }
+}
+
 /// [`occluded`] inside the subtree of node `from.0` only, the lanes' intervals in its box
 /// being `from.1` (from `RayPacket::clip` against that box): the shadow frusta of
 /// `crate::shadow_frustum` hand their rays over four at a time this way.

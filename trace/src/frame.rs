@@ -205,7 +205,7 @@ pub fn soft_pass<M: Method, C: TileCounters>(
 ) -> (SoftStats, C) {
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(visible)).collect();
     over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
-        method.soft_tile(scratch, &SoftJob { scene, camera, tile, hits, light }, out, counts)
+        method.soft_tile(scratch, &SoftJob { hits: ShadowJob { scene, camera, tile, hits }, light }, out, counts)
     })
 }
 

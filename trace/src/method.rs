@@ -280,17 +280,12 @@ pub fn soft_by_points<M: Method + ?Sized, C: TileCounters>(
     stats
 }
 
-/// The 16-sample soft shadows of one tile: its primary hits and the spherical light.
+/// The 16-sample soft shadows of one tile: its primary hits (as for hard shadows) and the
+/// spherical light.
 #[derive(Clone, Copy, Debug)]
 pub struct SoftJob<'a> {
-    /// The scene (its mesh).
-    pub scene: &'a Scene,
-    /// The camera of the primary rays.
-    pub camera: &'a Camera,
-    /// The tile.
-    pub tile: &'a Tile,
-    /// The tile's primary hits, row-major inside the tile.
-    pub hits: &'a [Option<Hit>],
+    /// The scene, camera, tile and the tile's primary hits.
+    pub hits: ShadowJob<'a>,
     /// The light.
     pub light: &'a SphereLight,
 }
@@ -302,11 +297,11 @@ impl SoftJob<'_> {
     /// it. Every method traces exactly these rays.
     #[inline]
     pub fn point(&self, i: usize) -> Option<([Ray; SAMPLES], Cone)> {
-        let hit = self.hits.get(i)?.as_ref()?;
-        let w = self.tile.width();
-        let (x, y) = (self.tile.x0 + i as u32 % w, self.tile.y0 + i as u32 / w);
-        let dir = self.camera.pixel_ray(x, y).1;
-        let (start, cone) = soft::shadow_start(self.scene, self.light, hit, dir)?;
+        let ShadowJob { scene, camera, tile, hits } = self.hits;
+        let hit = hits.get(i)?.as_ref()?;
+        let (x, y) = (tile.x0 + i as u32 % tile.width(), tile.y0 + i as u32 / tile.width());
+        let dir = camera.pixel_ray(x, y).1;
+        let (start, cone) = soft::shadow_start(scene, self.light, hit, dir)?;
         let samples = light_samples(start, self.light)?;
         Some((shadow_rays(start, &samples), cone))
     }

@@ -22,7 +22,7 @@
 
 use cones::shadows::SAMPLES;
 use kdtree::{KdTree, Ray};
-use packets::{RayPacket, ShadowFrustum, samesign};
+use packets::{ShadowFrustum, samesign};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters, hard_shadow_ray};
@@ -59,9 +59,7 @@ impl ShadowScratch {
     fn morton_order(&mut self, tile: &Tile) {
         let size = (tile.width(), tile.height());
         if self.order_size != size || self.order.is_empty() {
-            let (w, h) = size;
-            self.order = (0..w * h).collect();
-            self.order.sort_by_key(|&i| morton(i % w, i / w));
+            self.order = morton_order(size.0, size.1);
             self.order_size = size;
         }
     }
@@ -70,12 +68,7 @@ impl ShadowScratch {
     fn trace<C: TileCounters>(&mut self, tree: &KdTree, grouping: Grouping, counters: &mut C) {
         self.blocked.clear();
         match grouping {
-            Grouping::Packets => {
-                for four in self.rays.chunks(4) {
-                    let found = samesign::occluded(tree, &RayPacket::new(four), counters).found.bitmask();
-                    self.blocked.extend((0..four.len()).map(|lane| found >> lane & 1 != 0));
-                }
-            }
+            Grouping::Packets => samesign::occluded_fours(tree, &self.rays, &mut self.blocked, counters),
             Grouping::Frusta => {
                 self.frustum.clear();
                 for ray in &self.rays {
@@ -88,9 +81,16 @@ impl ShadowScratch {
     }
 }
 
-/// The Morton (Z-order) code of `(x, y)` (16 bits each): sorting a tile's pixels by it makes
-/// each run of 4, 16, 64 pixels a 2x2, 4x4, 8x8 block.
-pub fn morton(x: u32, y: u32) -> u64 {
+/// The pixels of a `w` x `h` tile (row-major indices) in Morton (Z) order: each run of 4,
+/// 16, 64 of them is a 2x2, 4x4, 8x8 block.
+pub fn morton_order(w: u32, h: u32) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..w * h).collect();
+    order.sort_by_key(|&i| morton(i % w, i / w));
+    order
+}
+
+/// The Morton (Z-order) code of `(x, y)` (16 bits each).
+fn morton(x: u32, y: u32) -> u64 {
     let spread = |v: u32| {
         let mut v = u64::from(v & 0xffff);
         v = (v | v << 8) & 0x00ff_00ff;
@@ -147,7 +147,7 @@ pub fn soft<C: TileCounters>(
     scratch.soft.extend((0..visible.len()).map(|i| job.point(i).map(|(rays, _)| rays)));
     scratch.masks.clear();
     scratch.masks.resize(visible.len(), 0);
-    scratch.morton_order(job.tile);
+    scratch.morton_order(job.hits.tile);
     for k in 0..SAMPLES {
         scratch.rays.clear();
         scratch.slots.clear();
