@@ -14,7 +14,7 @@ use cones::shadows::SAMPLES;
 use kdtree::{Hit, Ray};
 use scenes::{Camera, Scene, Tile};
 use trace::frame::{Driven, FrameTracer};
-use trace::method::{ShadowJob, hard_shadow_ray, primary_ray};
+use trace::method::{ShadowJob, primary_ray};
 use trace::registry::{Entry, Options, StructureEntry, Structures};
 use trace::{Error, Method, Registry, SingleRays, TileCounters, Tracer};
 
@@ -223,14 +223,14 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
         out: &mut [bool],
         _: &mut C,
     ) -> (u64, u64) {
-        let (scene, camera, tile, hits) = (job.scene, job.camera, job.tile, job.hits);
+        let (tile, hits) = (job.tile, job.hits);
         let shape = block_shape(P::WIDTH);
         let (mut rays, mut blocked) = (0u64, 0u64);
         for (bx, by) in blocks(tile, shape) {
             packet.clear();
             let mut any = false;
             block_pixels(tile, bx, by, shape, |lane, x, y, i| {
-                if let Some(ray) = hard_shadow_ray(scene, camera, x, y, &hits[i]) {
+                if let Some(ray) = job.ray(x, y, &hits[i]) {
                     packet.set(lane, &ray);
                     any = true;
                 }
@@ -316,15 +316,17 @@ mod tests {
         // 37 x 23: blocks cut by the tile edges.
         let camera = scene.default_view().camera(37, 23).unwrap();
         let layout = TileLayout::new(37, 23, 16);
+        let surfaces = trace::shade::surfaces(&scene.mesh);
+        let view = trace::frame::View { layout: &layout, scene: &scene, surfaces: &surfaces, camera: &camera };
         let single = SingleRays(EmbreeSingle { scene: &emb, coherence: Coherence::Incoherent });
         let mut want = vec![None; layout.pixel_count()];
         let (hits, NoCounters) = primary_pass(&single, &layout, &camera, &mut want);
         assert!(hits > 0);
         let mut want_occ = vec![false; want.len()];
-        let (rays, blocked, NoCounters) = shadow_pass(&single, &layout, &scene, &camera, &want, &mut want_occ);
+        let (rays, blocked, NoCounters) = shadow_pass(&single, &view, &want, &mut want_occ);
         let light = SphereLight { center: scene.point_light.position, radius: 0.5, intensity: glam::Vec3::ONE };
         let mut want_vis = vec![0.0; want.len()];
-        let (want_soft, NoCounters) = soft_pass(&single, &layout, &scene, &camera, &want, &light, &mut want_vis);
+        let (want_soft, NoCounters) = soft_pass(&single, &view, &want, &light, &mut want_vis);
         let mut want_stream = vec![None; want.len()];
         let all: Vec<Ray> = trace::setup::primary_rays(&camera);
         single.stream(&mut (), &all, &mut want_stream, &mut NoCounters);
@@ -344,12 +346,14 @@ mod tests {
             for (g, h) in got.iter().zip(want) {
                 assert!(same_or_edge_tie(scene, *g, *h), "width {}: {g:?} vs {h:?}", P::WIDTH);
             }
+            let surfaces = trace::shade::surfaces(&scene.mesh);
+            let view = trace::frame::View { layout, scene, surfaces: &surfaces, camera };
             let mut occ = vec![false; want.len()];
-            let (rays, blocked, NoCounters) = shadow_pass(b, layout, scene, camera, want, &mut occ);
+            let (rays, blocked, NoCounters) = shadow_pass(b, &view, want, &mut occ);
             assert_eq!((rays, blocked), w.0);
             assert_eq!(occ, w.1);
             let mut vis = vec![0.0; want.len()];
-            assert_eq!(soft_pass::<_, NoCounters>(b, layout, scene, camera, want, light, &mut vis).0, w.2);
+            assert_eq!(soft_pass::<_, NoCounters>(b, &view, want, light, &mut vis).0, w.2);
             assert_eq!(vis, w.3);
             let mut stream = vec![None; w.4.len()];
             b.stream(&mut P::default(), w.4, &mut stream, &mut NoCounters);

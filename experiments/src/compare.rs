@@ -410,7 +410,8 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut shadow_rays = vec![0u64; shadows.kernels.len()];
     let mut soft_rays = vec![0u64; softs.kernels.len()];
     let mut occluded = vec![false; frame.layout.pixel_count()];
-    let frame_view = trace::frame::View { layout: &frame.layout, scene: &scene, camera: &camera };
+    let surfaces = trace::shade::surfaces(&scene.mesh);
+    let frame_view = trace::frame::View { layout: &frame.layout, scene: &scene, surfaces: &surfaces, camera: &camera };
     let mut visible = vec![0.0f32; frame.layout.pixel_count()];
     let mut ao_secs = vec![Vec::new(); incoherent];
     let mut diffuse_secs = vec![Vec::new(); incoherent];

@@ -55,13 +55,14 @@ impl Default for CullingConfig {
 /// The shadow rays of a frame: one per primary hit facing the point light (`mono`'s hits).
 /// Rows in parallel (rayon), in row-major order whatever the thread count.
 pub fn shadow_rays(scene: &Scene, tree: &KdTree, camera: &Camera) -> Vec<Ray> {
+    let surfaces = trace::shade::surfaces(&scene.mesh);
     let rows: Vec<Vec<Ray>> = (0..camera.height)
         .into_par_iter()
         .map(|y| {
             let mut out = Vec::new();
             for x in 0..camera.width {
                 let hit: Option<Hit> = tree.intersect(&primary_ray(camera, x, y));
-                if let Some(ray) = hard_shadow_ray(scene, camera, x, y, &hit) {
+                if let Some(ray) = hard_shadow_ray(scene, &surfaces, camera, x, y, &hit) {
                     out.push(ray);
                 }
             }

@@ -176,7 +176,8 @@ fn sweep_scene(scene: &Scene, config: &SweepConfig, progress: &dyn Progress) -> 
     let mono = registry.select("mono", Options::default())?;
     let mft = registry.select("mft-16", Options::default())?;
     let layout = TileLayout::new(camera.width, camera.height, Options::default().tile);
-    let view = View { layout: &layout, scene, camera: &camera };
+    let surfaces = trace::shade::surfaces(&scene.mesh);
+    let view = View { layout: &layout, scene, surfaces: &surfaces, camera: &camera };
 
     let builds = progress.task(&format!("sah sweep: {} builds", scene.name), Some(config.candidates.len() as u64));
     let mut built = Vec::new();

@@ -237,7 +237,8 @@ fn measure_soft(
     let (w, h) = config.size;
     let (camera, _) = view_camera(scene, None, w, h)?;
     let layout = TileLayout::new(w, h, trace::registry::TILE_SIZE);
-    let view = trace::frame::View { layout: &layout, scene, camera: &camera };
+    let surfaces = trace::shade::surfaces(&scene.mesh);
+    let view = trace::frame::View { layout: &layout, scene, surfaces: &surfaces, camera: &camera };
     let mono = registry.bind(&registry.select("mono", Options::default())?, structures)?;
     let mut hits = vec![None; layout.pixel_count()];
     mono.tracer.primary(&layout, &camera, &mut hits, None);

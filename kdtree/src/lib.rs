@@ -13,6 +13,8 @@
 //!   ([`KdTree::intersect`]) and any hit ([`KdTree::occluded`]).
 //! - [`oracle`]: a brute-force intersector over all triangles, the reference every traversal
 //!   method is tested against.
+//! - [`surface`]: per-triangle records for starting rays on surfaces (hit point, facing
+//!   normal, offset origin), one cache line each.
 //! - [`counters`]: node / leaf / intersection counters that compile to nothing when off.
 //!
 //! This crate knows nothing about files, images or packets: it takes positions and triangle
@@ -26,6 +28,7 @@ pub mod node;
 pub mod oracle;
 pub mod ray;
 pub mod stats;
+pub mod surface;
 pub mod traverse;
 pub mod tree;
 pub mod treefile;

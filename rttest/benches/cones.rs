@@ -21,7 +21,8 @@ fn soft_shadows(c: &mut Criterion) {
     for (name, scene, tree, camera) in trace::setup::packet_workloads(256) {
         let structures = Structures::new(&tree);
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
-        let view = trace::frame::View { layout: &layout, scene: &scene, camera: &camera };
+        let surfaces = trace::shade::surfaces(&scene.mesh);
+        let view = trace::frame::View { layout: &layout, scene: &scene, surfaces: &surfaces, camera: &camera };
         let bind = |m: &str| registry.bind(&registry.select(m, Options::default()).expect("registered"), &structures);
         let mono = bind("mono").expect("mono binds");
         let mut hits = vec![None; layout.pixel_count()];

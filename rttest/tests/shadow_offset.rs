@@ -19,12 +19,13 @@
 //! at large ones.
 
 use glam::{Affine3A, DVec3, Quat, Vec3};
+use kdtree::surface::Surfaces;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, Ray};
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Mesh, PointLight};
 
-/// How a shadow ray is made from a primary hit (the signature of `trace::shade::shadow_ray`).
-type Spawn = fn(&Mesh, &PointLight, Vec3, Vec3, &Hit) -> Option<Ray>;
+/// How a shadow ray is made from a primary hit (with the mesh or its surface records).
+type Spawn = fn(&Mesh, &Surfaces, &PointLight, Vec3, Vec3, &Hit) -> Option<Ray>;
 
 /// A convex blocker: the object id (material) of its triangles and its face planes
 /// `n . x <= d` (unit `n`, in `f64`).
@@ -217,6 +218,7 @@ fn run(setup: &Setup, intersector: Intersector, spawn: Spawn) -> Tally {
     let tree = build(intersector).expect("build");
     let watertight = build(Intersector::Watertight).expect("build");
     let margin = 0.01 * setup.size;
+    let surfaces = trace::shade::surfaces(mesh);
     let mut tally = Tally::default();
     for &position in &setup.lights {
         let light = PointLight { position, intensity: Vec3::ONE };
@@ -225,7 +227,7 @@ fn run(setup: &Setup, intersector: Intersector, spawn: Spawn) -> Tally {
                 for x in 0..camera.width {
                     let (origin, dir) = camera.pixel_ray(x, y);
                     let Some(hit) = tree.intersect(&Ray::new(origin, dir, 0.0, f32::INFINITY)) else { continue };
-                    let Some(shadow) = spawn(mesh, &light, origin, dir, &hit) else { continue };
+                    let Some(shadow) = spawn(mesh, &surfaces, &light, origin, dir, &hit) else { continue };
                     // The exact point of the hit, from its triangle and barycentrics.
                     let [a, b, c] = mesh.triangle(hit.prim as usize).map(|v| v.as_dvec3());
                     let p = a + f64::from(hit.u) * (b - a) + f64::from(hit.v) * (c - a);
@@ -266,7 +268,7 @@ fn the_offset_scheme_neither_self_shadows_nor_leaks() {
     let mut failures = Vec::new();
     for setup in setups() {
         for intersector in [Intersector::Wald, Intersector::Watertight] {
-            let t = run(&setup, intersector, trace::shade::shadow_ray);
+            let t = run(&setup, intersector, the_scheme);
             if t.self_shadowed + t.leaks > 0 {
                 failures.push(format!("{} ({intersector:?}): {t:?}", setup.name));
             }
@@ -278,8 +280,13 @@ fn the_offset_scheme_neither_self_shadows_nor_leaks() {
     assert!(total.lit > 100_000 && total.shadowed > 10_000, "the scenes test enough pixels: {total:?}");
 }
 
+/// The workspace's scheme: `trace::shade::shadow_ray` (`kdtree::ray::offset_origin`).
+fn the_scheme(_: &Mesh, surfaces: &Surfaces, light: &PointLight, _: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
+    trace::shade::shadow_ray(surfaces, light, dir, hit)
+}
+
 /// The shadow ray from the hit point itself, no offset.
-fn no_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
+fn no_offset(mesh: &Mesh, _: &Surfaces, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
     let n = trace::shade::facing_normal(mesh, hit, dir);
     let p = origin + hit.t * dir;
     let to_light = light.position - p;
@@ -287,7 +294,7 @@ fn no_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit
 }
 
 /// The shadow ray from the hit point moved 0.01 along the normal, whatever the scale.
-fn fixed_offset(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
+fn fixed_offset(mesh: &Mesh, _: &Surfaces, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit) -> Option<Ray> {
     let n = trace::shade::facing_normal(mesh, hit, dir);
     let p = origin + hit.t * dir;
     let to_light = light.position - p;

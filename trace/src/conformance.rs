@@ -827,6 +827,7 @@ fn check_case(
     report: &mut Report,
 ) {
     let scene = &case.scene;
+    let surfaces = &crate::shade::surfaces(&scene.mesh);
     // The references' answers: per (reference, tile, camera) frames; per reference streams.
     let mut frames: HashMap<(String, u32, usize), Frame> = HashMap::new();
     let mut streams: HashMap<String, (Vec<Option<Hit>>, Vec<bool>)> = HashMap::new();
@@ -867,20 +868,30 @@ fn check_case(
                 let mut hits = vec![None; layout.pixel_count()];
                 reference.tracer.primary(&layout, camera, &mut hits, None);
                 let mut shadow = vec![false; layout.pixel_count()];
-                let shadow_counts =
-                    reference.tracer.shadow(&View { layout: &layout, scene, camera }, &hits, &mut shadow, None);
+                let shadow_counts = reference.tracer.shadow(
+                    &View { layout: &layout, scene, surfaces, camera },
+                    &hits,
+                    &mut shadow,
+                    None,
+                );
                 let mut visible = vec![0.0; layout.pixel_count()];
-                let soft =
-                    reference.tracer.soft(&View { layout: &layout, scene, camera }, &hits, light, &mut visible, None);
+                let soft = reference.tracer.soft(
+                    &View { layout: &layout, scene, surfaces, camera },
+                    &hits,
+                    light,
+                    &mut visible,
+                    None,
+                );
                 Frame { hits, shadow, shadow_counts, visible, soft }
             });
             let n = layout.pixel_count();
             let (mut hits, mut shadow, mut visible) = (vec![None; n], vec![false; n], vec![0.0; n]);
             m.tracer.primary(&layout, camera, &mut hits, None);
             // Shadows from the reference's hits, so that both trace the same rays.
-            let counts = m.tracer.shadow(&View { layout: &layout, scene, camera }, &want.hits, &mut shadow, None);
+            let counts =
+                m.tracer.shadow(&View { layout: &layout, scene, surfaces, camera }, &want.hits, &mut shadow, None);
             let stats = if soft {
-                m.tracer.soft(&View { layout: &layout, scene, camera }, &want.hits, light, &mut visible, None)
+                m.tracer.soft(&View { layout: &layout, scene, surfaces, camera }, &want.hits, light, &mut visible, None)
             } else {
                 want.soft
             };
@@ -898,7 +909,7 @@ fn check_case(
                 // Shadow rays that start on an edge (their primary ray grazed it) graze what
                 // meets that edge: another triangle test may see them either way.
                 let from_edge = check.rule == Rule::Loose && want.hits[i].is_some_and(on_edge);
-                let outcome = match hard_shadow_ray(scene, camera, x, y, &want.hits[i]) {
+                let outcome = match hard_shadow_ray(scene, surfaces, camera, x, y, &want.hits[i]) {
                     Some(_) if from_edge && shadow[i] != want.shadow[i] => Outcome::Tie,
                     Some(r) => judge.occlusion(check.rule, &r, shadow[i], want.shadow[i]),
                     None if shadow[i] => Outcome::Refused,
@@ -915,7 +926,7 @@ fn check_case(
                 } else {
                     let rays = want.hits[i]
                         .as_ref()
-                        .and_then(|h| soft::shadow_start(scene, light, h, ray.dir))
+                        .and_then(|h| soft::shadow_start(surfaces, light, h, ray.dir))
                         .and_then(|(start, _)| Some(shadow_rays(start, &light_samples(start, light)?)));
                     judge.soft(check.rule, rays.as_ref().map_or(&[][..], |r| &r[..]), got_n, want_n)
                 };

@@ -15,6 +15,7 @@
 //! registry hands methods out ([`crate::registry`]).
 
 use kdtree::Counts;
+use kdtree::surface::Surfaces;
 use kdtree::{Hit, NoCounters, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
@@ -178,15 +179,14 @@ pub fn primary_pass<M: Method, C: TileCounters>(
 /// `occluded`. Returns (rays traced, rays blocked) and the summed counters.
 pub fn shadow_pass<M: Method, C: TileCounters>(
     method: &M,
-    layout: &TileLayout,
-    scene: &Scene,
-    camera: &Camera,
+    view: &View<'_>,
     hits: &[Option<Hit>],
     occluded: &mut [bool],
 ) -> (u64, u64, C) {
+    let View { layout, scene, surfaces, camera } = *view;
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(occluded)).collect();
     let ((rays, blocked), counts) = over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
-        method.shadow_tile(scratch, &ShadowJob { scene, camera, tile, hits }, out, counts)
+        method.shadow_tile(scratch, &ShadowJob { scene, surfaces, camera, tile, hits }, out, counts)
     });
     (rays, blocked, counts)
 }
@@ -196,16 +196,16 @@ pub fn shadow_pass<M: Method, C: TileCounters>(
 /// light per pixel into `visible` (0 for pixels without a lit hit).
 pub fn soft_pass<M: Method, C: TileCounters>(
     method: &M,
-    layout: &TileLayout,
-    scene: &Scene,
-    camera: &Camera,
+    view: &View<'_>,
     hits: &[Option<Hit>],
     light: &SphereLight,
     visible: &mut [f32],
 ) -> (SoftStats, C) {
+    let View { layout, scene, surfaces, camera } = *view;
     let chunks: Vec<_> = layout.chunks(hits).into_iter().zip(layout.chunks_mut(visible)).collect();
     over_tiles(method, layout, chunks, |scratch, tile, (hits, out), counts| {
-        method.soft_tile(scratch, &SoftJob { hits: ShadowJob { scene, camera, tile, hits }, light }, out, counts)
+        let hits = ShadowJob { scene, surfaces, camera, tile, hits };
+        method.soft_tile(scratch, &SoftJob { hits, light }, out, counts)
     })
 }
 
@@ -271,6 +271,8 @@ pub struct View<'a> {
     pub layout: &'a TileLayout,
     /// The scene (mesh and point light).
     pub scene: &'a Scene,
+    /// The scene's surface records ([`crate::shade::surfaces`]), made once per scene.
+    pub surfaces: &'a Surfaces,
     /// The camera of the primary rays.
     pub camera: &'a Camera,
 }
@@ -345,11 +347,11 @@ impl<M: Method> FrameTracer for Driven<M> {
         let m = &self.0;
         match counts {
             None => {
-                let (rays, blocked, NoCounters) = shadow_pass(m, v.layout, v.scene, v.camera, hits, out);
+                let (rays, blocked, NoCounters) = shadow_pass(m, v, hits, out);
                 (rays, blocked)
             }
             Some(c) => {
-                let (rays, blocked, k) = shadow_pass::<M, Counts>(m, v.layout, v.scene, v.camera, hits, out);
+                let (rays, blocked, k) = shadow_pass::<M, Counts>(m, v, hits, out);
                 *c += k;
                 (rays, blocked)
             }
@@ -366,9 +368,9 @@ impl<M: Method> FrameTracer for Driven<M> {
     ) -> SoftStats {
         let m = &self.0;
         match counts {
-            None => soft_pass::<M, NoCounters>(m, v.layout, v.scene, v.camera, hits, light, out).0,
+            None => soft_pass::<M, NoCounters>(m, v, hits, light, out).0,
             Some(c) => {
-                let (stats, k) = soft_pass::<M, Counts>(m, v.layout, v.scene, v.camera, hits, light, out);
+                let (stats, k) = soft_pass::<M, Counts>(m, v, hits, light, out);
                 *c += k;
                 stats
             }

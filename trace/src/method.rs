@@ -19,6 +19,7 @@
 
 use cones::Cone;
 use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use kdtree::surface::Surfaces;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
 use scenes::{Camera, Scene, SphereLight, Tile};
 
@@ -188,7 +189,7 @@ impl<T: Tracer> Method for SingleRays<T> {
         let (mut rays, mut blocked) = (0, 0);
         for ((x, y, hit), slot) in job.pixels().zip(out) {
             *slot = false;
-            let Some(ray) = hard_shadow_ray(job.scene, job.camera, x, y, hit) else { continue };
+            let Some(ray) = job.ray(x, y, hit) else { continue };
             rays += 1;
             *slot = self.0.occluded_counted(&ray, counters);
             blocked += u64::from(*slot);
@@ -223,6 +224,8 @@ impl<T: Tracer> Method for SingleRays<T> {
 pub struct ShadowJob<'a> {
     /// The scene (its mesh and point light).
     pub scene: &'a Scene,
+    /// The scene's surface records ([`shade::surfaces`]), which the shadow rays start from.
+    pub surfaces: &'a Surfaces,
     /// The camera of the primary rays.
     pub camera: &'a Camera,
     /// The tile.
@@ -235,6 +238,12 @@ impl ShadowJob<'_> {
     /// Each pixel of the tile with its primary hit: `(x, y, hit)`.
     pub fn pixels(&self) -> impl Iterator<Item = (u32, u32, &Option<Hit>)> {
         self.tile.pixels().zip(self.hits).map(|((x, y), h)| (x, y, h))
+    }
+
+    /// The hard shadow ray of pixel `(x, y)` with primary hit `hit`: [`hard_shadow_ray`].
+    #[inline]
+    pub fn ray(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
+        hard_shadow_ray(self.scene, self.surfaces, self.camera, x, y, hit)
     }
 }
 
@@ -297,11 +306,11 @@ impl SoftJob<'_> {
     /// it. Every method traces exactly these rays.
     #[inline]
     pub fn point(&self, i: usize) -> Option<([Ray; SAMPLES], Cone)> {
-        let ShadowJob { scene, camera, tile, hits } = self.hits;
+        let ShadowJob { surfaces, camera, tile, hits, .. } = self.hits;
         let hit = hits.get(i)?.as_ref()?;
         let (x, y) = (tile.x0 + i as u32 % tile.width(), tile.y0 + i as u32 / tile.width());
         let dir = camera.pixel_ray(x, y).1;
-        let (start, cone) = soft::shadow_start(scene, self.light, hit, dir)?;
+        let (start, cone) = soft::shadow_start(surfaces, self.light, hit, dir)?;
         let samples = light_samples(start, self.light)?;
         Some((shadow_rays(start, &samples), cone))
     }
@@ -315,12 +324,18 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
     Ray::new(origin, dir, 0.0, f32::INFINITY)
 }
 
-/// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit`
-/// ([`shade::shadow_ray`]); `None` for misses and surfaces facing away from the light. Every
-/// method traces exactly these rays.
+/// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit` toward the scene's point
+/// light ([`shade::shadow_ray`], with `surfaces` the scene's [`shade::surfaces`]); `None` for
+/// misses and surfaces facing away from the light. Every method traces exactly these rays.
 #[inline]
-pub fn hard_shadow_ray(scene: &Scene, camera: &Camera, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
+pub fn hard_shadow_ray(
+    scene: &Scene,
+    surfaces: &Surfaces,
+    camera: &Camera,
+    x: u32,
+    y: u32,
+    hit: &Option<Hit>,
+) -> Option<Ray> {
     let hit = hit.as_ref()?;
-    let (origin, dir) = camera.pixel_ray(x, y);
-    shade::shadow_ray(&scene.mesh, &scene.point_light, origin, dir, hit)
+    shade::shadow_ray(surfaces, &scene.point_light, camera.pixel_ray(x, y).1, hit)
 }

@@ -12,12 +12,14 @@
 //! The method's tile ([`Options::tile`](crate::registry::Options)) is the work unit of a
 //! thread and, for the frustum and cone methods, the frustum.
 
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::{LeakRemedies, occlusion_factor, width_from_light};
 use glam::Vec3;
 use kdtree::Counts;
+use kdtree::surface::Surfaces;
 use kdtree::{Hit, KdTree};
 use packets::RayPacket;
 use rayon::prelude::*;
@@ -117,6 +119,9 @@ impl FrameStats {
 #[derive(Debug)]
 pub struct Renderer<'a> {
     scene: &'a Scene,
+    /// The scene's surface records: given ([`Renderer::with_surfaces`]) or made on first use.
+    surfaces: Option<&'a Surfaces>,
+    own_surfaces: OnceLock<Surfaces>,
     method: &'a Bound<'a>,
     camera: Camera,
     layout: TileLayout,
@@ -134,7 +139,22 @@ impl<'a> Renderer<'a> {
         let layout = TileLayout::new(camera.width, camera.height, method.options.tile.max(1));
         let (lo, hi) = scene.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let light = soft::light_in_bounds(scene, lo, hi, 1.0);
-        Renderer { scene, method, camera, layout, shadows, light, tree: None }
+        let (surfaces, own_surfaces) = (None, OnceLock::new());
+        Renderer { scene, surfaces, own_surfaces, method, camera, layout, shadows, light, tree: None }
+    }
+
+    /// The same renderer with the scene's surface records made elsewhere
+    /// ([`shade::surfaces`] of the same scene), for callers that make many renderers of one
+    /// scene (the viewer makes one per frame).
+    pub fn with_surfaces(mut self, surfaces: &'a Surfaces) -> Self {
+        self.surfaces = Some(surfaces);
+        self
+    }
+
+    /// The scene's surface records, which the shadow rays start from (made on the first call
+    /// unless given).
+    pub fn surfaces(&self) -> &Surfaces {
+        self.surfaces.unwrap_or_else(|| self.own_surfaces.get_or_init(|| shade::surfaces(&self.scene.mesh)))
     }
 
     /// The same renderer with our kd-tree of the scene, which [`Shadows::EdgeWidth`] traces
@@ -208,6 +228,8 @@ impl<'a> Renderer<'a> {
     fn trace_with(&self, buf: &mut FrameBuffers, counted: bool) -> (FrameStats, Counts, Counts) {
         let tracer = &self.method.tracer;
         let (scene, camera, layout) = (self.scene, &self.camera, &self.layout);
+        // Made (once) before the clock starts: scene setup, not tracing.
+        let surfaces = self.surfaces();
         let start = Instant::now();
         let (mut primary_counts, mut shadow_counts) = (Counts::default(), Counts::default());
         let hits = tracer.primary(layout, camera, &mut buf.hits, counted.then_some(&mut primary_counts));
@@ -223,13 +245,18 @@ impl<'a> Renderer<'a> {
             Shadows::Soft16 => {
                 buf.occluded.fill(false);
                 buf.visible.resize(layout.pixel_count(), 0.0);
-                let SoftStats { rays, blocked, .. } =
-                    tracer.soft(&View { layout, scene, camera }, &buf.hits, &self.light, &mut buf.visible, counts);
+                let SoftStats { rays, blocked, .. } = tracer.soft(
+                    &View { layout, scene, surfaces, camera },
+                    &buf.hits,
+                    &self.light,
+                    &mut buf.visible,
+                    counts,
+                );
                 (rays, blocked)
             }
             Shadows::Hard => {
                 buf.visible.clear();
-                tracer.shadow(&View { layout, scene, camera }, &buf.hits, &mut buf.occluded, counts)
+                tracer.shadow(&View { layout, scene, surfaces, camera }, &buf.hits, &mut buf.occluded, counts)
             }
             Shadows::EdgeWidth => {
                 let tree = self.tree.expect("Shadows::EdgeWidth needs Renderer::with_tree");
@@ -254,7 +281,7 @@ impl<'a> Renderer<'a> {
     /// `hits` into `visible` (tile order), in parallel over tiles, each tile's pixels four at
     /// a time in tile order. Returns the rays traced and those with a width above 0.
     fn edge_width_pass(&self, tree: &KdTree, hits: &[Option<Hit>], visible: &mut [f32]) -> (u64, u64) {
-        let mesh = &self.scene.mesh;
+        let surfaces = self.surfaces();
         let center = PointLight { position: self.light.center, intensity: self.light.intensity };
         let remedies = LeakRemedies::default();
         let inputs = self.layout.chunks(hits);
@@ -273,9 +300,9 @@ impl<'a> Renderer<'a> {
                     for (lane, hit) in hits.iter().enumerate() {
                         let Some((x, y)) = pixels.next() else { break };
                         let Some(hit) = hit else { continue };
-                        let (origin, dir) = self.camera.pixel_ray(x, y);
-                        let Some(ray) = shade::shadow_ray(mesh, &center, origin, dir, hit) else { continue };
-                        let p = kdtree::ray::surface_point(&mesh.triangle(hit.prim as usize), hit);
+                        let dir = self.camera.pixel_ray(x, y).1;
+                        let Some(ray) = shade::shadow_ray(surfaces, &center, dir, hit) else { continue };
+                        let p = surfaces.get(hit.prim).point(hit);
                         r[lane] = width_from_light(self.light.radius, (self.light.center - p).length(), 1.0);
                         lanes[lane] = Some(ray);
                     }
@@ -436,6 +463,7 @@ mod tests {
         let registry = Registry::ours();
         let mono = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
         let renderer = Renderer::new(&scene, &mono, camera, Shadows::Hard);
+        let surfaces = shade::surfaces(&scene.mesh);
         let mut buf = renderer.buffers();
         let stats = renderer.trace(&mut buf);
         let depth = renderer.depth(&buf);
@@ -450,7 +478,7 @@ mod tests {
                 assert_eq!(prim.values[i], hit.map_or(-1.0, |h| scene.mesh.prim_ids[h.prim as usize] as f32));
                 let Some(hit) = hit else { continue };
                 hits += 1;
-                if let Some(shadow) = shade::shadow_ray(&scene.mesh, &scene.point_light, ray.origin, ray.dir, &hit) {
+                if let Some(shadow) = shade::shadow_ray(&surfaces, &scene.point_light, ray.dir, &hit) {
                     shadow_rays += 1;
                     blocked += u64::from(Tracer::occluded(&tree, &shadow));
                 }
@@ -516,6 +544,7 @@ mod tests {
         let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
         let camera = scene.default_view().camera(64, 48).unwrap();
         let light = crate::soft::scene_light(&scene, &tree, 2.0);
+        let surfaces = shade::surfaces(&scene.mesh);
         let structures = Structures::new(&tree);
         let registry = Registry::ours();
         let mut reference: Option<Vec<f32>> = None;
@@ -536,9 +565,9 @@ mod tests {
             let mut scratch = edgewidth::EdgeScratch::default();
             for (i, (&v, hit)) in visible.iter().zip(&hits).enumerate() {
                 let (x, y) = (i as u32 % camera.width, i as u32 / camera.width);
-                let (origin, dir) = camera.pixel_ray(x, y);
+                let dir = camera.pixel_ray(x, y).1;
                 let center = PointLight { position: light.center, intensity: light.intensity };
-                let Some(ray) = hit.and_then(|h| shade::shadow_ray(&scene.mesh, &center, origin, dir, &h)) else {
+                let Some(ray) = hit.and_then(|h| shade::shadow_ray(&surfaces, &center, dir, &h)) else {
                     assert_eq!(v, 0.0, "{name}: unlit pixel ({x}, {y})");
                     continue;
                 };

@@ -116,11 +116,12 @@ pub fn primary_rays(camera: &Camera) -> Vec<Ray> {
 /// The shadow rays of the hits of `primary` towards the scene's point light (one per hit
 /// facing the light), in the order of `primary`.
 pub fn shadow_rays(scene: &Scene, tree: &KdTree, primary: &[Ray]) -> Vec<Ray> {
+    let surfaces = shade::surfaces(&scene.mesh);
     primary
         .par_iter()
         .filter_map(|ray| {
             let hit = tree.intersect(ray)?;
-            shade::shadow_ray(&scene.mesh, &scene.point_light, ray.origin, ray.dir, &hit)
+            shade::shadow_ray(&surfaces, &scene.point_light, ray.dir, &hit)
         })
         .collect()
 }

@@ -25,7 +25,7 @@ use kdtree::{KdTree, Ray};
 use packets::{ShadowFrustum, samesign};
 use scenes::Tile;
 
-use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters, hard_shadow_ray};
+use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
 
 /// How a tile's shadow rays are grouped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,7 +112,7 @@ pub fn hard<C: TileCounters>(
     counters: &mut C,
 ) -> (u64, u64) {
     scratch.hard.clear();
-    scratch.hard.extend(job.pixels().map(|(x, y, hit)| hard_shadow_ray(job.scene, job.camera, x, y, hit)));
+    scratch.hard.extend(job.pixels().map(|(x, y, hit)| job.ray(x, y, hit)));
     scratch.morton_order(job.tile);
     scratch.rays.clear();
     scratch.slots.clear();

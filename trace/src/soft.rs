@@ -6,6 +6,7 @@
 use cones::Cone;
 use cones::shadows::sample_cone;
 use glam::Vec3;
+use kdtree::surface::Surfaces;
 use kdtree::{Hit, KdTree};
 use scenes::{Scene, SphereLight};
 
@@ -23,15 +24,15 @@ pub fn scaled_radius(r: f32, diag: f32) -> f32 {
 /// surface towards the light's centre. `None` when the light's centre is behind the surface
 /// or the point is inside the light. Public so that other tracers (`rttest compare`) trace
 /// exactly these rays.
-pub fn shadow_start(scene: &Scene, light: &SphereLight, hit: &Hit, dir: Vec3) -> Option<(Vec3, Cone)> {
-    let tri = scene.mesh.triangle(hit.prim as usize);
-    let p = kdtree::ray::surface_point(&tri, hit);
-    let n = crate::shade::facing_normal(&scene.mesh, hit, dir);
+pub fn shadow_start(surfaces: &Surfaces, light: &SphereLight, hit: &Hit, dir: Vec3) -> Option<(Vec3, Cone)> {
+    let s = surfaces.get(hit.prim);
+    let p = s.point(hit);
+    let n = s.facing_normal(dir);
     let to_light = light.center - p;
     if n.dot(to_light) <= 0.0 {
         return None;
     }
-    let start = kdtree::ray::offset_origin(&tri, hit, to_light);
+    let start = s.offset_origin(p, to_light);
     Some((start, sample_cone(start, light)?))
 }
 

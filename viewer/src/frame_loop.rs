@@ -15,6 +15,7 @@
 use std::time::Instant;
 
 use cones::shadows::SAMPLES;
+use kdtree::surface::Surfaces;
 use kdtree::{Counts, KdTree, Ray};
 use scenes::colormap::{common_max, heatmap};
 use scenes::font::{GLYPH_H, draw_text, text_width};
@@ -88,6 +89,8 @@ pub struct FrameLoop<'a> {
     tree: &'a KdTree,
     registry: Registry,
     structures: Structures<'a>,
+    /// The scene's surface records (`trace::shade::surfaces`), made once for every frame.
+    surfaces: Surfaces,
     light: SphereLight,
     /// Size of `buffers` and the method/shadows they were traced with.
     size: (u32, u32),
@@ -134,6 +137,7 @@ impl<'a> FrameLoop<'a> {
             tree,
             registry,
             structures,
+            surfaces: trace::shade::surfaces(&scene.mesh),
             light: trace::soft::scene_light(scene, tree, 1.0),
             size: (0, 0),
             buffers: FrameBuffers::new(0),
@@ -189,7 +193,7 @@ impl<'a> FrameLoop<'a> {
         };
         let mut counting_secs = 0.0;
         if let Some(cost) = state.overlay {
-            let renderer = Renderer::new(self.scene, &bound, camera, Shadows::None);
+            let renderer = Renderer::new(self.scene, &bound, camera, Shadows::None).with_surfaces(&self.surfaces);
             let t = Instant::now();
             let frame = renderer.trace_costs(&mut self.buffers);
             info.trace_secs = t.elapsed().as_secs_f64();
@@ -207,8 +211,10 @@ impl<'a> FrameLoop<'a> {
             pack(&heatmap(&values, max), out);
         } else {
             let shadows = renderer_shadows(state.shadows);
-            let renderer =
-                Renderer::new(self.scene, &bound, camera, shadows).with_light(self.light).with_tree(self.tree);
+            let renderer = Renderer::new(self.scene, &bound, camera, shadows)
+                .with_light(self.light)
+                .with_tree(self.tree)
+                .with_surfaces(&self.surfaces);
             if state.shadows == ShadowMode::Soft && !restart {
                 let t = Instant::now();
                 info.rays = self.soft.pass(&bound, &renderer, self.scene, &self.light, &mut self.buffers);
@@ -333,7 +339,7 @@ impl Refinement {
         }
         let layout = renderer.layout();
         let camera = renderer.camera();
-        let view = View { layout, scene, camera };
+        let view = View { layout, scene, surfaces: renderer.surfaces(), camera };
         let pass = self.passes;
         // Pixel indices (tile order) and coordinates.
         let pixels: Vec<(usize, u32, u32)> =
@@ -345,7 +351,7 @@ impl Refinement {
             for &(i, x, y) in chunk {
                 let Some(hit) = &buffers.hits[i] else { continue };
                 let dir = view.camera.pixel_ray(x, y).1;
-                let Some((start, _)) = trace::soft::shadow_start(view.scene, light, hit, dir) else { continue };
+                let Some((start, _)) = trace::soft::shadow_start(view.surfaces, light, hit, dir) else { continue };
                 let Some(rays) = refine::rays(start, light, pass) else { continue };
                 self.rays.extend_from_slice(&rays);
                 lit.push(i);

@@ -45,7 +45,8 @@ pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[
         let mut hits = vec![None; layout.pixel_count()];
         mono.tracer.primary(&layout, &camera, &mut hits, None);
         let light = soft::scene_light(&scene, &tree, 1.0);
-        let view = View { layout: &layout, scene: &scene, camera: &camera };
+        let surfaces = trace::shade::surfaces(&scene.mesh);
+        let view = View { layout: &layout, scene: &scene, surfaces: &surfaces, camera: &camera };
         let mut occluded = vec![false; layout.pixel_count()];
         let mut visible = vec![0.0f32; layout.pixel_count()];
         let (rays, _) = mono.tracer.shadow(&view, &hits, &mut occluded, None);
