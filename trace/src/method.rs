@@ -19,6 +19,7 @@
 
 use cones::Cone;
 use cones::shadows::{SAMPLES, light_samples, shadow_rays};
+use glam::Vec3;
 use kdtree::surface::Surfaces;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
 use scenes::{Camera, Scene, SphereLight, Tile};
@@ -306,13 +307,21 @@ impl SoftJob<'_> {
     /// it. Every method traces exactly these rays.
     #[inline]
     pub fn point(&self, i: usize) -> Option<([Ray; SAMPLES], Cone)> {
+        let (start, samples, cone) = self.samples(i)?;
+        Some((shadow_rays(start, &samples), cone))
+    }
+
+    /// What [`SoftJob::point`] makes its rays from: the rays' origin, the 16 light samples
+    /// (ray `k` is `Ray::new(origin, samples[k] - origin, 0.0, 1.0)`) and the cone. A fifth of
+    /// the bytes of the rays, for kernels that keep a tile's points before tracing them.
+    #[inline]
+    pub fn samples(&self, i: usize) -> Option<(Vec3, [Vec3; SAMPLES], Cone)> {
         let ShadowJob { surfaces, camera, tile, hits, .. } = self.hits;
         let hit = hits.get(i)?.as_ref()?;
         let (x, y) = (tile.x0 + i as u32 % tile.width(), tile.y0 + i as u32 / tile.width());
         let dir = camera.pixel_ray(x, y).1;
         let (start, cone) = soft::shadow_start(surfaces, self.light, hit, dir)?;
-        let samples = light_samples(start, self.light)?;
-        Some((shadow_rays(start, &samples), cone))
+        Some((start, light_samples(start, self.light)?, cone))
     }
 }
 

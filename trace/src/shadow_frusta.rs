@@ -21,6 +21,7 @@
 //! (the conformance harness checks it).
 
 use cones::shadows::SAMPLES;
+use glam::Vec3;
 use kdtree::{KdTree, Ray};
 use packets::{ShadowFrustum, samesign};
 use scenes::Tile;
@@ -44,9 +45,10 @@ pub struct ShadowScratch {
     rays: Vec<Ray>,
     slots: Vec<u32>,
     blocked: Vec<bool>,
-    /// Per pixel: its hard shadow ray or its 16 soft ones, `None` where none is cast.
+    /// Per pixel: its hard shadow ray, `None` where none is cast.
     hard: Vec<Option<Ray>>,
-    soft: Vec<Option<[Ray; SAMPLES]>>,
+    /// Per pixel: its soft shadow rays' origin and light samples.
+    soft: Vec<Option<(Vec3, [Vec3; SAMPLES])>>,
     masks: Vec<u16>,
     /// The tile's pixels (row-major indices) in Morton order, for tiles of `order_size`.
     order: Vec<u32>,
@@ -144,7 +146,7 @@ pub fn soft<C: TileCounters>(
     counters: &mut C,
 ) -> SoftStats {
     scratch.soft.clear();
-    scratch.soft.extend((0..visible.len()).map(|i| job.point(i).map(|(rays, _)| rays)));
+    scratch.soft.extend((0..visible.len()).map(|i| job.samples(i).map(|(start, samples, _)| (start, samples))));
     scratch.masks.clear();
     scratch.masks.resize(visible.len(), 0);
     scratch.morton_order(job.hits.tile);
@@ -152,8 +154,9 @@ pub fn soft<C: TileCounters>(
         scratch.rays.clear();
         scratch.slots.clear();
         for &i in &scratch.order {
-            if let Some(rays) = &scratch.soft[i as usize] {
-                scratch.rays.push(rays[k]);
+            if let Some((start, samples)) = &scratch.soft[i as usize] {
+                // As `cones::shadows::shadow_rays`: the rays of `SoftJob::point`.
+                scratch.rays.push(Ray::new(*start, samples[k] - *start, 0.0, 1.0));
                 scratch.slots.push(i);
             }
         }
