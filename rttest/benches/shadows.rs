@@ -2,7 +2,8 @@
 //! shadows from the same primary hits, as single rays, as 2x2 packets of neighbouring
 //! pixels' rays (`packet`, `mft-16`: per light stratum for soft shadows), under the thesis's
 //! pyramid and cone (`packet`, `cone-16`, soft), and as Benthin & Wald's shadow frusta
-//! (`multi-frusta-16`), on the atrium and Sponza.
+//! (`multi-frusta-16`), on the atrium and Sponza; and the rays alone, made and not traced
+//! (`rays-only`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 

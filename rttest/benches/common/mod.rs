@@ -57,6 +57,9 @@ pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[
                 .warm_up_time(std::time::Duration::from_secs(1))
                 .measurement_time(std::time::Duration::from_secs(3));
             g.throughput(Throughput::Elements(elements));
+            // The rays alone, made as every method makes them and not traced: the part of
+            // each pass below that no kernel can save.
+            g.bench_function("rays-only", |b| b.iter(|| make_rays(&view, &hits, &light, kind == "hard")));
             for &method in std::iter::once(&"mono").chain(names) {
                 let selected = registry.select(method, Options::default()).expect("bench methods are registered");
                 let bound = registry.bind(&selected, &structures).expect("bench tile sizes are valid");
@@ -73,4 +76,33 @@ pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[
             g.finish();
         }
     }
+}
+
+/// The shadow rays of every lit hit of `hits` (tile order of `view.layout`), made in
+/// parallel over tiles as the frame driver does (`ShadowJob::ray` for hard shadows,
+/// `SoftJob::point` for soft ones) and not traced: how many there are.
+#[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
+pub fn make_rays(
+    view: &trace::frame::View<'_>,
+    hits: &[Option<kdtree::Hit>],
+    light: &scenes::SphereLight,
+    hard: bool,
+) -> u64 {
+    use rayon::prelude::*;
+    use trace::{ShadowJob, SoftJob};
+    let chunks = view.layout.chunks(hits);
+    view.layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map(|(tile, hits)| {
+            let job = ShadowJob { scene: view.scene, surfaces: view.surfaces, camera: view.camera, tile, hits };
+            if hard {
+                job.pixels().filter_map(|(x, y, hit)| job.ray(x, y, hit)).map(std::hint::black_box).count() as u64
+            } else {
+                let soft = SoftJob { hits: job, light };
+                (0..hits.len()).filter_map(|i| soft.point(i)).map(std::hint::black_box).count() as u64 * 16
+            }
+        })
+        .sum()
 }
