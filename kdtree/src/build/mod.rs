@@ -1,9 +1,14 @@
 //! The perfect-split SAH build (thesis 2.2.1, 3.2.1) in O(N log N) (Wald & Havran 2006).
 //!
 //! - Cost model (thesis 2.2.1): a split of a node with box `V` into `V_l`, `V_r` costs
-//!   `C_trav + C_isect * (N_l SA(V_l) + N_r SA(V_r)) / SA(V)`, times `1 - empty_bonus` when a
-//!   side holds no triangle; a leaf costs `C_isect * N`. A node becomes a leaf when no plane
-//!   is cheaper, when it is empty or at the depth limit.
+//!   `C_trav + C_isect * (G(N_l) SA(V_l) + G(N_r) SA(V_r)) / SA(V)`, times `1 - empty_bonus`
+//!   when a side holds no triangle; a leaf costs `C_isect * G(N)`, where `G(n) = ceil(n / W)`
+//!   counts the SIMD groups of [`BuildConfig::leaf_width`] `W` (`n` itself for the default
+//!   `W = 1`), the same in every search ([`sah`], [`small`], [`binned`]) and in the
+//!   leaf-or-split rule (`Ctx::accept`). A node becomes a leaf when no plane is cheaper, when
+//!   it is empty or at the depth limit; with [`BuildConfig::max_bad_refines`] a costlier plane
+//!   may still split it (Mitsuba's bad refines), and [`BuildConfig::collapse`] retracts the
+//!   subtrees that cost more than their leaf after the build ([`collapse`]).
 //! - Perfect splits (thesis 3.2.1): the candidate planes of a triangle are the faces of the
 //!   box of the triangle clipped to the node ([`clip`]).
 //! - O(N log N) (Wald & Havran 2006, section 4): the candidate events of all triangles are
@@ -173,7 +178,10 @@ pub enum CostModel {
     /// ratio `1 : 4/3`, so SAH costs stay in traversal steps) and `lambda = 0.8` on a split
     /// with an empty side (an empty bonus of 0.2). The default: `rttest sah-sweep` measures
     /// it at 1.0-1.5x the thesis's single-ray and 1.15-1.65x its MFT speed with 30% fewer
-    /// references and 25% shorter builds (`docs/results/sah-terms.md`).
+    /// references and 25% shorter builds (`docs/results/sah-terms.md`). Its leaves are priced
+    /// per triangle ([`BuildConfig::leaf_width`] 1), without bad refines or collapse: the
+    /// SIMD-group leaf cost (`leaf_width` 4) wins 2-5% on Sponza and the atrium but loses
+    /// 5-9% on the kitchen, and bad refines with their collapse end within 3% (same page).
     #[default]
     WaldHavran,
 }
