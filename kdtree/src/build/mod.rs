@@ -927,6 +927,53 @@ mod tests {
         assert!(matches!(build((1, usize::MAX - 10)), Err(BuildError::TooLarge(_))));
     }
 
+    /// The leaf-or-split rule: a split cheaper than the leaf (`C_isect * ceil(n / W)`) is
+    /// made; a costlier one only with bad refines left on the path, counted, searched without
+    /// a limit for 16 triangles and more and below 4 leaves for fewer; never at the depth
+    /// limit or for an empty node.
+    #[test]
+    fn the_leaf_or_split_rule_counts_bad_refines() {
+        let meter = Meter::new(None);
+        let costs = Costs { c_trav: 1.0, c_isect: 2.0, empty_factor: 1.0, width: 4.0 };
+        let ctx = |max_bad_refines| Ctx {
+            tris: &[],
+            costs,
+            depth_limit: 10,
+            max_bad_refines,
+            pool: Mutex::new(Vec::new()),
+            meter: &meter,
+        };
+        let split = |cost| Split { axis: 0, pos: 0.5, planar_left: true, cost };
+        let at = |depth, bad| At { depth, bad };
+        // 100 triangles: a leaf of 25 groups costs 50.
+        let off = ctx(0);
+        let seen = std::cell::Cell::new(0.0);
+        let run = |c: &Ctx, n, a, cost| {
+            c.accept(n, a, |limit| {
+                seen.set(limit);
+                Some(split(cost))
+            })
+        };
+        assert_eq!(run(&off, 100, at(3, 0), 49.0), Some((split(49.0), at(4, 0))));
+        assert_eq!(seen.get(), 50.0);
+        assert_eq!(run(&off, 100, at(3, 0), 50.0), None);
+        let bad = ctx(2);
+        assert_eq!(run(&bad, 100, at(3, 0), 49.0), Some((split(49.0), at(4, 0))));
+        assert_eq!(seen.get(), f64::INFINITY);
+        assert_eq!(run(&bad, 100, at(3, 0), 500.0), Some((split(500.0), at(4, 1))));
+        assert_eq!(run(&bad, 100, at(4, 1), 60.0), Some((split(60.0), at(5, 2))));
+        assert_eq!(run(&bad, 100, at(5, 2), 60.0), None, "no bad refine left");
+        assert_eq!(seen.get(), 50.0);
+        // 10 triangles: a leaf of 3 groups costs 6; a split over 4 leaves (24) is refused.
+        assert_eq!(run(&bad, 10, at(3, 0), 23.0), Some((split(23.0), at(4, 1))));
+        assert_eq!(seen.get(), 24.0);
+        assert_eq!(run(&bad, 10, at(3, 0), 24.0), None);
+        // No search at the depth limit or for an empty node.
+        let never = |_| -> Option<Split> { panic!("searched") };
+        assert_eq!(bad.accept(100, at(10, 0), never), None);
+        assert_eq!(bad.accept(0, at(0, 0), never), None);
+    }
+
     #[test]
     fn the_meter_refuses_what_would_pass_the_budget() {
         let meter = Meter::new(Some(1000));
