@@ -10,7 +10,12 @@
 //! - the thesis's model with `C_isect` moved to 2, 3, 10 and 20, with empty bonuses of 0.2
 //!   and 0.5, with the depth limit moved 4 levels either way, and with both bonuses and 4
 //!   more levels (empty-space cuts spend depth: with a bonus, leaves reach the depth limit
-//!   sooner).
+//!   sooner);
+//! - `wald-havran` with the SIMD leaf cost (`leaf4`, `leaf8`: a leaf and each side of a
+//!   split priced as `ceil(n / W)` group tests, [`BuildConfig::leaf_width`]), with Mitsuba's
+//!   bad refines (`bad3`: 3 per path, [`BuildConfig::max_bad_refines`]) and their collapse
+//!   (`collapse`, [`BuildConfig::collapse`]), and combinations (`wh-leaf4-isect2`,
+//!   `wh-leaf4-isect3`: the group test priced at 2 and 3 traversal steps instead of 4/3).
 //!
 //! Every candidate's tree is built over the same scene; then, in interleaved rounds (every
 //! candidate once per round, medians reported), its primary rays are traced as single rays
@@ -46,11 +51,31 @@ pub struct Candidate {
     pub empty_bonus: f32,
     /// Levels added to the default depth limit `8 + log2 N` (negative: fewer).
     pub depth_offset: i32,
+    /// The leaf's SIMD group width in the SAH ([`BuildConfig::leaf_width`]; 1: per triangle).
+    pub leaf_width: u32,
+    /// Bad refines per path ([`BuildConfig::max_bad_refines`]; 0: off).
+    pub bad_refines: u32,
+    /// Collapse the costlier subtrees ([`BuildConfig::collapse`]).
+    pub collapse: bool,
 }
 
 impl Candidate {
     fn new(name: &str, c_trav: f32, c_isect: f32, empty_bonus: f32, depth_offset: i32) -> Candidate {
-        Candidate { name: name.to_string(), c_trav, c_isect, empty_bonus, depth_offset }
+        Candidate {
+            name: name.to_string(),
+            c_trav,
+            c_isect,
+            empty_bonus,
+            depth_offset,
+            leaf_width: 1,
+            bad_refines: 0,
+            collapse: false,
+        }
+    }
+
+    /// This candidate with the leaf width `w`, `bad` bad refines and `collapse`.
+    fn leaf(self, w: u32, bad: u32, collapse: bool) -> Candidate {
+        Candidate { leaf_width: w, bad_refines: bad, collapse, ..self }
     }
 
     /// The build configuration of this candidate for a scene of `triangles` triangles.
@@ -59,6 +84,9 @@ impl Candidate {
             c_trav: self.c_trav,
             c_isect: self.c_isect,
             empty_bonus: self.empty_bonus,
+            leaf_width: self.leaf_width,
+            max_bad_refines: self.bad_refines,
+            collapse: self.collapse,
             ..BuildConfig::default()
         };
         let depth = base.depth_limit(triangles) as i64 + i64::from(self.depth_offset);
@@ -85,6 +113,16 @@ pub fn default_candidates() -> Vec<Candidate> {
         Candidate::new("depth+4", 1.0, 5.0, 0.0, 4),
         Candidate::new("bonus-0.2,depth+4", 1.0, 5.0, 0.2, 4),
         Candidate::new("bonus-0.5,depth+4", 1.0, 5.0, 0.5, 4),
+        Candidate::new("wh-leaf4", 15.0, 20.0, 0.2, 0).leaf(4, 0, false),
+        Candidate::new("wh-leaf8", 15.0, 20.0, 0.2, 0).leaf(8, 0, false),
+        Candidate::new("wh-bad3", 15.0, 20.0, 0.2, 0).leaf(1, 3, false),
+        Candidate::new("wh-bad3-collapse", 15.0, 20.0, 0.2, 0).leaf(1, 3, true),
+        Candidate::new("wh-leaf4-bad3", 15.0, 20.0, 0.2, 0).leaf(4, 3, false),
+        Candidate::new("wh-leaf4-bad3-collapse", 15.0, 20.0, 0.2, 0).leaf(4, 3, true),
+        Candidate::new("wh-leaf4-isect2", 15.0, 30.0, 0.2, 0).leaf(4, 0, false),
+        Candidate::new("wh-leaf8-bad3-collapse", 15.0, 20.0, 0.2, 0).leaf(8, 3, true),
+        Candidate::new("wh-leaf4-isect3", 15.0, 45.0, 0.2, 0).leaf(4, 0, false),
+        Candidate::new("wh-leaf4-isect2-bad3-collapse", 15.0, 30.0, 0.2, 0).leaf(4, 3, true),
     ]
 }
 
@@ -266,19 +304,22 @@ impl fmt::Display for SweepReport {
                 writeln!(f)?;
                 writeln!(
                     f,
-                    "| candidate | C_trav:C_isect | bonus | depth | build ms | refs/tri | bytes/tri | SAH (1:5) | N | I | mono Mrays/s | shadow Mrays/s | MFT Mrays/s |"
+                    "| candidate | C_trav:C_isect | bonus | W, bad, collapse | depth | build ms | refs/tri | bytes/tri | SAH (1:5) | N | I | mono Mrays/s | shadow Mrays/s | MFT Mrays/s |"
                 )?;
-                writeln!(f, "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+                writeln!(f, "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
             }
             let base = self.rows.iter().find(|b| b.scene == r.scene).expect("the row itself");
             let ratio = |x: f64, b: f64| if b > 0.0 { x / b } else { 0.0 };
             writeln!(
                 f,
-                "| {} | {}:{} | {} | {} | {:.0} | {:.2} | {:.0} | {:.1} | {:.1} | {:.2} | {:.2} ({:.2}) | {:.2} ({:.2}) | {:.2} ({:.2}) |",
+                "| {} | {}:{} | {} | {}, {}, {} | {} | {:.0} | {:.2} | {:.0} | {:.1} | {:.1} | {:.2} | {:.2} ({:.2}) | {:.2} ({:.2}) | {:.2} ({:.2}) |",
                 r.candidate.name,
                 r.candidate.c_trav,
                 r.candidate.c_isect,
                 r.candidate.empty_bonus,
+                r.candidate.leaf_width,
+                r.candidate.bad_refines,
+                if r.candidate.collapse { "on" } else { "off" },
                 r.max_depth,
                 r.build_ms,
                 r.tree.refs_per_triangle,
@@ -310,10 +351,16 @@ mod tests {
             Candidate::new("isect-20", 1.0, 20.0, 0.0, 0),
             Candidate::new("pbrt", 1.0, 80.0, 0.5, 0),
             Candidate::new("shallow", 1.0, 5.0, 0.0, -6),
+            Candidate::new("wald-havran", 15.0, 20.0, 0.2, 0),
+            Candidate::new("wh-leaf4", 15.0, 20.0, 0.2, 0).leaf(4, 0, false),
         ];
         let config = SweepConfig { scenes: vec!["atrium".into()], candidates, size: 32, rounds: 1 };
         let report = run(&config, &Quiet).unwrap();
-        assert_eq!(report.rows.len(), 4);
+        assert_eq!(report.rows.len(), 6);
+        // Leaves priced by groups of 4 hold more triangles: fewer references, fewer steps.
+        let (wh, leaf4) = (&report.rows[4], &report.rows[5]);
+        assert!(leaf4.tree.refs_per_triangle < wh.tree.refs_per_triangle, "{leaf4:?} {wh:?}");
+        assert!(leaf4.steps_per_ray < wh.steps_per_ray, "{leaf4:?} {wh:?}");
         let [thesis, isect20, pbrt, shallow] = [&report.rows[0], &report.rows[1], &report.rows[2], &report.rows[3]];
         // A costlier triangle test splits more: more references per triangle.
         assert!(isect20.tree.refs_per_triangle > thesis.tree.refs_per_triangle);
@@ -329,7 +376,8 @@ mod tests {
             assert!(r.mono_mrays_per_s > 0.0 && r.shadow_mrays_per_s > 0.0 && r.mft_mrays_per_s > 0.0, "{r:?}");
         }
         let text = report.to_string();
-        assert!(text.contains("| pbrt | 1:80 | 0.5 |"), "{text}");
+        assert!(text.contains("| pbrt | 1:80 | 0.5 | 1, 0, off |"), "{text}");
+        assert!(text.contains("| wh-leaf4 | 15:20 | 0.2 | 4, 0, off |"), "{text}");
     }
 
     #[test]

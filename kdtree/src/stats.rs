@@ -29,8 +29,9 @@ pub struct TreeStats {
     pub refs_per_triangle: f64,
     /// Average triangle count of the non-empty leaves.
     pub avg_tris_per_nonempty_leaf: f64,
-    /// The tree's SAH cost: `C_trav` per inner node plus `C_isect * count` per leaf, each
-    /// weighted by its box's surface area over the root's.
+    /// The tree's SAH cost: `C_trav` per inner node plus `C_isect * ceil(count / W)` per leaf
+    /// (`W` the tree's [`crate::BuildConfig::leaf_width`]), each weighted by its box's surface
+    /// area over the root's.
     pub sah_cost: f64,
     /// Memory: 8 bytes per node, 4 per reference slot (leaf padding included), the
     /// per-triangle intersection records and the SIMD leaf groups ([`crate::leaf`]).
@@ -41,7 +42,7 @@ impl KdTree {
     /// Statistics of this tree, with the SAH cost under the tree's own [`crate::BuildConfig`].
     pub fn stats(&self) -> TreeStats {
         let (inner, leaves, empty, depth, sah) =
-            self.walk(f64::from(self.config.c_trav), f64::from(self.config.c_isect));
+            self.walk(f64::from(self.config.c_trav), f64::from(self.config.c_isect), self.config.leaf_width);
         let in_tree = self.tris.iter().filter(|t| !is_degenerate(t)).count();
         let refs: usize = self.nodes.iter().filter(|n| n.is_leaf()).map(|n| n.prim_count()).sum();
         let nonempty = leaves - empty;
@@ -68,12 +69,14 @@ impl KdTree {
 
     /// The tree's SAH cost (thesis 2.2.1) under the cost model `c_trav`, `c_isect`, whatever
     /// model it was built with, so that trees built with different models can be compared.
+    /// A leaf costs `c_isect` per triangle.
     pub fn sah_cost(&self, c_trav: f64, c_isect: f64) -> f64 {
-        self.walk(c_trav, c_isect).4
+        self.walk(c_trav, c_isect, 1).4
     }
 
-    /// Inner nodes, leaves, empty leaves, depth and SAH cost under `c_trav`, `c_isect`.
-    fn walk(&self, c_trav: f64, c_isect: f64) -> (usize, usize, usize, usize, f64) {
+    /// Inner nodes, leaves, empty leaves, depth and SAH cost under `c_trav`, `c_isect`, a
+    /// leaf of `n` triangles costing `c_isect * ceil(n / width)`.
+    fn walk(&self, c_trav: f64, c_isect: f64, width: u32) -> (usize, usize, usize, usize, f64) {
         let sa_root = surface_area64(&self.bounds);
         let weight = |b: &Aabb| if sa_root > 0.0 { surface_area64(b) / sa_root } else { 1.0 };
         let (mut inner, mut leaves, mut empty, mut depth, mut sah) = (0, 0, 0, 0, 0.0);
@@ -84,7 +87,7 @@ impl KdTree {
             if n.is_leaf() {
                 leaves += 1;
                 empty += usize::from(n.prim_count() == 0);
-                sah += c_isect * n.prim_count() as f64 * weight(&b);
+                sah += c_isect * n.prim_count().div_ceil(width.max(1) as usize) as f64 * weight(&b);
             } else {
                 inner += 1;
                 sah += c_trav * weight(&b);

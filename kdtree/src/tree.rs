@@ -58,6 +58,7 @@ impl KdTree {
             return Err(BuildError::BadConfig(format!("empty_bonus = {} must be in [0, 1)", config.empty_bonus)));
         }
         config.strategy.check()?;
+        config.check_termination()?;
         if u32::try_from(triangles.len()).is_err() {
             return Err(BuildError::TooLarge(format!("{} triangles do not fit 32-bit ids", triangles.len())));
         }

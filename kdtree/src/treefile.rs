@@ -8,6 +8,7 @@
 //! header   magic "RTKDTREE" (8 bytes)  version u32  intersector u32 (0 wald, 1 watertight)
 //!          c_trav f32  c_isect f32  empty_bonus f32  max_depth u32 (0: the default 8 + log2 N)
 //!          strategy u32 (0 exact, 1 binned)  bins u32  min_tris u32 (both 0 for exact)
+//!          leaf_width u32  max_bad_refines u32  collapse u32 (0 or 1)
 //!          triangle count u64  scene hash u64 (scene_hash: FNV-1a 64 over words of positions and indices)
 //!          bounds: min x y z, max x y z (6 f32)
 //! arrays   one section each: tag (4 bytes)  element size u32  count u64  count * size bytes
@@ -39,7 +40,7 @@ use crate::{Aabb, BuildConfig, BuildStrategy, KdNode, KdTree};
 pub const MAGIC: [u8; 8] = *b"RTKDTREE";
 
 /// The layout version this code writes and reads. Bump it when the layout changes.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Section tag of the node array.
 const NODES: [u8; 4] = *b"NODE";
@@ -91,7 +92,8 @@ pub enum TreeFileError {
     /// The tree was built with other SAH terms than the ones asked for.
     #[error("the tree was built with {field} = {file}, but {expected} is asked for")]
     ConfigMismatch {
-        /// The configuration field (`c_trav`, `c_isect`, `empty_bonus`, `max_depth`, `strategy`).
+        /// The configuration field (`c_trav`, `c_isect`, `empty_bonus`, `max_depth`, `strategy`,
+        /// `leaf_width`, `max_bad_refines`, `collapse`).
         field: &'static str,
         /// The file's value.
         file: String,
@@ -363,6 +365,9 @@ pub fn to_bytes(tree: &KdTree, positions: &[Vec3], triangles: &[[u32; 3]]) -> Re
     put_u32(&mut out, code);
     put_u32(&mut out, bins);
     put_u32(&mut out, min_tris);
+    put_u32(&mut out, config.leaf_width);
+    put_u32(&mut out, config.max_bad_refines);
+    put_u32(&mut out, u32::from(config.collapse));
     out.extend_from_slice(&(triangles.len() as u64).to_le_bytes());
     out.extend_from_slice(&scene_hash(positions, triangles).to_le_bytes());
     for v in tree.bounds.min.to_array().into_iter().chain(tree.bounds.max.to_array()) {
@@ -671,6 +676,24 @@ pub fn from_bytes(
             expected: format!("{:?}", expected.strategy),
         });
     }
+    let leaf_width = r.u32("leaf_width")?;
+    let max_bad_refines = r.u32("max_bad_refines")?;
+    let collapse = match r.u32("collapse")? {
+        0 => false,
+        1 => true,
+        code => return Err(TreeFileError::BadConfig(format!("collapse = {code} (0 or 1)"))),
+    };
+    let terms = BuildConfig { leaf_width, max_bad_refines, collapse, ..expected.clone() };
+    terms.check_termination().map_err(|e| TreeFileError::BadConfig(e.to_string()))?;
+    for (field, file, want) in [
+        ("leaf_width", leaf_width, expected.leaf_width),
+        ("max_bad_refines", max_bad_refines, expected.max_bad_refines),
+        ("collapse", u32::from(collapse), u32::from(expected.collapse)),
+    ] {
+        if file != want {
+            return Err(TreeFileError::ConfigMismatch { field, file: file.to_string(), expected: want.to_string() });
+        }
+    }
     let file_triangles = r.u64("the triangle count")?;
     let file_hash = r.u64("the scene hash")?;
     let hash = scene_hash(positions, triangles);
@@ -738,6 +761,9 @@ pub fn from_bytes(
         intersector,
         memory_budget: expected.memory_budget,
         strategy,
+        leaf_width,
+        max_bad_refines,
+        collapse,
     };
     let (file_nodes, file_refs) = (nodes.clone(), prim_refs.clone());
     let tree = KdTree::from_parts(tris, nodes, prim_refs, bounds, &config).map_err(TreeFileError::Structure)?;

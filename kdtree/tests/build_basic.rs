@@ -241,3 +241,39 @@ fn non_finite_input_is_an_error_naming_it() {
     let e = from(&tris, &nodes, Aabb { max: v(1.0, f32::NAN, 0.0), ..bounds }).unwrap_err();
     assert!(e.contains("bounds") && e.contains("NaN"), "{e}");
 }
+
+/// Four small triangles at the corners of a box: priced per triangle (leaf width 1) the
+/// leaf costs 4 tests and the node splits; priced by SIMD groups of 4 the leaf costs one
+/// group test, less than any split (a traversal step plus a group on at least one side),
+/// and the node is one leaf.
+#[test]
+fn four_triangles_split_per_triangle_and_make_one_leaf_of_a_group_of_four() {
+    let mut tris = Vec::new();
+    for c in [v(0.0, 0.0, 0.0), v(10.0, 0.0, 0.0), v(0.0, 10.0, 0.0), v(10.0, 10.0, 10.0)] {
+        tris.push([c, c + v(1.0, 0.0, 0.0), c + v(0.0, 1.0, 1.0)]);
+    }
+    for strategy in [kdtree::BuildStrategy::Exact, kdtree::BuildStrategy::Binned { bins: 8, min_tris: 2 }] {
+        let base = BuildConfig { strategy, ..BuildConfig::default() };
+        let per_triangle = build_with(&tris, &BuildConfig { leaf_width: 1, ..base.clone() });
+        assert!(!per_triangle.nodes()[0].is_leaf(), "{:?}", per_triangle.nodes());
+        let grouped = build_with(&tris, &BuildConfig { leaf_width: 4, ..base });
+        assert_eq!(grouped.nodes(), &[KdNode::leaf(0, 4)], "{strategy:?}");
+    }
+}
+
+/// A leaf width and bad-refine count out of range are configuration errors naming them.
+#[test]
+fn leaf_width_and_bad_refines_out_of_range_are_refused() {
+    let tris = [[v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 1.0)]];
+    for (config, field) in [
+        (BuildConfig { leaf_width: 0, ..BuildConfig::default() }, "leaf_width"),
+        (BuildConfig { leaf_width: BuildConfig::MAX_LEAF_WIDTH + 1, ..BuildConfig::default() }, "leaf_width"),
+        (
+            BuildConfig { max_bad_refines: BuildConfig::MAX_BAD_REFINES + 1, ..BuildConfig::default() },
+            "max_bad_refines",
+        ),
+    ] {
+        let e = KdTree::build_soup(&tris, &config).unwrap_err();
+        assert!(matches!(&e, kdtree::BuildError::BadConfig(m) if m.contains(field)), "{e}");
+    }
+}

@@ -101,9 +101,13 @@ proptest! {
         c_isect in prop::sample::select(vec![1.0f32, 5.0, 80.0]),
         empty_bonus in prop::sample::select(vec![0.0f32, 0.5, 0.9]),
         strategy in prop::sample::select(STRATEGIES.to_vec()),
+        leaf_width in prop::sample::select(vec![1u32, 4, 8]),
+        max_bad_refines in prop::sample::select(vec![0u32, 0, 3]),
+        collapse in any::<bool>(),
     ) {
         let tris = soup(seed, n, scale, 100);
-        let config = BuildConfig { c_isect, empty_bonus, strategy, ..BuildConfig::default() };
+        let config =
+            BuildConfig { c_isect, empty_bonus, strategy, leaf_width, max_bad_refines, collapse, ..BuildConfig::default() };
         check(&tris, &config);
     }
 }

@@ -12,12 +12,20 @@ use proptest::prelude::*;
 /// The exact build with Wald's test, and a binned build (binned down to 8 triangles, so the
 /// soups here have binned nodes) with the watertight test: the strategy only moves planes,
 /// the intersector only the records, so each pairing covers both.
-fn configs() -> [BuildConfig; 2] {
+/// The third: SIMD-group leaf costs with bad refines and their collapse, exact build.
+fn configs() -> [BuildConfig; 3] {
     [
         BuildConfig { strategy: BuildStrategy::Exact, ..BuildConfig::default() },
         BuildConfig {
             intersector: Intersector::Watertight,
             strategy: BuildStrategy::Binned { bins: 8, min_tris: 8 },
+            ..BuildConfig::default()
+        },
+        BuildConfig {
+            strategy: BuildStrategy::Exact,
+            leaf_width: 4,
+            max_bad_refines: 3,
+            collapse: true,
             ..BuildConfig::default()
         },
     ]
@@ -255,4 +263,35 @@ fn cube(lo: Vec3, hi: Vec3) -> Vec<[Vec3; 3]> {
     };
     let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
     quads.iter().flat_map(|q| [[p(q[0]), p(q[1]), p(q[2])], [p(q[0]), p(q[2]), p(q[3])]]).collect()
+}
+
+/// Bad refines change the tree (more nodes: splits costlier than their leaf are made), the
+/// collapse takes back those that did not pay (fewer nodes than without it), and every one
+/// of these trees answers as the oracle.
+#[test]
+fn bad_refines_and_collapse_change_the_tree_and_match_the_oracle() {
+    let mut r = common::Rng::new(11);
+    let tris = r.triangles(3000, |r| {
+        let c = r.vec3() * 10.0;
+        [c, c + r.vec3() - 0.5, c + r.vec3() - 0.5]
+    });
+    let seeds: Vec<_> = (0..300).map(|i| (r.vec3() * 10.0, r.vec3() - 0.5, i * 7, (i % 256) as u8)).collect();
+    let rays = common::rays_for(&tris, 10.0, &seeds);
+    // No empty bonus, so that the statistics' SAH cost is the one the collapse minimises.
+    let base = BuildConfig { leaf_width: 4, empty_bonus: 0.0, ..BuildConfig::default() };
+    let build = |config: &BuildConfig| {
+        let tree = KdTree::build_soup(&tris, config).unwrap();
+        tree.validate().unwrap();
+        check_rays(&tree, &rays).unwrap_or_else(|e| panic!("{config:?}: {e}"));
+        tree
+    };
+    let plain = build(&base);
+    let bad = build(&BuildConfig { max_bad_refines: 3, ..base.clone() });
+    let both = build(&BuildConfig { max_bad_refines: 3, collapse: true, ..base.clone() });
+    let (n_plain, n_bad, n_both) = (plain.nodes().len(), bad.nodes().len(), both.nodes().len());
+    assert!(n_bad > n_plain, "bad refines split more: {n_bad} vs {n_plain}");
+    assert!(n_both < n_bad, "the collapse takes some back: {n_both} vs {n_bad}");
+    // The collapse never raises the tree's SAH cost (with the leaf width's groups).
+    let (c_bad, c_both) = (bad.stats().sah_cost, both.stats().sah_cost);
+    assert!(c_both <= c_bad * (1.0 + 1e-9), "{c_both} vs {c_bad}");
 }

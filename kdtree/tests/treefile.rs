@@ -7,9 +7,9 @@ use scenes::Mesh;
 
 /// Header layout (see the module docs): bytes 0..8 magic, 8 version, 12 intersector,
 /// 16 c_trav, 20 c_isect, 24 empty_bonus, 28 max_depth, 32 strategy, 36 bins, 40 min_tris,
-/// 44 triangle count, 52 scene hash, 60..84 bounds; the node section starts at 84 (tag, size,
-/// count), nodes at 100.
-const HEADER_FIELDS: [(usize, &str); 13] = [
+/// 44 leaf_width, 48 max_bad_refines, 52 collapse, 56 triangle count, 64 scene hash, 72..96
+/// bounds; the node section starts at 96 (tag, size, count), nodes at 112.
+const HEADER_FIELDS: [(usize, &str); 16] = [
     (0, "magic"),
     (8, "version"),
     (12, "intersector"),
@@ -20,13 +20,16 @@ const HEADER_FIELDS: [(usize, &str); 13] = [
     (32, "strategy"),
     (36, "bins"),
     (40, "min_tris"),
-    (44, "triangle count"),
-    (52, "scene hash"),
-    (60, "bounds"),
+    (44, "leaf_width"),
+    (48, "max_bad_refines"),
+    (52, "collapse"),
+    (56, "triangle count"),
+    (64, "scene hash"),
+    (72, "bounds"),
 ];
-const BOUNDS: usize = 60;
-const NODE_SECTION: usize = 84;
-const FIRST_NODE: usize = 100;
+const BOUNDS: usize = 72;
+const NODE_SECTION: usize = 96;
+const FIRST_NODE: usize = 112;
 
 fn mesh(name: &str) -> Mesh {
     scenes::builtin::by_name(name).unwrap().mesh
@@ -77,7 +80,10 @@ fn assert_identical(a: &KdTree, b: &KdTree) {
     }
     let terms = |t: &KdTree| {
         let c = t.config();
-        (c.c_trav.to_bits(), c.c_isect.to_bits(), c.empty_bonus.to_bits(), c.max_depth, c.intersector)
+        (
+            (c.c_trav.to_bits(), c.c_isect.to_bits(), c.empty_bonus.to_bits(), c.max_depth, c.intersector),
+            (c.leaf_width, c.max_bad_refines, c.collapse),
+        )
     };
     assert_eq!(terms(a), terms(b));
 }
@@ -127,6 +133,40 @@ fn non_default_terms_round_trip_and_must_match() {
     }
     // The memory budget is not part of the tree.
     assert!(load(&bytes, &mesh, &BuildConfig { memory_budget: Some(1), ..config.clone() }).is_ok());
+}
+
+/// The leaf width and the termination rules are in the header: a tree built with them
+/// round-trips, loads only with the same terms, and damaged fields are refused.
+#[test]
+fn the_leaf_width_and_termination_round_trip_and_must_match() {
+    let mesh = mesh("sphere");
+    let config = BuildConfig { leaf_width: 4, max_bad_refines: 2, collapse: true, ..BuildConfig::default() };
+    let tree = build(&mesh, &config);
+    let bytes = save(&mesh, &tree);
+    assert_eq!([word(&bytes, 44), word(&bytes, 48), word(&bytes, 52)], [4, 2, 1]);
+    assert_identical(&tree, &load(&bytes, &mesh, &config).unwrap());
+    for (other, field) in [
+        (BuildConfig { leaf_width: 8, ..config.clone() }, "leaf_width"),
+        (BuildConfig { max_bad_refines: 0, ..config.clone() }, "max_bad_refines"),
+        (BuildConfig { collapse: false, ..config.clone() }, "collapse"),
+    ] {
+        let e = load(&bytes, &mesh, &other).unwrap_err();
+        assert!(matches!(&e, TreeFileError::ConfigMismatch { field: f, .. } if *f == field), "{e}");
+    }
+    for (at, v) in [(44, 0), (44, BuildConfig::MAX_LEAF_WIDTH + 1), (48, BuildConfig::MAX_BAD_REFINES + 1), (52, 2)] {
+        let mut b = bytes.clone();
+        set_word(&mut b, at, v);
+        treefile::reseal(&mut b);
+        let e = load(&b, &mesh, &config).unwrap_err();
+        assert!(matches!(&e, TreeFileError::BadConfig(_)), "{at} = {v}: {e}");
+    }
+    // The default tree's file records width 1, no bad refines, no collapse.
+    let plain = save(&mesh, &build(&mesh, &BuildConfig::default()));
+    let d = BuildConfig::default();
+    assert_eq!(
+        [word(&plain, 44), word(&plain, 48), word(&plain, 52)],
+        [d.leaf_width, d.max_bad_refines, u32::from(d.collapse)]
+    );
 }
 
 /// The build strategy is in the header: a binned tree round-trips, loads only as the same

@@ -74,6 +74,32 @@ fn sah_options_reach_the_builder() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--empty-bonus 1.5"));
 }
 
+/// `--leaf-width`, `--bad-refines` and `--collapse` reach the builder and the report: leaves
+/// priced by groups of 4 make a smaller tree of the sphere; out-of-range values and a
+/// `--collapse` that is neither on nor off are usage errors.
+#[test]
+fn leaf_width_and_termination_options_reach_the_builder() {
+    let dir = scratch("leaf-width");
+    let build = |extra: &[&str]| {
+        let mut args = vec!["build", "--scene", "sphere", "--json"];
+        args.extend_from_slice(extra);
+        json(&rttest(&dir, &args))
+    };
+    let plain = build(&[]);
+    assert_eq!((plain["leaf_width"].as_u64(), plain["max_bad_refines"].as_u64()), (Some(1), Some(0)));
+    let grouped = build(&["--leaf-width", "4", "--bad-refines", "2", "--collapse", "on"]);
+    assert_eq!((grouped["leaf_width"].as_u64(), grouped["max_bad_refines"].as_u64()), (Some(4), Some(2)));
+    assert_eq!(grouped["collapse"].as_bool(), Some(true));
+    assert!(grouped["nodes"].as_u64() < plain["nodes"].as_u64(), "{grouped} {plain}");
+    for args in [&["--leaf-width", "0"][..], &["--bad-refines", "17"], &["--collapse", "maybe"]] {
+        let mut all = vec!["build", "--scene", "sphere"];
+        all.extend_from_slice(args);
+        let out = rttest(&dir, &all);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains(args[0]), "{args:?}");
+    }
+}
+
 /// `--build`, `--bins` and `--bin-min-tris` reach the builder and the report: the sphere
 /// (1280 triangles) binned from 64 triangles is another tree than the exact one, and the
 /// binned default (from 1024 triangles) bins its root.

@@ -152,6 +152,12 @@ pub struct BuildReport {
     pub bins: Option<u32>,
     /// The smallest node a binned build bins (`None` for exact).
     pub bin_min_tris: Option<u32>,
+    /// The leaf's SIMD group width in the SAH ([`kdtree::BuildConfig::leaf_width`]).
+    pub leaf_width: u32,
+    /// Bad refines allowed on a path ([`kdtree::BuildConfig::max_bad_refines`]).
+    pub max_bad_refines: u32,
+    /// Whether costlier subtrees were collapsed ([`kdtree::BuildConfig::collapse`]).
+    pub collapse: bool,
     /// The tree's statistics (flattened into the JSON object).
     #[serde(flatten)]
     pub tree: TreeSummary,
@@ -333,13 +339,18 @@ impl fmt::Display for BuildReport {
             }
             _ => writeln!(
                 f,
-                "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {}, {} build{})",
+                "build        {:.1} ms ({} threads, {} intersector, C_trav:C_isect {}:{}, empty bonus {}, leaf width {}{}, {} build{})",
                 self.build_ms,
                 self.threads,
                 self.intersector,
                 self.c_trav,
                 self.c_isect,
                 self.empty_bonus,
+                self.leaf_width,
+                match (self.max_bad_refines, self.collapse) {
+                    (0, false) => String::new(),
+                    (b, c) => format!(", {b} bad refines{}", if c { ", collapse" } else { "" }),
+                },
                 self.build_strategy,
                 match (self.bins, self.bin_min_tris) {
                     (Some(b), Some(m)) => format!(" with {b} bins from {m} triangles"),

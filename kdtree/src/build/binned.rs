@@ -33,7 +33,7 @@ use super::events::{Lists, push_box_events, radix_sort_events};
 use super::sah::{Costs, Split, extent64};
 use super::small::{Item, partition};
 use super::split::child_boxes;
-use super::{BuildError, Ctx, Sub, build_par};
+use super::{At, BuildError, Ctx, Sub, build_par};
 use crate::Aabb;
 
 /// Bytes of one [`Item`] (as metered).
@@ -68,17 +68,13 @@ pub(crate) fn root_items(tris: &[[Vec3; 3]], prims: &[u32]) -> Vec<Item> {
 /// Builds the subtree of a node whose triangles are `items` (their bytes taken from the
 /// meter, given back here when they are freed): binned while it has at least `min_tris`
 /// triangles, by the exact sweep below.
-pub(crate) fn build_binned(
-    ctx: &Ctx,
-    items: Vec<Item>,
-    b: Aabb,
-    depth: u32,
-    binning: &Binning,
-) -> Result<Sub, BuildError> {
+pub(crate) fn build_binned(ctx: &Ctx, items: Vec<Item>, b: Aabb, at: At, binning: &Binning) -> Result<Sub, BuildError> {
     let n = items.len();
     let item_bytes = ITEM_BYTES * items.capacity() as u64;
-    let split = if n >= binning.min_tris && depth < ctx.depth_limit {
-        let limit = ctx.costs.c_isect * n as f64;
+    // Only a boundary cheaper than the leaf splits here: a costlier one (a bad refine) is
+    // left to the exact sweep of the hand-off, which finds its own plane.
+    let split = if n >= binning.min_tris && at.depth < ctx.depth_limit {
+        let limit = ctx.costs.leaf(n);
         binned_split(&items, &b, &ctx.costs, binning.bins).filter(|s| s.cost < limit)
     } else {
         None
@@ -87,8 +83,9 @@ pub(crate) fn build_binned(
         let lists = hand_off(ctx, &items);
         drop(items);
         ctx.meter.give(item_bytes);
-        return build_par(ctx, lists?, n, b, depth);
+        return build_par(ctx, lists?, n, b, at);
     };
+    let next = At { depth: at.depth + 1, bad: at.bad };
     // Each chunk's two outputs hold at most its items each.
     let chunk_bytes = 2 * ITEM_BYTES * n as u64;
     if let Err(e) = ctx.meter.take(chunk_bytes, "a binned node's split chunks") {
@@ -107,10 +104,8 @@ pub(crate) fn build_binned(
         drop(items);
         ctx.meter.give(item_bytes);
         let (bl, br) = child_boxes(&b, &s);
-        let (l, r) = rayon::join(
-            || build_binned(ctx, left, bl, depth + 1, binning),
-            || build_binned(ctx, right, br, depth + 1, binning),
-        );
+        let (l, r) =
+            rayon::join(|| build_binned(ctx, left, bl, next, binning), || build_binned(ctx, right, br, next, binning));
         return Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) });
     }
     let parts: Vec<(Vec<Item>, Vec<Item>)> = items.par_chunks(CHUNK).map(split_chunk).collect();
@@ -129,10 +124,8 @@ pub(crate) fn build_binned(
     }
     ctx.meter.give(chunk_bytes);
     let (bl, br) = child_boxes(&b, &s);
-    let (l, r) = rayon::join(
-        || build_binned(ctx, left, bl, depth + 1, binning),
-        || build_binned(ctx, right, br, depth + 1, binning),
-    );
+    let (l, r) =
+        rayon::join(|| build_binned(ctx, left, bl, next, binning), || build_binned(ctx, right, br, next, binning));
     Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
 }
 
@@ -243,7 +236,7 @@ pub(crate) fn binned_split(items: &[Item], b: &Aabb, costs: &Costs, bins: usize)
             let d = f64::from(x) - lo[k];
             let (a_l, a_r) = (cross + d * sum, cross + (e[k] - d) * sum);
             let f = if costs.empty_factor != 1.0 && (nl == 0.0 || nr == 0.0) { costs.empty_factor } else { 1.0 };
-            let cost = (costs.c_trav + scale * (nl * a_l + nr * a_r)) * f;
+            let cost = (costs.c_trav + scale * (costs.groups(nl) * a_l + costs.groups(nr) * a_r)) * f;
             if pick.is_none_or(|p| cost < p.cost) {
                 pick = Some(Split { axis: k, pos: x, planar_left: true, cost });
             }
@@ -256,7 +249,7 @@ pub(crate) fn binned_split(items: &[Item], b: &Aabb, costs: &Costs, bins: usize)
 mod tests {
     use super::*;
 
-    const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0 };
+    const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0, width: 1.0 };
 
     fn item(prim: u32, lo: [f32; 3], hi: [f32; 3]) -> Item {
         Item { prim, lo, hi }
@@ -316,7 +309,8 @@ mod tests {
                     item(i as u32, lo, hi)
                 })
                 .collect();
-            let costs = Costs { c_trav: 1.0, c_isect: 1.5, empty_factor: if case % 2 == 0 { 1.0 } else { 0.8 } };
+            let width = [1.0, 4.0, 8.0][(case / 2) % 3];
+            let costs = Costs { c_trav: 1.0, c_isect: 1.5, empty_factor: if case % 2 == 0 { 1.0 } else { 0.8 }, width };
             let got = binned_split(&items, &b, &costs, bins as usize).unwrap();
             let k = got.axis;
             let (nl, nr) = items.iter().fold((0.0, 0.0), |(l, r), it| {
@@ -324,7 +318,8 @@ mod tests {
             });
             let (a_l, a_r) = (64.0 + 16.0 * f64::from(got.pos), 64.0 + 16.0 * (8.0 - f64::from(got.pos)));
             let f = if nl == 0.0 || nr == 0.0 { costs.empty_factor } else { 1.0 };
-            let want = (1.0 + 1.5 * 2.0 / 384.0 * (nl * a_l + nr * a_r)) * f;
+            let (gl, gr) = (f64::ceil(nl / width), f64::ceil(nr / width));
+            let want = (1.0 + 1.5 * 2.0 / 384.0 * (gl * a_l + gr * a_r)) * f;
             assert!((got.cost - want).abs() <= 1e-9 * want, "case {case}: {got:?} want {want}");
         }
     }

@@ -1,9 +1,14 @@
 //! The perfect-split SAH build (thesis 2.2.1, 3.2.1) in O(N log N) (Wald & Havran 2006).
 //!
 //! - Cost model (thesis 2.2.1): a split of a node with box `V` into `V_l`, `V_r` costs
-//!   `C_trav + C_isect * (N_l SA(V_l) + N_r SA(V_r)) / SA(V)`, times `1 - empty_bonus` when a
-//!   side holds no triangle; a leaf costs `C_isect * N`. A node becomes a leaf when no plane
-//!   is cheaper, when it is empty or at the depth limit.
+//!   `C_trav + C_isect * (G(N_l) SA(V_l) + G(N_r) SA(V_r)) / SA(V)`, times `1 - empty_bonus`
+//!   when a side holds no triangle; a leaf costs `C_isect * G(N)`, where `G(n) = ceil(n / W)`
+//!   counts the SIMD groups of [`BuildConfig::leaf_width`] `W` (`n` itself for the default
+//!   `W = 1`), the same in every search ([`sah`], [`small`], [`binned`]) and in the
+//!   leaf-or-split rule (`Ctx::accept`). A node becomes a leaf when no plane is cheaper, when
+//!   it is empty or at the depth limit; with [`BuildConfig::max_bad_refines`] a costlier plane
+//!   may still split it (Mitsuba's bad refines), and [`BuildConfig::collapse`] retracts the
+//!   subtrees that cost more than their leaf after the build ([`collapse`]).
 //! - Perfect splits (thesis 3.2.1): the candidate planes of a triangle are the faces of the
 //!   box of the triangle clipped to the node ([`clip`]).
 //! - O(N log N) (Wald & Havran 2006, section 4): the candidate events of all triangles are
@@ -30,6 +35,7 @@
 
 mod binned;
 mod clip;
+mod collapse;
 mod events;
 mod sah;
 mod small;
@@ -74,7 +80,27 @@ pub struct BuildConfig {
     /// How the planes of the large nodes are found: the exact event sweep everywhere, or
     /// min-max binning above a size ([`BuildStrategy`]).
     pub strategy: BuildStrategy,
+    /// The leaf's SIMD group width `W` (1 to [`BuildConfig::MAX_LEAF_WIDTH`]): a leaf of `n`
+    /// triangles costs `C_isect * ceil(n / W)`, the triangle tests of one ray against its
+    /// groups of `W` (`kdtree::leaf`'s `Wald4`: `W = 4`), and every split is priced the same
+    /// way, `C_trav + C_isect * (ceil(n_l / W) SA_l + ceil(n_r / W) SA_r) / SA`. 1 is the
+    /// thesis's per-triangle cost (2.2.1).
+    pub leaf_width: u32,
+    /// Mitsuba's bad refines (Wald & Havran 2006, section 4.4's termination; Mitsuba's
+    /// `gkdtree` `maxBadRefines`): a split that costs at least the leaf is still made, and
+    /// counted along the path, until this many were made above the node; a node of fewer
+    /// than [`BAD_REFINE_FEW`] triangles whose best split costs over 4 leaves is a leaf
+    /// anyway. 0: off (a node splits only when a plane is cheaper than its leaf).
+    pub max_bad_refines: u32,
+    /// Retract (Mitsuba's `gkdtree` retraction of bad splits): after the build, every subtree
+    /// whose SAH cost (with the leaf cost above and the empty bonus) is at least the cost of
+    /// one leaf of its distinct triangles becomes that leaf, bottom up ([`collapse`]).
+    pub collapse: bool,
 }
+
+/// Nodes with fewer triangles than this are leaves when their best split costs more than 4
+/// times their leaf, whatever [`BuildConfig::max_bad_refines`] allows (Mitsuba's rule).
+pub const BAD_REFINE_FEW: usize = 16;
 
 /// How the builder finds the planes of large nodes. Both make perfect-split trees (every
 /// straddling triangle clipped to the children, thesis 3.2.1); they differ in where the
@@ -152,7 +178,10 @@ pub enum CostModel {
     /// ratio `1 : 4/3`, so SAH costs stay in traversal steps) and `lambda = 0.8` on a split
     /// with an empty side (an empty bonus of 0.2). The default: `rttest sah-sweep` measures
     /// it at 1.0-1.5x the thesis's single-ray and 1.15-1.65x its MFT speed with 30% fewer
-    /// references and 25% shorter builds (`docs/results/sah-terms.md`).
+    /// references and 25% shorter builds (`docs/results/sah-terms.md`). Its leaves are priced
+    /// per triangle ([`BuildConfig::leaf_width`] 1), without bad refines or collapse: the
+    /// SIMD-group leaf cost (`leaf_width` 4) wins 2-5% on Sponza and the atrium but loses
+    /// 5-9% on the kitchen, and bad refines with their collapse end within 3% (same page).
     #[default]
     WaldHavran,
 }
@@ -180,11 +209,42 @@ impl CostModel {
             intersector: Intersector::Wald,
             memory_budget: None,
             strategy: BuildStrategy::default(),
+            leaf_width: 1,
+            max_bad_refines: 0,
+            collapse: false,
         }
     }
 }
 
 impl BuildConfig {
+    /// The widest leaf group [`BuildConfig::leaf_width`] may name.
+    pub const MAX_LEAF_WIDTH: u32 = 64;
+
+    /// The most bad refines [`BuildConfig::max_bad_refines`] may allow (each may double a
+    /// subtree's references).
+    pub const MAX_BAD_REFINES: u32 = 16;
+
+    /// An error naming the field when the leaf and termination terms are out of range
+    /// (`leaf_width` in 1..=[`Self::MAX_LEAF_WIDTH`], `max_bad_refines` at most
+    /// [`Self::MAX_BAD_REFINES`]).
+    pub fn check_termination(&self) -> Result<(), BuildError> {
+        if !(1..=Self::MAX_LEAF_WIDTH).contains(&self.leaf_width) {
+            return Err(BuildError::BadConfig(format!(
+                "leaf_width = {} must be in 1..={}",
+                self.leaf_width,
+                Self::MAX_LEAF_WIDTH
+            )));
+        }
+        if self.max_bad_refines > Self::MAX_BAD_REFINES {
+            return Err(BuildError::BadConfig(format!(
+                "max_bad_refines = {} must be at most {}",
+                self.max_bad_refines,
+                Self::MAX_BAD_REFINES
+            )));
+        }
+        Ok(())
+    }
+
     /// The thesis's terms ([`CostModel::Thesis`]), for its tables.
     pub fn thesis() -> BuildConfig {
         CostModel::Thesis.config()
@@ -403,6 +463,7 @@ struct Ctx<'a> {
     tris: &'a [[Vec3; 3]],
     costs: Costs,
     depth_limit: u32,
+    max_bad_refines: u32,
     pool: Mutex<Vec<Scratch>>,
     meter: &'a Meter,
 }
@@ -424,16 +485,52 @@ impl Ctx<'_> {
         self.pool.lock().unwrap_or_else(|e| e.into_inner()).push(s);
     }
 
-    /// The split of a node, or `None` for a leaf (empty, too deep, or no cheaper plane).
-    /// `par`: sweep the axes in parallel.
-    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, depth: u32, par: bool) -> Option<Split> {
-        if n == 0 || depth >= self.depth_limit {
+    /// The split of a node and the bad refines on its children's path, or `None` for a leaf
+    /// (empty, too deep, or no plane accepted by [`Ctx::accept`]). `par`: sweep the axes in
+    /// parallel.
+    fn decide(&self, lists: &Lists, n: usize, b: &Aabb, at: At, par: bool) -> Option<(Split, At)> {
+        self.accept(n, at, |limit| find_split(lists.axes(), n, b, &self.costs, par, limit))
+    }
+
+    /// The leaf-or-split rule of every node (thesis 2.2.1 with the SIMD leaf cost of
+    /// [`Costs::leaf`]): a node with triangles above the depth limit splits at the plane
+    /// `search(limit)` finds (the cheapest, or `None` or one costing at least `limit` when none
+    /// is cheaper than `limit`) when it costs less than the node's leaf; with bad refines left
+    /// on its path ([`BuildConfig::max_bad_refines`]) also when it costs less than `limit`,
+    /// 4 leaves for a node of fewer than [`BAD_REFINE_FEW`] triangles and unbounded above,
+    /// and that split is counted as a bad refine on its children's path.
+    fn accept(&self, n: usize, at: At, search: impl FnOnce(f64) -> Option<Split>) -> Option<(Split, At)> {
+        if n == 0 || at.depth >= self.depth_limit {
             return None;
         }
-        let limit = self.costs.c_isect * n as f64;
-        let s = find_split(lists.axes(), n, b, &self.costs, par, limit)?;
-        (s.cost < limit).then_some(s)
+        let leaf = self.costs.leaf(n);
+        let limit = if at.bad >= self.max_bad_refines {
+            leaf
+        } else if n < BAD_REFINE_FEW {
+            4.0 * leaf
+        } else {
+            f64::INFINITY
+        };
+        let s = search(limit)?;
+        let next = At { depth: at.depth + 1, bad: at.bad };
+        if s.cost < leaf {
+            Some((s, next))
+        } else if s.cost < limit {
+            Some((s, At { bad: at.bad + 1, ..next }))
+        } else {
+            None
+        }
     }
+}
+
+/// Where a node is: its depth and the bad refines made on its path from the root
+/// ([`BuildConfig::max_bad_refines`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct At {
+    /// Depth, the root at 0.
+    pub depth: u32,
+    /// Splits costlier than their node's leaf above this node.
+    pub bad: u32,
 }
 
 /// Appends a leaf's triangles (ascending) to `refs` and returns its node.
@@ -467,15 +564,15 @@ struct Seq<'c, 'a> {
 }
 
 impl Seq<'_, '_> {
-    fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
+    fn node(&mut self, d: usize, side: usize, n: usize, b: Aabb, at: At, idx: usize) -> Result<(), BuildError> {
         if n <= SMALL {
             let Scratch { slot, items, levels, .. } = &mut self.scratch;
             items.clear();
             items_from_lists(&levels[d][side], n, slot, items);
-            return self.small(0, n, b, depth, idx);
+            return self.small(0, n, b, at, idx);
         }
         let Scratch { class, split, levels, .. } = &mut self.scratch;
-        let Some(s) = self.ctx.decide(&levels[d][side], n, &b, depth, false) else {
+        let Some((s, kid)) = self.ctx.decide(&levels[d][side], n, &b, at, false) else {
             self.nodes[idx] = make_leaf(&levels[d][side], &mut self.refs)?;
             return Ok(());
         };
@@ -490,25 +587,19 @@ impl Seq<'_, '_> {
         self.nodes[idx] = inner_node(s.axis, s.pos, c)?;
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
         let (bl, br) = child_boxes(&b, &s);
-        self.node(d + 1, 0, nl, bl, depth + 1, c)?;
-        self.node(d + 1, 1, nr, br, depth + 1, c + 1)
+        self.node(d + 1, 0, nl, bl, kid, c)?;
+        self.node(d + 1, 1, nr, br, kid, c + 1)
     }
 }
 
 impl Seq<'_, '_> {
     /// Builds the subtree of a small node whose `n` items are the top of the item stack, from
     /// `start`.
-    fn small(&mut self, start: usize, n: usize, b: Aabb, depth: u32, idx: usize) -> Result<(), BuildError> {
+    fn small(&mut self, start: usize, n: usize, b: Aabb, at: At, idx: usize) -> Result<(), BuildError> {
         let Scratch { split, items, tmp: [own, left], .. } = &mut self.scratch;
         let ctx = self.ctx;
         debug_assert_eq!(items.len(), start + n);
-        let s = if n == 0 || depth >= ctx.depth_limit {
-            None
-        } else {
-            let limit = ctx.costs.c_isect * n as f64;
-            small_split(&items[start..], &b, &ctx.costs, limit).filter(|s| s.cost < limit)
-        };
-        let Some(s) = s else {
+        let Some((s, next)) = ctx.accept(n, at, |limit| small_split(&items[start..], &b, &ctx.costs, limit)) else {
             let first = self.refs.len();
             self.refs.extend(items[start..].iter().map(|it| it.prim));
             self.refs[first..].sort_unstable();
@@ -525,15 +616,15 @@ impl Seq<'_, '_> {
         self.nodes.extend([KdNode::leaf(0, 0); 2]);
         let (bl, br) = child_boxes(&b, &s);
         // The right child's items lie below the left's: the left subtree is built first.
-        self.small(start + nr, nl, bl, depth + 1, c)?;
+        self.small(start + nr, nl, bl, next, c)?;
         self.scratch.items.truncate(start + nr);
-        self.small(start, nr, br, depth + 1, c + 1)
+        self.small(start, nr, br, next, c + 1)
     }
 }
 
 /// Builds the subtree of a node with `n` triangles whose sorted events are `lists` (their
 /// bytes taken from the meter, and given back here when they are freed).
-fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<Sub, BuildError> {
+fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, at: At) -> Result<Sub, BuildError> {
     let list_bytes = lists.heap_bytes();
     if n < PAR_MIN_TRIS {
         let mut scratch = match ctx.take() {
@@ -548,7 +639,7 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
         }
         scratch.levels[0][0] = lists;
         let mut seq = Seq { ctx, scratch, nodes: vec![KdNode::leaf(0, 0)], refs: Vec::new() };
-        let done = seq.node(0, 0, n, b, depth, 0);
+        let done = seq.node(0, 0, n, b, at, 0);
         // The lists are freed now rather than kept in the pooled scratch.
         seq.scratch.levels[0][0] = Lists::default();
         ctx.meter.give(list_bytes);
@@ -558,7 +649,7 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
         ctx.meter.take(chunk.heap_bytes(), "a subtree's nodes and references")?;
         return Ok(Sub::Chunk(chunk));
     }
-    let Some(s) = ctx.decide(&lists, n, &b, depth, true) else {
+    let Some((s, next)) = ctx.decide(&lists, n, &b, at, true) else {
         let mut refs = Vec::with_capacity(n);
         let leaf = make_leaf(&lists, &mut refs)?;
         drop(lists);
@@ -608,7 +699,7 @@ fn build_par(ctx: &Ctx, lists: Lists, n: usize, b: Aabb, depth: u32) -> Result<S
     ctx.meter.give(reserved);
     ctx.meter.take(children, "a node's children's event lists")?;
     let (bl, br) = child_boxes(&b, &s);
-    let (l, r) = rayon::join(|| build_par(ctx, left, nl, bl, depth + 1), || build_par(ctx, right, nr, br, depth + 1));
+    let (l, r) = rayon::join(|| build_par(ctx, left, nl, bl, next), || build_par(ctx, right, nr, br, next));
     Ok(Sub::Inner { axis: s.axis, pos: s.pos, kids: Box::new((l?, r?)) })
 }
 
@@ -722,12 +813,9 @@ fn build_nodes_from(
     }
     let ctx = Ctx {
         tris,
-        costs: Costs {
-            c_trav: f64::from(config.c_trav),
-            c_isect: f64::from(config.c_isect),
-            empty_factor: 1.0 - f64::from(config.empty_bonus),
-        },
+        costs: Costs::of(config),
         depth_limit: config.depth_limit(n),
+        max_bad_refines: config.max_bad_refines,
         pool: Mutex::new(Vec::new()),
         meter,
     };
@@ -737,7 +825,7 @@ fn build_nodes_from(
             meter.take(items_bytes, "the root's items")?;
             let items = binned::root_items(tris, prims);
             let binning = binned::Binning { bins: bins as usize, min_tris: min_tris as usize };
-            binned::build_binned(&ctx, items, bounds, 0, &binning)
+            binned::build_binned(&ctx, items, bounds, At::default(), &binning)
         }
         _ => exact_root(&ctx, prims, bounds),
     };
@@ -755,7 +843,8 @@ fn build_nodes_from(
     let done = flatten(sub, &mut root[0], rest, start.0, &mut prim_refs, start.1);
     meter.give(chunk_bytes);
     done?;
-    Ok(BuiltNodes { nodes, prim_refs })
+    let built = BuiltNodes { nodes, prim_refs };
+    if config.collapse { collapse::collapse(built, bounds, &ctx.costs, meter) } else { Ok(built) }
 }
 
 /// The exact build's root: the events of all triangles, sorted once, then [`build_par`].
@@ -794,7 +883,7 @@ fn exact_root(ctx: &Ctx, prims: &[u32], bounds: Aabb) -> Result<Sub, BuildError>
     let lists = Lists::from_vecs(lists);
     meter.give(root_bytes);
     meter.take(lists.heap_bytes(), "the root's event lists")?;
-    build_par(ctx, lists, n, bounds, 0)
+    build_par(ctx, lists, n, bounds, At::default())
 }
 
 #[cfg(test)]
@@ -836,6 +925,53 @@ mod tests {
         assert!(build((1, max_ref - refs)).is_ok());
         assert!(matches!(build((1, max_ref - refs + 1)), Err(BuildError::TooLarge(_))));
         assert!(matches!(build((1, usize::MAX - 10)), Err(BuildError::TooLarge(_))));
+    }
+
+    /// The leaf-or-split rule: a split cheaper than the leaf (`C_isect * ceil(n / W)`) is
+    /// made; a costlier one only with bad refines left on the path, counted, searched without
+    /// a limit for 16 triangles and more and below 4 leaves for fewer; never at the depth
+    /// limit or for an empty node.
+    #[test]
+    fn the_leaf_or_split_rule_counts_bad_refines() {
+        let meter = Meter::new(None);
+        let costs = Costs { c_trav: 1.0, c_isect: 2.0, empty_factor: 1.0, width: 4.0 };
+        let ctx = |max_bad_refines| Ctx {
+            tris: &[],
+            costs,
+            depth_limit: 10,
+            max_bad_refines,
+            pool: Mutex::new(Vec::new()),
+            meter: &meter,
+        };
+        let split = |cost| Split { axis: 0, pos: 0.5, planar_left: true, cost };
+        let at = |depth, bad| At { depth, bad };
+        // 100 triangles: a leaf of 25 groups costs 50.
+        let off = ctx(0);
+        let seen = std::cell::Cell::new(0.0);
+        let run = |c: &Ctx, n, a, cost| {
+            c.accept(n, a, |limit| {
+                seen.set(limit);
+                Some(split(cost))
+            })
+        };
+        assert_eq!(run(&off, 100, at(3, 0), 49.0), Some((split(49.0), at(4, 0))));
+        assert_eq!(seen.get(), 50.0);
+        assert_eq!(run(&off, 100, at(3, 0), 50.0), None);
+        let bad = ctx(2);
+        assert_eq!(run(&bad, 100, at(3, 0), 49.0), Some((split(49.0), at(4, 0))));
+        assert_eq!(seen.get(), f64::INFINITY);
+        assert_eq!(run(&bad, 100, at(3, 0), 500.0), Some((split(500.0), at(4, 1))));
+        assert_eq!(run(&bad, 100, at(4, 1), 60.0), Some((split(60.0), at(5, 2))));
+        assert_eq!(run(&bad, 100, at(5, 2), 60.0), None, "no bad refine left");
+        assert_eq!(seen.get(), 50.0);
+        // 10 triangles: a leaf of 3 groups costs 6; a split over 4 leaves (24) is refused.
+        assert_eq!(run(&bad, 10, at(3, 0), 23.0), Some((split(23.0), at(4, 1))));
+        assert_eq!(seen.get(), 24.0);
+        assert_eq!(run(&bad, 10, at(3, 0), 24.0), None);
+        // No search at the depth limit or for an empty node.
+        let never = |_| -> Option<Split> { panic!("searched") };
+        assert_eq!(bad.accept(100, at(10, 0), never), None);
+        assert_eq!(bad.accept(0, at(0, 0), never), None);
     }
 
     #[test]

@@ -14,6 +14,33 @@ pub(crate) struct Costs {
     pub c_isect: f64,
     /// `1 - empty_bonus`: the factor on the cost of a split with an empty side.
     pub empty_factor: f64,
+    /// The leaf's SIMD group width `W` ([`super::BuildConfig::leaf_width`]; 1: per triangle).
+    pub width: f64,
+}
+
+impl Costs {
+    /// The terms of `config`.
+    pub fn of(config: &super::BuildConfig) -> Costs {
+        Costs {
+            c_trav: f64::from(config.c_trav),
+            c_isect: f64::from(config.c_isect),
+            empty_factor: 1.0 - f64::from(config.empty_bonus),
+            width: f64::from(config.leaf_width),
+        }
+    }
+
+    /// The SIMD groups of `n` triangles, `ceil(n / W)`: the tests one ray makes in a leaf of
+    /// `n` (`n` itself, exactly, for `W = 1`). `n` is a whole number.
+    #[inline(always)]
+    pub fn groups(&self, n: f64) -> f64 {
+        (n / self.width).ceil()
+    }
+
+    /// The cost of a leaf of `n` triangles, `C_isect * ceil(n / W)`.
+    #[inline]
+    pub fn leaf(&self, n: usize) -> f64 {
+        self.c_isect * self.groups(n as f64)
+    }
 }
 
 /// The chosen plane of a node.
@@ -50,10 +77,14 @@ pub(crate) fn extent64(b: &Aabb) -> [f64; 3] {
 /// axis order, then position order, so the result is deterministic. With `par` the three
 /// axes are swept in parallel (for big nodes); the result is the same.
 ///
+/// Each side's triangles are priced by their SIMD groups, `ceil(n_l / W)` and
+/// `ceil(n_r / W)` ([`Costs::groups`]), as the leaf is.
+///
 /// Only splits cheaper than `limit` are sought: when the cheapest costs at least `limit`,
 /// the result is `None` or a split that costs at least `limit`. Every candidate of axis `k`
-/// costs at least `c_trav + scale * n * A_k` (each triangle is on at least one side, and each
-/// side's area is at least the box's face across `k`, `A_k`), so axes whose bound, with a
+/// costs at least `c_trav + scale * (n / W) * A_k` (each triangle is on at least one side,
+/// `ceil(x / W) >= x / W`, and each side's area is at least the box's face across `k`,
+/// `A_k`), so axes whose bound, with a
 /// relative margin far above rounding errors, exceeds `limit` or (sequentially, lowest bound
 /// first) the best cost found are not swept: they could only give costlier planes.
 pub(crate) fn find_split(
@@ -71,16 +102,17 @@ pub(crate) fn find_split(
     }
     let node = Node { e, b, nf: n as f64, scale: costs.c_isect * 2.0 * (1.0 / sa), costs };
     // Without an empty bonus the factor is 1 and its tests are dropped (same costs).
-    let sweep = |k: usize| {
-        if costs.empty_factor == 1.0 {
-            sweep_axis::<false>(lists[k], k, &node)
-        } else {
-            sweep_axis::<true>(lists[k], k, &node)
-        }
+    // With one triangle per group the planar triangles' terms are added as before the
+    // groups were (the same costs, bit for bit).
+    let sweep = |k: usize| match (costs.empty_factor == 1.0, costs.width == 1.0) {
+        (true, true) => sweep_axis::<false, false>(lists[k], k, &node),
+        (false, true) => sweep_axis::<true, false>(lists[k], k, &node),
+        (true, false) => sweep_axis::<false, true>(lists[k], k, &node),
+        (false, false) => sweep_axis::<true, true>(lists[k], k, &node),
     };
     let min_factor = costs.empty_factor.min(1.0);
-    let lb =
-        [0, 1, 2].map(|k| (costs.c_trav + node.scale * (node.nf * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor);
+    let nw = node.nf / costs.width;
+    let lb = [0, 1, 2].map(|k| (costs.c_trav + node.scale * (nw * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor);
     let beats = |k: usize, best: f64| lb[k] * (1.0 - 1e-9) <= best;
     let best = if par {
         let sweep = |k: usize| if beats(k, limit) { sweep(k) } else { None };
@@ -130,9 +162,9 @@ struct Node<'a> {
 
 /// The sweep of axis `k` (events `ev`, sorted): the cheapest plane strictly inside the box as
 /// `(cost, position key, planar triangles left)`, the first of equal costs. `BONUS`: whether
-/// the empty-side factor is other than 1.
+/// the empty-side factor is other than 1; `GROUPS`: whether the leaf width is other than 1.
 #[inline]
-fn sweep_axis<const BONUS: bool>(ev: &[u64], k: usize, node: &Node) -> Option<(f64, u32, bool)> {
+fn sweep_axis<const BONUS: bool, const GROUPS: bool>(ev: &[u64], k: usize, node: &Node) -> Option<(f64, u32, bool)> {
     let (e, b) = (&node.e, node.b);
     if e[k] <= 0.0 {
         return None;
@@ -188,13 +220,19 @@ fn sweep_axis<const BONUS: bool>(ev: &[u64], k: usize, node: &Node) -> Option<(f
         nr -= f64::from(pe) + ppf;
         let d = f64::from(key_pos(key)) - lo64;
         let (a_l, a_r) = (cross + d * sum, cross + (ext - d) * sum);
-        let base = nl * a_l + nr * a_r;
+        let (base_l, base_r) = if GROUPS {
+            let g = |x: f64| node.costs.groups(x);
+            (g(nl + ppf) * a_l + g(nr) * a_r, g(nl) * a_l + g(nr + ppf) * a_r)
+        } else {
+            let base = nl * a_l + nr * a_r;
+            (base + ppf * a_l, base + ppf * a_r)
+        };
         let f_l = if BONUS && (nl + ppf == 0.0 || nr == 0.0) { factor } else { 1.0 };
-        let mut c = (c_trav + scale * (base + ppf * a_l)) * f_l;
+        let mut c = (c_trav + scale * base_l) * f_l;
         let mut left = true;
         if pp > 0 {
             let f_r = if BONUS && (nl == 0.0 || nr + ppf == 0.0) { factor } else { 1.0 };
-            let c_right = (c_trav + scale * (base + ppf * a_r)) * f_r;
+            let c_right = (c_trav + scale * base_r) * f_r;
             if c_right < c {
                 c = c_right;
                 left = false;
@@ -214,7 +252,7 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
-    const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0 };
+    const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0, width: 1.0 };
 
     fn lists_of(boxes: &[([f32; 3], [f32; 3])]) -> Lists {
         let mut l: [Vec<u64>; 3] = Default::default();
@@ -236,6 +274,38 @@ mod tests {
         assert_eq!(s.axis, 0);
         assert!(s.pos == 1.0 || s.pos == 9.0, "{s:?}");
         assert!(s.cost < 10.0);
+    }
+
+    /// Each side is priced by its groups of `W`: on the box [0, 10] x [0, 1]^2 with 5
+    /// triangles' boxes at [0, 1] and one at [9, 10], the best plane costs
+    /// `C_trav + C_isect * (ceil(n_l / W) SA_l + ceil(n_r / W) SA_r) / SA` at x = 1 for
+    /// `W` = 1, 4, 8, and the sweep with the lower bound `n / W` (in parallel, limited to
+    /// the leaf) finds it when it beats the leaf.
+    #[test]
+    fn the_split_cost_counts_groups_of_the_leaf_width() {
+        let mut boxes = vec![([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]); 5];
+        boxes.push(([9.0, 0.0, 0.0], [10.0, 1.0, 1.0]));
+        let l = lists_of(&boxes);
+        let b = Aabb::new(Vec3::ZERO, Vec3::new(10.0, 1.0, 1.0));
+        let sa = |x: f64| 2.0 * (x + 1.0 + x);
+        for width in [1.0, 4.0, 8.0] {
+            let costs = Costs { width, ..COSTS };
+            let s = find_split(l.axes(), 6, &b, &costs, false, f64::INFINITY).unwrap();
+            let g = |n: f64| (n / width).ceil();
+            // The cheapest plane of axis 0 is one of the two faces of the gap, x = 1 or 9.
+            let at = |x: f64| 1.0 + 5.0 * (g(5.0) * sa(x) + g(1.0) * sa(10.0 - x)) / sa(10.0);
+            let want = at(1.0).min(at(9.0));
+            assert_eq!(s.axis, 0, "{width}: {s:?}");
+            assert!((s.cost - want).abs() <= 1e-12 * want, "{width}: {s:?}, want {want}");
+            let par = find_split(l.axes(), 6, &b, &costs, true, costs.leaf(6)).filter(|p| p.cost < costs.leaf(6));
+            assert_eq!(par, (s.cost < costs.leaf(6)).then_some(s), "{width}");
+        }
+        // W = 4: the split (1 + 5 * (2 * 6 + 38) / 42 = 6.95) beats the leaf (2 groups, 10);
+        // W = 8: the leaf is one group (5), under the split (1 + 5 * (6 + 38) / 42 = 6.24).
+        let w4 = Costs { width: 4.0, ..COSTS };
+        assert!(find_split(l.axes(), 6, &b, &w4, false, f64::INFINITY).unwrap().cost < w4.leaf(6));
+        let w8 = Costs { width: 8.0, ..COSTS };
+        assert!(find_split(l.axes(), 6, &b, &w8, false, f64::INFINITY).unwrap().cost > w8.leaf(6));
     }
 
     #[test]

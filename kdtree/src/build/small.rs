@@ -60,8 +60,10 @@ pub(crate) fn items_from_lists(lists: &Lists, n: usize, slot: &mut [u32], out: &
 /// [`super::sah::find_split`] on its events); otherwise `None` or a split that costs at least
 /// `limit`.
 ///
-/// Every candidate of axis `k` costs at least `c_trav + scale * n * A_k` (each triangle is on
-/// at least one side, and each side's area is at least the box's face across `k`, `A_k`), so
+/// Each side is priced by its SIMD groups ([`Costs::groups`]), as in the sweep. Every
+/// candidate of axis `k` costs at least `c_trav + scale * (n / W) * A_k` (each triangle is on
+/// at least one side, `ceil(x / W) >= x / W`, and each side's area is at least the box's face
+/// across `k`, `A_k`), so
 /// the axes are searched from the lowest bound and those whose bound is above `limit` or the
 /// best cost found are skipped. The bound is taken with a relative margin far above rounding
 /// errors, so a skipped axis could only have given a costlier plane.
@@ -78,7 +80,9 @@ pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs, limit: f64) -
     let blocks = n.div_ceil(LANES);
     let mut pick: Option<Split> = None;
     let min_factor = costs.empty_factor.min(1.0);
-    let bound = |k: usize| (costs.c_trav + scale * (nf * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor;
+    let nw = nf / costs.width;
+    let groups = costs.width != 1.0;
+    let bound = |k: usize| (costs.c_trav + scale * (nw * (e[(k + 1) % 3] * e[(k + 2) % 3]))) * min_factor;
     let lb = [bound(0), bound(1), bound(2)];
     let mut order = [0, 1, 2];
     order.sort_by(|&i, &j| lb[i].total_cmp(&lb[j]));
@@ -120,15 +124,22 @@ pub(crate) fn small_split(items: &[Item], b: &Aabb, costs: &Costs, limit: f64) -
                 let nr = nf - f64::from(ce);
                 let d = f64::from(x) - lo64;
                 let (a_l, a_r) = (cross + d * sum, cross + (ext - d) * sum);
-                let base = nl * a_l + nr * a_r;
+                // The sweep's terms, in its order (the same costs, bit for bit).
+                let (base_l, base_r) = if groups {
+                    let g = |x: f64| costs.groups(x);
+                    (g(nl + ppf) * a_l + g(nr) * a_r, g(nl) * a_l + g(nr + ppf) * a_r)
+                } else {
+                    let base = nl * a_l + nr * a_r;
+                    (base + ppf * a_l, base + ppf * a_r)
+                };
                 let factor = costs.empty_factor;
                 let bonus = factor != 1.0;
                 let f_l = if bonus && (nl + ppf == 0.0 || nr == 0.0) { factor } else { 1.0 };
-                let mut c = (costs.c_trav + scale * (base + ppf * a_l)) * f_l;
+                let mut c = (costs.c_trav + scale * base_l) * f_l;
                 let mut left = true;
                 if cp > 0 {
                     let f_r = if bonus && (nl == 0.0 || nr + ppf == 0.0) { factor } else { 1.0 };
-                    let c_right = (costs.c_trav + scale * (base + ppf * a_r)) * f_r;
+                    let c_right = (costs.c_trav + scale * base_r) * f_r;
                     if c_right < c {
                         c = c_right;
                         left = false;
@@ -244,8 +255,9 @@ mod tests {
             }
             let lists = Lists::from_vecs(l);
             let bonus = if case % 2 == 0 { 1.0 } else { 0.8 };
-            let costs = Costs { c_trav: 1.0, c_isect: 5.0 - r(2) as f64 * 4.0, empty_factor: bonus };
-            let limit = if case % 3 == 0 { f64::INFINITY } else { costs.c_isect * n as f64 };
+            let width = [1.0, 4.0, 8.0, 3.0][(case / 2) % 4];
+            let costs = Costs { c_trav: 1.0, c_isect: 5.0 - r(2) as f64 * 4.0, empty_factor: bonus, width };
+            let limit = if case % 3 == 0 { f64::INFINITY } else { costs.leaf(n) };
             let below = |s: Option<Split>| s.filter(|s| s.cost < limit);
             let want = below(find_split(lists.axes(), n, &b, &costs, case % 5 == 0, limit));
             assert_eq!(below(small_split(&items, &b, &costs, limit)), want, "case {case}");

@@ -136,9 +136,22 @@ pub struct SceneArgs {
     /// Nodes with at least this many triangles are binned by `--build binned` (default 1024).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub bin_min_tris: Option<u32>,
+    /// The SAH prices a leaf of n triangles as ceil(n / W) tests of W-wide SIMD groups (1:
+    /// per triangle, the thesis's; 4: the leaves' groups of 4). Overrides the cost model's.
+    #[arg(long, value_name = "W", value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub leaf_width: Option<u32>,
+    /// Mitsuba's bad refines: splits costlier than the leaf still allowed on a path (0: off;
+    /// at most 16). Overrides the cost model's.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=16))]
+    pub bad_refines: Option<u32>,
+    /// After the build, collapse every subtree whose SAH cost is at least its leaf's
+    /// (Mitsuba's retraction of bad splits): `on` or `off` (default: the cost model's).
+    #[arg(long, value_name = "on|off", value_parser = parse_on_off)]
+    pub collapse: Option<bool>,
     /// Load the tree from this file (written by `rttest build --save`) instead of building
     /// it. The file must have been built for this scene with the same --intersector,
-    /// --c-isect, --empty-bonus, --max-depth and --build (with its --bins, --bin-min-tris);
+    /// --c-isect, --empty-bonus, --max-depth, --leaf-width, --bad-refines, --collapse and
+    /// --build (with its --bins, --bin-min-tris);
     /// it is checked in full before use.
     #[arg(long, value_name = "FILE")]
     pub tree: Option<PathBuf>,
@@ -253,8 +266,20 @@ impl SceneArgs {
             c_isect,
             empty_bonus,
             memory_budget: self.memory_budget,
+            leaf_width: self.leaf_width.unwrap_or(model.leaf_width),
+            max_bad_refines: self.bad_refines.unwrap_or(model.max_bad_refines),
+            collapse: self.collapse.unwrap_or(model.collapse),
             ..model
         })
+    }
+}
+
+/// `on` / `off` (also `true` / `false`, `1` / `0`).
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" | "true" | "1" => Ok(true),
+        "off" | "false" | "0" => Ok(false),
+        _ => Err(format!("'{s}' is neither on nor off")),
     }
 }
 
@@ -623,6 +648,9 @@ fn build_report(scene: &Scene, tree: &KdTree, build_ms: f64, load_ms: f64) -> Bu
             BuildStrategy::Binned { min_tris, .. } => Some(min_tris),
             BuildStrategy::Exact => None,
         },
+        leaf_width: tree.config().leaf_width,
+        max_bad_refines: tree.config().max_bad_refines,
+        collapse: tree.config().collapse,
         tree: TreeSummary::of(tree),
     }
 }

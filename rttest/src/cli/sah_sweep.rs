@@ -15,8 +15,10 @@ pub struct SahSweepArgs {
     #[arg(long, value_name = "NAME|PATH")]
     pub scene: Vec<String>,
     /// Only these cost models (names separated by ';'; default all): thesis, wald-havran,
-    /// pbrt, isect-2, isect-3, isect-10, isect-20, bonus-0.2, bonus-0.5, depth-4, depth+4, bonus-0.2,depth+4,
-    /// bonus-0.5,depth+4.
+    /// pbrt, isect-2, isect-3, isect-10, isect-20, bonus-0.2, bonus-0.5, depth-4, depth+4,
+    /// bonus-0.2,depth+4, bonus-0.5,depth+4, wh-leaf4, wh-leaf8, wh-bad3, wh-bad3-collapse,
+    /// wh-leaf4-bad3, wh-leaf4-bad3-collapse, wh-leaf4-isect2, wh-leaf8-bad3-collapse,
+    /// wh-leaf4-isect3, wh-leaf4-isect2-bad3-collapse.
     #[arg(long, value_name = "NAME", value_delimiter = ';')]
     pub candidates: Vec<String>,
     /// Image side: `N x N` primary rays from each scene's default view.
