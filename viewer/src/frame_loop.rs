@@ -123,9 +123,9 @@ impl<'a> FrameLoop<'a> {
     /// The loop over `scene` and its kd-tree; soft shadows go to a light of radius 1 Sponza
     /// unit at the point light (`trace::soft::scene_light`).
     ///
-    /// Every other registered structure (the 4-wide BVH of `mbvh-4`) is built here too, so
-    /// that every method binds; one that fails to build is named on stderr and its methods
-    /// report the error when chosen.
+    /// Every other registered structure (the 4- and 8-wide BVHs of `mbvh-4` and `mbvh-8`) is
+    /// built here too, so that every method binds; one that fails to build is named on stderr
+    /// and its methods report the error when chosen.
     pub fn new(scene: &'a Scene, tree: &'a KdTree) -> FrameLoop<'a> {
         let registry = Registry::ours();
         let mut structures = Structures::new(tree);
