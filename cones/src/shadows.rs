@@ -136,7 +136,13 @@ pub fn sample_cone(p: Vec3, light: &SphereLight) -> Option<Cone> {
 /// Not checked: a NaN or infinite origin or sample gives a ray that
 /// [`SoftShadowTracer::occluded`] reports as not occluded.
 pub fn shadow_rays(origin: Vec3, samples: &[Vec3; SAMPLES]) -> [Ray; SAMPLES] {
-    samples.map(|s| Ray::new(origin, s - origin, 0.0, 1.0))
+    samples.map(|s| shadow_ray(origin, s))
+}
+
+/// One of [`shadow_rays`]: from `origin` to the light sample `sample`, over `[0, 1]`.
+#[inline]
+pub fn shadow_ray(origin: Vec3, sample: Vec3) -> Ray {
+    Ray::new(origin, sample - origin, 0.0, 1.0)
 }
 
 /// Scratch space for tracing groups of 16 shadow rays from one point, one per thread.

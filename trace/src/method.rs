@@ -312,7 +312,7 @@ impl SoftJob<'_> {
     }
 
     /// What [`SoftJob::point`] makes its rays from: the rays' origin, the 16 light samples
-    /// (ray `k` is `Ray::new(origin, samples[k] - origin, 0.0, 1.0)`) and the cone. A fifth of
+    /// (ray `k` is `cones::shadows::shadow_ray(origin, samples[k])`) and the cone. A fifth of
     /// the bytes of the rays, for kernels that keep a tile's points before tracing them.
     #[inline]
     pub fn samples(&self, i: usize) -> Option<(Vec3, [Vec3; SAMPLES], Cone)> {

@@ -20,7 +20,7 @@
 //! [`SoftJob::point`]), and every kernel here answers each ray exactly as the single ray does
 //! (the conformance harness checks it).
 
-use cones::shadows::SAMPLES;
+use cones::shadows::{SAMPLES, shadow_ray};
 use glam::Vec3;
 use kdtree::{KdTree, Ray};
 use packets::{ShadowFrustum, samesign};
@@ -155,8 +155,8 @@ pub fn soft<C: TileCounters>(
         scratch.slots.clear();
         for &i in &scratch.order {
             if let Some((start, samples)) = &scratch.soft[i as usize] {
-                // As `cones::shadows::shadow_rays`: the rays of `SoftJob::point`.
-                scratch.rays.push(Ray::new(*start, samples[k] - *start, 0.0, 1.0));
+                // Ray `k` of `SoftJob::point`.
+                scratch.rays.push(shadow_ray(*start, samples[k]));
                 scratch.slots.push(i);
             }
         }
