@@ -29,6 +29,8 @@ pub mod oracle;
 pub mod ray;
 pub mod stats;
 pub mod surface;
+#[cfg(test)]
+mod test_rng;
 pub mod traverse;
 pub mod tree;
 pub mod treefile;

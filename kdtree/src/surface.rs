@@ -119,15 +119,11 @@ impl Surfaces {
 mod tests {
     use super::*;
     use crate::ray::{offset_origin, surface_point};
+    use crate::test_rng::XorShift;
 
     fn triangles() -> Vec<[Vec3; 3]> {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32 - 0.5
-        };
+        let mut rng = XorShift(0x2545_f491_4f6c_dd1d);
+        let mut next = move || rng.unit() - 0.5;
         let mut out = Vec::new();
         for scale in [1e-30f32, 1e-3, 1.0, 1e5, 1e30] {
             for shift in [0.0f32, 1e5, -3e6] {

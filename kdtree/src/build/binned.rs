@@ -248,6 +248,7 @@ pub(crate) fn binned_split(items: &[Item], b: &Aabb, costs: &Costs, bins: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::XorShift;
 
     const COSTS: Costs = Costs { c_trav: 1.0, c_isect: 5.0, empty_factor: 1.0, width: 1.0 };
 
@@ -286,13 +287,8 @@ mod tests {
     /// inside a bin's rounding distance from it: checked against counting directly.
     #[test]
     fn binned_costs_match_direct_counts() {
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut r = move |m: u64| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 33) % m
-        };
+        let mut rng = XorShift(0x2545_f491_4f6c_dd1d);
+        let mut r = move |m: u64| rng.below(m);
         for case in 0..200 {
             let bins = 8 << r(3);
             let b = Aabb::new(Vec3::ZERO, Vec3::splat(8.0));

@@ -202,6 +202,7 @@ fn radix_sort_digits<const D: usize, const H: usize>(v: &mut Vec<u64>, tmp: &mut
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::XorShift;
 
     #[test]
     fn keys_sort_like_floats() {
@@ -227,16 +228,11 @@ mod tests {
 
     #[test]
     fn radix_sort_matches_sort() {
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
         let mut lists: [Vec<u64>; 3] = Default::default();
         for prim in 0..40_000u32 {
-            let mut r = || {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                // Few distinct positions, both signs, so that keys tie often.
-                ((s >> 40) % 64) as f32 * 0.25 - 8.0
-            };
+            // Few distinct positions, both signs, so that keys tie often.
+            let mut r = || ((rng.next_u64() >> 40) % 64) as f32 * 0.25 - 8.0;
             let (a, b, c) = (r(), r(), r());
             let (lo, hi) = ([a.min(b), b, c.min(a)], [a.max(b), b, c.max(a)]);
             push_box_events(&mut lists, prim, lo, hi);
@@ -253,15 +249,12 @@ mod tests {
     /// Both digit layouts (short and long lists) on positions spread over every exponent.
     #[test]
     fn radix_sort_matches_sort_on_wide_positions() {
-        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut rng = XorShift(0x2545_f491_4f6c_dd1d);
         for n in [1usize, 300, 3000, 40_000] {
             let mut l: [Vec<u64>; 3] = Default::default();
             for prim in 0..n as u32 {
                 let mut r = || {
-                    s ^= s << 13;
-                    s ^= s >> 7;
-                    s ^= s << 17;
-                    let x = f32::from_bits((s >> 32) as u32);
+                    let x = f32::from_bits((rng.next_u64() >> 32) as u32);
                     if x.is_finite() { x } else { 1.5 }
                 };
                 let (a, b) = (r(), r());

@@ -219,19 +219,15 @@ mod tests {
     use super::super::events::push_box_events;
     use super::super::sah::find_split;
     use super::*;
+    use crate::test_rng::XorShift;
 
     /// The box-counting search finds the same split as the sweep over sorted events, on
     /// boxes with few distinct coordinates (many ties and planar boxes), with and without
     /// an empty bonus.
     #[test]
     fn small_split_matches_sweep() {
-        let mut s = 0x2545_f491_4f6c_dd1du64;
-        let mut r = move |m: u64| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 33) % m
-        };
+        let mut rng = XorShift(0x2545_f491_4f6c_dd1d);
+        let mut r = move |m: u64| rng.below(m);
         for case in 0..3000 {
             let n = 1 + r(SMALL as u64) as usize;
             let b = Aabb::new(Vec3::ZERO, Vec3::new(8.0, 4.0 + r(5) as f32, 8.0));
