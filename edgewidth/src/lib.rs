@@ -13,11 +13,14 @@
 //! - [`sampling`]: rectangular and spherical area lights, stratified visibility with `N`
 //!   samples, and the 4x4 interleaved sample sets of Benthin & Wald 2009 (4.5).
 //! - [`filter`]: Benthin & Wald's 4x4 discontinuity filter.
+//! - [`adaptive`]: adaptive stratified sampling: four corner probes per pixel, all 16
+//!   samples only where the probes of the pixel or a neighbour disagree.
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their
 //! scratch buffers have grown, and never lock.
 
+pub mod adaptive;
 pub mod analytic;
 pub mod brute;
 pub mod filter;

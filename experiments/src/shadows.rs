@@ -7,6 +7,9 @@
 //! - `edge-width` / `edge-width-packet`: one edge-width ray to the centre (single rays, or
 //!   4-wide packets; identical images), occlusion from Eq. 5.1 with `R` from the light's size;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
+//! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
+//!   12 only where the probes of the pixel or of a neighbour disagree
+//!   (`edgewidth::adaptive`); refined pixels get `sampled-16`'s answer bit for bit;
 //! - `interleaved-16-raw`: Benthin & Wald's 4x4 interleaved sampling, 16 samples per pixel,
 //!   unfiltered;
 //! - `interleaved-16`: the same samples, then their 4x4 discontinuity filter. Its row also
@@ -24,6 +27,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::shadow_plot::{Point, plot};
+use edgewidth::adaptive;
 use edgewidth::analytic::sphere_visible_fraction;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
@@ -169,6 +173,9 @@ pub enum ShadowMethod {
     /// packets of neighbouring pixels' rays (`trace::shadow_frusta`'s grouping, Benthin &
     /// Wald 2009).
     SampledPackets(u32),
+    /// Four probes of the 16 stratified samples per pixel, all 16 where the probes of the
+    /// pixel or a neighbour disagree (`edgewidth::adaptive`).
+    Adaptive,
     /// 4x4 interleaved sampling (16 samples), unfiltered.
     InterleavedRaw,
     /// 4x4 interleaved sampling (16 samples) and the 4x4 discontinuity filter.
@@ -176,7 +183,7 @@ pub enum ShadowMethod {
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 11] = [
+pub const METHODS: [ShadowMethod; 12] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
@@ -184,6 +191,7 @@ pub const METHODS: [ShadowMethod; 11] = [
     ShadowMethod::Sampled(8),
     ShadowMethod::Sampled(16),
     ShadowMethod::SampledPackets(16),
+    ShadowMethod::Adaptive,
     ShadowMethod::Sampled(32),
     ShadowMethod::Sampled(256),
     ShadowMethod::InterleavedRaw,
@@ -199,6 +207,7 @@ impl ShadowMethod {
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Sampled(n) => format!("sampled-{n}"),
             ShadowMethod::SampledPackets(n) => format!("sampled-{n}-packets"),
+            ShadowMethod::Adaptive => "adaptive-16".into(),
             ShadowMethod::InterleavedRaw => "interleaved-16-raw".into(),
             ShadowMethod::Interleaved => "interleaved-16".into(),
         }
@@ -283,15 +292,18 @@ impl<'a> ShadowSetup<'a> {
             }
         });
         let mut vis = vec![0.0f32; n];
-        let sets = InterleavedSets::new(7);
-        let chunks: Vec<_> = self.layout.chunks(&hits).into_iter().zip(self.layout.chunks_mut(&mut vis)).collect();
-        let shadow_rays: u64 = self
-            .layout
-            .tiles()
-            .par_iter()
-            .zip(chunks)
-            .map(|(tile, (hits, out))| self.visibility_tile(method, tile, hits, out, &sets))
-            .sum();
+        let shadow_rays = if method == ShadowMethod::Adaptive {
+            self.adaptive(&hits, &mut vis)
+        } else {
+            let sets = InterleavedSets::new(7);
+            let chunks: Vec<_> = self.layout.chunks(&hits).into_iter().zip(self.layout.chunks_mut(&mut vis)).collect();
+            self.layout
+                .tiles()
+                .par_iter()
+                .zip(chunks)
+                .map(|(tile, (hits, out))| self.visibility_tile(method, tile, hits, out, &sets))
+                .sum()
+        };
         let hits = self.layout.to_row_major(&hits);
         let mut visibility = self.layout.to_row_major(&vis);
         if method == ShadowMethod::Interleaved {
@@ -365,7 +377,7 @@ impl<'a> ShadowSetup<'a> {
                             rays += 16;
                             sets.visible_fraction(tree, &self.light, &p, x, y)
                         }
-                        ShadowMethod::EdgeWidthPacket | ShadowMethod::SampledPackets(_) => {
+                        ShadowMethod::EdgeWidthPacket | ShadowMethod::SampledPackets(_) | ShadowMethod::Adaptive => {
                             unreachable!("handled above")
                         }
                     };
@@ -375,41 +387,105 @@ impl<'a> ShadowSetup<'a> {
         rays
     }
 
+    /// [`ShadowMethod::Adaptive`] over the frame (`hits` and `out` in tile order), in two
+    /// passes over the tiles: every hit's four probes, then the other 12 samples of the
+    /// pixels whose probes, or a neighbour's, disagree (`edgewidth::adaptive`). A pixel's
+    /// samples are `sampled-16`'s (same generator and seed); each pass traces a tile's rays
+    /// sample by sample as 2x2 packets ([`count_visible_by_sample`]). Returns the rays
+    /// traced: 4 per hit and 12 per refined pixel.
+    fn adaptive(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
+        const NO_HIT: u8 = u8::MAX;
+        let tiles = self.layout.tiles();
+        // The shading point and sample generator of each pixel of `tile` that `keep` names.
+        let points = |tile: &scenes::Tile, hits: &[Option<Hit>], keep: &dyn Fn(usize) -> bool| {
+            tile.pixels()
+                .zip(hits)
+                .enumerate()
+                .map(|(i, ((x, y), hit))| {
+                    let hit = hit.as_ref().filter(|_| keep(i))?;
+                    let rng = Rng::new(pixel_seed(x, y, u64::from(adaptive::SAMPLES)));
+                    Some((self.shading_point(x, y, hit), rng))
+                })
+                .collect::<Vec<_>>()
+        };
+        let ray_of = |(p, rng): &(ShadingPoint, Rng), k: usize| {
+            p.shadow_ray(self.light.sample(p.point, adaptive::sample_position(*rng, k)))
+        };
+        let mut probes = vec![NO_HIT; hits.len()];
+        tiles.par_iter().zip(self.layout.chunks(hits)).zip(self.layout.chunks_mut(&mut probes)).for_each(
+            |((tile, hits), probes)| {
+                let points = points(tile, hits, &|_| true);
+                let order = morton_order(tile.width(), tile.height());
+                let mut visible = vec![0u32; points.len()];
+                let ray = |i: usize, k: usize| points[i].as_ref().and_then(|point| ray_of(point, k));
+                count_visible_by_sample(self.tree, &order, &adaptive::PROBES, ray, &mut visible);
+                for ((slot, hit), v) in probes.iter_mut().zip(hits).zip(visible) {
+                    if hit.is_some() {
+                        *slot = v as u8;
+                    }
+                }
+            },
+        );
+        let (w, h) = (self.camera.width, self.camera.height);
+        let grid = self.layout.to_row_major(&probes);
+        let at = |x: u32, y: u32| grid[(y * w + x) as usize];
+        let refined: u64 = tiles
+            .par_iter()
+            .zip(self.layout.chunks(hits))
+            .zip(self.layout.chunks_mut(out))
+            .map(|((tile, hits), out)| {
+                let refine: Vec<bool> = tile
+                    .pixels()
+                    .map(|(x, y)| {
+                        let own = at(x, y);
+                        let neighbours = (y.saturating_sub(1)..(y + 2).min(h))
+                            .flat_map(|ny| (x.saturating_sub(1)..(x + 2).min(w)).map(move |nx| at(nx, ny)))
+                            .filter(|&n| n != NO_HIT);
+                        own != NO_HIT && adaptive::needs_refining(own, neighbours)
+                    })
+                    .collect();
+                let points = points(tile, hits, &|i| refine[i]);
+                let order = morton_order(tile.width(), tile.height());
+                let mut rest = vec![0u32; points.len()];
+                let ray = |i: usize, k: usize| points[i].as_ref().and_then(|point| ray_of(point, k));
+                count_visible_by_sample(self.tree, &order, &adaptive::REST, ray, &mut rest);
+                for (((x, y), slot), (&refine, rest)) in tile.pixels().zip(out).zip(refine.iter().zip(rest)) {
+                    let own = at(x, y);
+                    *slot = if own == NO_HIT { 0.0 } else { adaptive::fraction(own, refine.then_some(rest as u8)) };
+                }
+                refine.iter().filter(|&&r| r).count() as u64
+            })
+            .sum();
+        let probed = hits.iter().filter(|h| h.is_some()).count() as u64;
+        adaptive::PROBES.len() as u64 * probed + adaptive::REST.len() as u64 * refined
+    }
+
     /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as
-    /// `visible_fraction` makes them (same seed), then, stratum by stratum, the tile's rays
-    /// in Morton order of their pixels as 2x2 same-sign any-hit packets. Returns the rays
-    /// traced (`n` per hit, as [`ShadowMethod::Sampled`] counts them).
+    /// `visible_fraction` makes them (same seed), then, sample by sample, the tile's rays
+    /// in Morton order of their pixels as 2x2 same-sign any-hit packets
+    /// ([`count_visible_by_sample`]). Returns the rays traced (`n` per hit, as
+    /// [`ShadowMethod::Sampled`] counts them).
     fn sampled_packets(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         let grid = strata(n);
         let w = tile.width();
-        // Per pixel, its rays (`None` for samples behind the surface: blocked).
-        let mut rays: Vec<Vec<Option<Ray>>> = Vec::with_capacity(hits.len());
-        for (i, hit) in hits.iter().enumerate() {
-            let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
-            let pixel = hit.as_ref().map(|hit| {
-                let p = self.shading_point(x, y, hit);
+        // Per pixel, its shading point; its `n` sample positions at `n * i ..`.
+        let mut positions = Vec::with_capacity(n as usize * hits.len());
+        let points: Vec<Option<ShadingPoint>> = hits
+            .iter()
+            .enumerate()
+            .map(|(i, hit)| {
+                let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
                 let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
-                (0..n).map(|k| p.shadow_ray(self.light.sample(p.point, stratified(k, grid, &mut rng)))).collect()
-            });
-            rays.push(pixel.unwrap_or_default());
-        }
-        let order = morton_order(w, tile.height());
+                positions.extend((0..n).map(|k| stratified(k, grid, &mut rng)));
+                hit.as_ref().map(|hit| self.shading_point(x, y, hit))
+            })
+            .collect();
+        let ray = |i: usize, k: usize| {
+            points[i].as_ref().and_then(|p| p.shadow_ray(self.light.sample(p.point, positions[n as usize * i + k])))
+        };
+        let samples: Vec<usize> = (0..n as usize).collect();
         let mut visible = vec![0u32; hits.len()];
-        let (mut group, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new());
-        for k in 0..n as usize {
-            group.clear();
-            slots.clear();
-            for &i in &order {
-                if let Some(Some(ray)) = rays[i as usize].get(k) {
-                    group.push(*ray);
-                    slots.push(i as usize);
-                }
-            }
-            samesign::occluded_fours(self.tree, &group, &mut blocked, &mut NoCounters);
-            for (&i, &b) in slots.iter().zip(&blocked) {
-                visible[i] += u32::from(!b);
-            }
-        }
+        count_visible_by_sample(self.tree, &morton_order(w, tile.height()), &samples, ray, &mut visible);
         for ((slot, hit), v) in out.iter_mut().zip(hits).zip(visible) {
             *slot = if hit.is_some() { v as f32 / n as f32 } else { 0.0 };
         }
@@ -473,6 +549,35 @@ impl<'a> ShadowSetup<'a> {
             }
         });
         vis
+    }
+}
+
+/// Adds to `visible[i]` how many of pixel `i`'s rays `ray(i, k)`, `k` in `samples`, are not
+/// blocked; a `None` ray counts as blocked. The rays go sample by sample, each sample's in
+/// the pixel order `order` (Morton order of a tile: neighbours' rays to the same light
+/// stratum side by side) as 2x2 same-sign any-hit packets, as `trace::shadow_frusta` groups
+/// a render's soft shadows (Benthin & Wald 2009).
+fn count_visible_by_sample(
+    tree: &KdTree,
+    order: &[u32],
+    samples: &[usize],
+    ray: impl Fn(usize, usize) -> Option<Ray>,
+    visible: &mut [u32],
+) {
+    let (mut group, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new());
+    for &k in samples {
+        group.clear();
+        slots.clear();
+        for &i in order {
+            if let Some(r) = ray(i as usize, k) {
+                group.push(r);
+                slots.push(i as usize);
+            }
+        }
+        samesign::occluded_fours(tree, &group, &mut blocked, &mut NoCounters);
+        for (&i, &b) in slots.iter().zip(&blocked) {
+            visible[i] += u32::from(!b);
+        }
     }
 }
 
@@ -973,6 +1078,35 @@ mod tests {
             assert_eq!(single.visibility, packets.visibility);
             assert_eq!(single.shadow_rays, packets.shadow_rays);
             assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
+        }
+    }
+
+    #[test]
+    fn adaptive_frames_are_sampled_16_but_on_unrefined_pixels_whose_16_samples_disagree() {
+        let scene = scenes::load_scene("touching-boxes").unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let config = BuildConfig { intersector, ..BuildConfig::default() };
+            let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
+            let camera = scene.default_view().camera(40, 30).unwrap();
+            let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+            let sampled = setup.frame(ShadowMethod::Sampled(16));
+            let adaptive = setup.frame(ShadowMethod::Adaptive);
+            assert_eq!(sampled.hits, adaptive.hits);
+            let (mut penumbra, mut differ) = (0, 0);
+            for (&a, &s) in adaptive.visibility.iter().zip(&sampled.visibility) {
+                // Refined pixels are sampled-16's; others keep their probes' 0 or 1, which is
+                // sampled-16's wherever its 16 samples agree.
+                assert!(a == s || ((a == 0.0 || a == 1.0) && s > 0.0 && s < 1.0), "{a} against {s}");
+                penumbra += usize::from(a == s && s > 0.0 && s < 1.0);
+                differ += usize::from(a != s);
+            }
+            assert!(penumbra > 20, "a refined penumbra: {penumbra} pixels");
+            assert!(differ * 50 < penumbra, "{differ} pixels missed");
+            let hits = adaptive.hits.iter().flatten().count() as u64;
+            let refined = (adaptive.shadow_rays - 4 * hits) / 12;
+            assert_eq!(adaptive.shadow_rays, 4 * hits + 12 * refined);
+            assert!(refined > 0 && refined < hits / 2, "{refined} of {hits} refined");
+            assert_eq!(sampled.shadow_rays, 16 * hits);
         }
     }
 
