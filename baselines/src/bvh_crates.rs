@@ -98,6 +98,7 @@ fn entry(name: &'static str, summary: &'static str, bind: trace::registry::Bind)
         structure: name,
         shadow_kernel: name,
         soft_kernel: name,
+        per_point_soft_kernel: None,
         bind,
     }
 }

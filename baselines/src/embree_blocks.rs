@@ -73,6 +73,7 @@ fn entry(name: &'static str, summary: &'static str, structure: &'static str, bin
         structure,
         shadow_kernel: name,
         soft_kernel: name,
+        per_point_soft_kernel: None,
         bind,
     }
 }

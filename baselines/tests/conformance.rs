@@ -28,7 +28,7 @@ fn plan(registry: &Registry) -> Plan {
     for e in registry.entries().iter().filter(|e| e.family != "ours") {
         let twin = twin(e.name);
         for tile in conformance::TILES {
-            let options = Options { tile, culling: true };
+            let options = Options { tile, ..Options::default() };
             if twin != e.name {
                 // Embree's packets and single rays run the same triangle test, but round `t`
                 // differently by an ulp at some shared edges (1 to 7 stream rays of conference,

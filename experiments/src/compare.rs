@@ -742,9 +742,11 @@ mod tests {
         }
         let soft = |m: &str| report.rows.iter().find(|r| r.method == m).and_then(|r| r.soft16_kernel.clone());
         assert_eq!(soft("mono").as_deref(), Some("kd-single"));
-        assert_eq!(soft("packet").as_deref(), Some("kd-pyramid"));
+        // Every packet and cone method: its tile's rays per light stratum as 2x2 packets
+        // (the per-point pyramid and cone are `SoftGrouping::PerPoint`, Table 4.6).
+        assert_eq!(soft("packet").as_deref(), Some("kd-stratum-packets"));
         assert_eq!(soft("mft-8").as_deref(), Some("kd-stratum-packets"));
-        assert_eq!(soft("cone-16").as_deref(), Some("kd-cone"));
+        assert_eq!(soft("cone-16").as_deref(), Some("kd-stratum-packets"));
         assert_eq!(soft("multi-frusta-16").as_deref(), Some("kd-multi-frusta-16"));
         let text = report.to_string();
         assert!(text.contains("| mft-cone-16 |") && text.contains("| mbvh-4 |") && text.contains("ao Mrays/s"));

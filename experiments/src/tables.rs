@@ -23,7 +23,7 @@ use scenes::Scene;
 use trace::progress::Progress;
 use trace::setup::view_camera;
 use trace::timing::mrays_per_s;
-use trace::{Error, FrameTracer, Options, Registry, Renderer, Shadows, Structures, TileLayout, soft};
+use trace::{Error, FrameTracer, Options, Registry, Renderer, Shadows, SoftGrouping, Structures, TileLayout, soft};
 
 /// What `tables` measures.
 #[derive(Clone, Debug, PartialEq)]
@@ -174,7 +174,7 @@ fn measure(
     let mut rows = Vec::new();
     let mut shade_secs = f64::INFINITY;
     for &(method, tile, culling) in CONFIGS {
-        let selected = registry.select(method, Options { tile, culling })?;
+        let selected = registry.select(method, Options { tile, culling, ..Options::default() })?;
         let bound = registry.bind(&selected, structures)?;
         let renderer = Renderer::new(scene, &bound, camera, Shadows::None);
         let mut buffers = renderer.buffers();
@@ -212,16 +212,17 @@ fn measure(
     Ok(rows)
 }
 
-/// The rows of Table 4.6: (name, the registered method whose soft-shadow kernel it is, the
-/// thesis's method). The thesis's three per point (single rays, the pyramid of the 16 rays,
-/// their cone), then each tile's rays to each light stratum as 2x2 packets (`mft`) and as
-/// Benthin & Wald's shadow frusta (`multi-frusta`).
-const SOFT_ROWS: [(&str, &str, Option<ShadowMethod>); 5] = [
-    ("single", "mono", Some(ShadowMethod::Single)),
-    ("pyramid", "packet", Some(ShadowMethod::Pyramid)),
-    ("cone", "cone", Some(ShadowMethod::Cone)),
-    ("stratum packets", "mft", None),
-    ("multi-frusta", "multi-frusta", None),
+/// The rows of Table 4.6: (name, the registered method and soft-shadow grouping whose kernel
+/// it is, the thesis's method). The thesis's three per point (single rays, the pyramid of the
+/// 16 rays, their cone), then each tile's rays to each light stratum as 2x2 packets (`mft`,
+/// the default of every packet and cone method) and as Benthin & Wald's shadow frusta
+/// (`multi-frusta`).
+const SOFT_ROWS: [(&str, &str, SoftGrouping, Option<ShadowMethod>); 5] = [
+    ("single", "mono", SoftGrouping::Strata, Some(ShadowMethod::Single)),
+    ("pyramid", "packet", SoftGrouping::PerPoint, Some(ShadowMethod::Pyramid)),
+    ("cone", "cone", SoftGrouping::PerPoint, Some(ShadowMethod::Cone)),
+    ("stratum packets", "mft", SoftGrouping::Strata, None),
+    ("multi-frusta", "multi-frusta", SoftGrouping::Strata, None),
 ];
 
 /// Times the 16-sample soft shadows of every hit of the default view to a spherical light at
@@ -249,8 +250,8 @@ fn measure_soft(
     for radius in [1.0f32, 2.0] {
         let light = soft::scene_light(scene, structures.kdtree(), radius);
         let mut reference: Option<Vec<f32>> = None;
-        for (label, method, thesis) in SOFT_ROWS {
-            let bound = registry.bind(&registry.select(method, Options::default())?, structures)?;
+        for (label, method, soft, thesis) in SOFT_ROWS {
+            let bound = registry.bind(&registry.select(method, Options { soft, ..Options::default() })?, structures)?;
             let tracer: &dyn FrameTracer = &*bound.tracer;
             let mut best = f64::INFINITY;
             let mut stats = Default::default();
@@ -321,7 +322,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
             && let Some(camera) = scene.default_view().camera(config.size.0, config.size.1)
         {
             let bound = registry
-                .bind(&registry.select(best.method, Options { tile: best.tile, culling: true })?, &structures)?;
+                .bind(&registry.select(best.method, Options { tile: best.tile, ..Options::default() })?, &structures)?;
             let cores = crate::scaling::cores();
             let rounds = config.frames.max(5);
             scaling_rows.extend(crate::scaling::measure(&scene, &bound, camera, cores, rounds)?);

@@ -1,7 +1,8 @@
 //! Shadow rays at 1024x1024 (the shadow issue's kernels): hard shadows and 16-sample soft
 //! shadows from the same primary hits, as single rays, as 2x2 packets of neighbouring
 //! pixels' rays (`packet`, `mft-16`: per light stratum for soft shadows), under the thesis's
-//! pyramid and cone (`packet`, `cone-16`, soft), and as Benthin & Wald's shadow frusta
+//! pyramid and cone (`packet per-point`, `cone-16 per-point`, soft), and as Benthin & Wald's
+//! shadow frusta
 //! (`multi-frusta-16`), on the atrium and Sponza; and the rays alone, made and not traced
 //! (`rays-only`).
 
@@ -10,7 +11,15 @@ use criterion::{Criterion, criterion_group, criterion_main};
 mod common;
 
 fn shadows(c: &mut Criterion) {
-    common::bench_shadow_methods(c, "shadows", &["packet", "mft-16", "cone-16", "multi-frusta-16"]);
+    use trace::SoftGrouping::{PerPoint, Strata};
+    let methods = [
+        ("packet", Strata),
+        ("packet", PerPoint),
+        ("mft-16", Strata),
+        ("cone-16", PerPoint),
+        ("multi-frusta-16", Strata),
+    ];
+    common::bench_shadow_methods(c, "shadows", &methods);
 }
 
 /// The bench group (`criterion_group!` makes an undocumented public function).

@@ -34,7 +34,7 @@ use scenes::{Camera, Material, Mesh, Scene, SphereLight};
 
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::method::{hard_shadow_ray, primary_ray};
-use crate::registry::{KDTREE, Options, Registry, Structures};
+use crate::registry::{KDTREE, Options, Registry, SoftGrouping, Structures};
 use crate::soft;
 use crate::ties::{coplanar, near_shared};
 
@@ -380,8 +380,9 @@ pub struct Plan {
 
 impl Plan {
     /// Every method of `registry` on our kd-tree but `mono` itself against `mono`, exactly
-    /// ([`Rule::Exact`]), at tiles 4, 8 and 16 (tiled methods also without packet/leaf culling at 8), with both
-    /// intersectors; `mono` against the oracle.
+    /// ([`Rule::Exact`]), at tiles 4, 8 and 16 (tiled methods also without packet/leaf
+    /// culling at 8, and those with a per-point soft-shadow kernel also with it at 8), with
+    /// both intersectors; `mono` against the oracle.
     pub fn ours(registry: &Registry) -> Plan {
         let mut checks = Vec::new();
         for e in registry.entries().iter().filter(|e| e.structure == KDTREE) {
@@ -390,8 +391,12 @@ impl Plan {
                     continue; // the reference itself
                 }
                 let method = if e.tiled { format!("{}-{tile}", e.name) } else { e.name.to_string() };
-                let options = Options { tile, culling: true };
+                let options = Options { tile, ..Options::default() };
                 checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
+                if e.per_point_soft_kernel.is_some() && tile == 8 {
+                    let options = Options { soft: SoftGrouping::PerPoint, ..options };
+                    checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
+                }
                 if e.tiled && tile == 8 {
                     let options = Options { culling: false, ..options };
                     checks.push(Check { method, options, reference: "mono".into(), rule: Rule::Exact });
@@ -845,11 +850,12 @@ fn check_case(
         let kernel = m.entry.soft_kernel_for(&m.options);
         let soft = soft_done.insert((m.entry.name, kernel, check.reference.clone(), check.rule));
         let tile = m.options.tile;
-        let reference = bind(registry, &check.reference, Options { tile, culling: true }, structures);
+        let reference = bind(registry, &check.reference, Options { tile, ..Options::default() }, structures);
         let label = format!(
-            "{} (tile {tile}{}) vs {} [{:?}]",
+            "{} (tile {tile}{}{}) vs {} [{:?}]",
             check.method,
             if check.options.culling { "" } else { ", no culling" },
+            if check.options.soft == SoftGrouping::PerPoint { ", per-point soft shadows" } else { "" },
             check.reference,
             check.rule
         );
@@ -1034,6 +1040,7 @@ mod tests {
             structure: KDTREE,
             shadow_kernel: name,
             soft_kernel: name,
+            per_point_soft_kernel: None,
             bind,
         }
     }

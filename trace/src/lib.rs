@@ -51,5 +51,5 @@ pub mod workload;
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
 pub use method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, Tracer};
-pub use registry::{Bound, Options, Registry, Structures};
+pub use registry::{Bound, Options, Registry, SoftGrouping, Structures};
 pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

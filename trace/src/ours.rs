@@ -6,11 +6,11 @@
 //! - [`Tiled`]: a tile kernel. Each render tile is loaded as 2x2 packets in a
 //!   [`TileTracer`], so the frustum (or cone) of `frustum`, `mft`, `cone` and `mft-cone` is
 //!   the render tile. Hard shadow rays go as 2x2 packets of neighbouring pixels' rays
-//!   ([`crate::shadow_frusta`]); the 16 soft-shadow rays of a point share an origin and go
-//!   under their pyramid (packets) or their cone (cones), as in Table 4.6, while the frustum
-//!   and MFT kernels trace a tile's rays to each light stratum as 2x2 packets. With
-//!   [`TileShadows::Frusta`] (method `multi-frusta`) both go as Benthin & Wald's shadow
-//!   frusta. A ray stream is grouped into omni packets and frusta where consecutive rays
+//!   ([`crate::shadow_frusta`]), and so do a tile's soft-shadow rays to each light stratum
+//!   ([`SoftGrouping::Strata`]); with [`SoftGrouping::PerPoint`] the 16 soft-shadow rays of
+//!   a point, which share an origin, go under their pyramid (packets) or their cone (cones),
+//!   as in Table 4.6. With [`TileShadows::Frusta`] (method `multi-frusta`) both go as
+//!   Benthin & Wald's shadow frusta. A ray stream is grouped into omni packets and frusta where consecutive rays
 //!   share an origin.
 
 use cones::shadows::SAMPLES;
@@ -20,6 +20,7 @@ use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
 use scenes::{Camera, Tile};
 
 use crate::method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points};
+use crate::registry::SoftGrouping;
 use crate::shadow_frusta::{self, Grouping, ShadowScratch};
 
 /// Single rays through our kd-tree (thesis 2.2.1).
@@ -50,7 +51,8 @@ impl Kernel {
         !matches!(self, Kernel::Packets(TileMethod::Packet | TileMethod::SameSign))
     }
 
-    /// The soft-shadow kernel that goes with it: the cone for cones, the pyramid otherwise.
+    /// Its per-point soft-shadow kernel ([`SoftGrouping::PerPoint`]): the cone for cones,
+    /// the pyramid otherwise.
     pub fn soft_kernel(self) -> ShadowMethod {
         match self {
             Kernel::Packets(_) => ShadowMethod::Pyramid,
@@ -62,9 +64,9 @@ impl Kernel {
 /// How a [`Tiled`] method traces shadow rays ([`crate::shadow_frusta`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TileShadows {
-    /// Hard shadows as 2x2 packets of neighbouring pixels' rays; soft shadows per point
-    /// under the thesis's pyramid or cone ([`Kernel::soft_kernel`], Table 4.6), or, for the
-    /// frustum and MFT kernels, as 2x2 packets per light stratum.
+    /// Hard shadows as 2x2 packets of neighbouring pixels' rays; soft shadows as 2x2 packets
+    /// per light stratum, or per point under the thesis's pyramid or cone
+    /// ([`SoftGrouping`]).
     Packets,
     /// Benthin & Wald's shadow frusta: one per tile for hard shadows, one per tile and light
     /// stratum for soft shadows.
@@ -80,6 +82,7 @@ pub struct Tiled<'a> {
     tile: u32,
     culling: bool,
     shadows: TileShadows,
+    soft: SoftGrouping,
 }
 
 /// Scratch of [`Tiled`]: each part made on first use, once per rayon task.
@@ -100,12 +103,18 @@ impl<'a> Tiled<'a> {
     /// packet/leaf culling (thesis 4.1.4) on or off.
     pub fn new(tree: &'a KdTree, kernel: Kernel, tile: u32, culling: bool) -> Result<Self, packets::tile::TileError> {
         TileTracer::check_size(tile)?;
-        Ok(Tiled { tree, kernel, tile, culling, shadows: TileShadows::Packets })
+        Ok(Tiled { tree, kernel, tile, culling, shadows: TileShadows::Packets, soft: SoftGrouping::Strata })
     }
 
     /// The same method with its shadow rays grouped by `shadows`.
     pub fn with_shadows(self, shadows: TileShadows) -> Self {
         Tiled { shadows, ..self }
+    }
+
+    /// The same method with its soft-shadow rays grouped by `soft` (with
+    /// [`TileShadows::Frusta`], soft shadows always go as shadow frusta).
+    pub fn with_soft(self, soft: SoftGrouping) -> Self {
+        Tiled { soft, ..self }
     }
 
     fn tile_tracer<'s>(&self, scratch: &'s mut TiledScratch) -> &'s mut TileTracer {
@@ -156,9 +165,9 @@ impl Method for Tiled<'_> {
         shadow_frusta::hard(self.tree, grouping, &mut scratch.shadows, job, out, c)
     }
 
-    /// Shadow frusta: one per light stratum (Benthin & Wald's multi-frusta). Packets: for the
-    /// frustum and MFT kernels 2x2 packets per light stratum, for the others each point's 16
-    /// rays under their pyramid or cone ([`Method::soft_point`], Table 4.6).
+    /// Shadow frusta: one per light stratum (Benthin & Wald's multi-frusta). Packets: 2x2
+    /// packets per light stratum ([`SoftGrouping::Strata`]), or each point's 16 rays under
+    /// their pyramid or cone ([`SoftGrouping::PerPoint`], [`Method::soft_point`], Table 4.6).
     fn soft_tile<C: TileCounters>(
         &self,
         scratch: &mut TiledScratch,
@@ -166,10 +175,12 @@ impl Method for Tiled<'_> {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        let grouping = match (self.shadows, self.kernel) {
+        let grouping = match (self.shadows, self.soft) {
             (TileShadows::Frusta, _) => Grouping::Frusta,
-            (TileShadows::Packets, Kernel::Packets(TileMethod::Frustum | TileMethod::Mft)) => Grouping::Packets,
-            (TileShadows::Packets, _) => return soft_by_points(self, scratch, job, visible, counters),
+            (TileShadows::Packets, SoftGrouping::Strata) => Grouping::Packets,
+            (TileShadows::Packets, SoftGrouping::PerPoint) => {
+                return soft_by_points(self, scratch, job, visible, counters);
+            }
         };
         shadow_frusta::soft(self.tree, grouping, &mut scratch.shadows, job, visible, counters)
     }

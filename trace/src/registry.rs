@@ -29,7 +29,8 @@ pub const KDTREE: &str = "kdtree";
 /// Default tile side: the unit of work of a thread, and the frustum of the tiled methods.
 pub const TILE_SIZE: u32 = 16;
 
-/// How a method is bound to its structure: tile size and packet/leaf culling.
+/// How a method is bound to its structure: tile size, packet/leaf culling and soft-shadow
+/// grouping.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Options {
     /// Tile side: the frame driver's unit of work, and the frustum (or cone) of the tiled
@@ -37,11 +38,38 @@ pub struct Options {
     pub tile: u32,
     /// Packet/leaf culling (thesis 4.1.4), for the frustum and cone methods.
     pub culling: bool,
+    /// How the tiled methods group their 16-sample soft-shadow rays.
+    pub soft: SoftGrouping,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { tile: TILE_SIZE, culling: true }
+        Options { tile: TILE_SIZE, culling: true, soft: SoftGrouping::Strata }
+    }
+}
+
+/// How a tiled method of ours traces the 16 soft-shadow rays of its points.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SoftGrouping {
+    /// Each tile's rays to each light stratum together (Benthin & Wald 2009): as 2x2
+    /// packets of neighbouring points' rays, or as shadow frusta for `multi-frusta`. The
+    /// default: 1.3-1.5x single rays on Sponza, kitchen and atrium
+    /// (`docs/results/coherent-shadows.md`).
+    #[default]
+    Strata,
+    /// Each point's 16 rays on their own, under their pyramid (the packet, frustum and MFT
+    /// kernels) or their cone (the cone kernels): the thesis's soft shadows (4.1.9, Table
+    /// 4.6), slower than single rays on these scenes (0.3-0.9x).
+    PerPoint,
+}
+
+impl SoftGrouping {
+    /// The name on the command line: `strata` or `per-point`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SoftGrouping::Strata => "strata",
+            SoftGrouping::PerPoint => "per-point",
+        }
     }
 }
 
@@ -120,6 +148,9 @@ pub struct Entry {
     pub shadow_kernel: &'static str,
     /// Its 16-sample soft-shadow kernel, shared like the hard-shadow one.
     pub soft_kernel: &'static str,
+    /// Its soft-shadow kernel with [`SoftGrouping::PerPoint`], for the tiled methods of ours
+    /// that have one; `None`: the option does not apply (selecting it is an error).
+    pub per_point_soft_kernel: Option<&'static str>,
     /// Makes the method.
     pub bind: Bind,
 }
@@ -131,9 +162,13 @@ impl Entry {
         with_tile(self.shadow_kernel, options)
     }
 
-    /// The soft-shadow kernel's name with `options`, as [`Entry::shadow_kernel_for`].
+    /// The soft-shadow kernel's name with `options`, as [`Entry::shadow_kernel_for`]: the
+    /// per-point kernel with [`SoftGrouping::PerPoint`].
     pub fn soft_kernel_for(&self, options: &Options) -> String {
-        with_tile(self.soft_kernel, options)
+        match (options.soft, self.per_point_soft_kernel) {
+            (SoftGrouping::PerPoint, Some(kernel)) => with_tile(kernel, options),
+            _ => with_tile(self.soft_kernel, options),
+        }
     }
 }
 
@@ -201,7 +236,7 @@ impl Registry {
             "single rays, closest and any hit (thesis 2.2.1)",
             false,
             false,
-            ("kd-single", "kd-single"),
+            ("kd-single", "kd-single", None),
             |s, _| Ok(Box::new(Driven(SingleRays(s.kdtree())))),
         ));
         r.add(ours(
@@ -209,7 +244,7 @@ impl Registry {
             "omni-directional 2x2 packets (thesis 4.1.2)",
             false,
             true,
-            ("kd-packets", "kd-pyramid"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::Packet)),
         ));
         r.add(ours(
@@ -217,7 +252,7 @@ impl Registry {
             "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)",
             false,
             true,
-            ("kd-packets", "kd-pyramid"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::SameSign)),
         ));
         r.add(ours(
@@ -225,7 +260,7 @@ impl Registry {
             "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)",
             true,
             true,
-            ("kd-packets", "kd-stratum-packets"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::Frustum)),
         ));
         r.add(ours(
@@ -233,7 +268,7 @@ impl Registry {
             "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)",
             true,
             true,
-            ("kd-packets", "kd-stratum-packets"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
             |s, o| tiled(s, o, Kernel::Packets(TileMethod::Mft)),
         ));
         r.add(ours(
@@ -241,7 +276,7 @@ impl Registry {
             "MFT primaries; shadows as Benthin & Wald's (2009) frusta: one per tile, one per tile and light stratum",
             true,
             true,
-            ("kd-frusta-N", "kd-multi-frusta-N"),
+            ("kd-frusta-N", "kd-multi-frusta-N", None),
             |s, o| {
                 Ok(Box::new(Driven(
                     tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Frusta),
@@ -253,7 +288,7 @@ impl Registry {
             "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)",
             true,
             true,
-            ("kd-packets", "kd-cone"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-cone")),
             |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::Cone)),
         ));
         r.add(ours(
@@ -261,7 +296,7 @@ impl Registry {
             "four quadrant cones per tile (thesis 4.1.9)",
             true,
             true,
-            ("kd-packets", "kd-cone"),
+            ("kd-packets", "kd-stratum-packets", Some("kd-cone")),
             |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone)),
         ));
         r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });
@@ -274,6 +309,7 @@ impl Registry {
             structure: multibvh::MBVH,
             shadow_kernel: "mbvh-4",
             soft_kernel: "mbvh-4",
+            per_point_soft_kernel: None,
             bind: |s, _| multibvh::bind(s),
         });
         r.add_structure(StructureEntry {
@@ -289,6 +325,7 @@ impl Registry {
             structure: multibvh::MBVH8,
             shadow_kernel: "mbvh-8",
             soft_kernel: "mbvh-8",
+            per_point_soft_kernel: None,
             bind: |s, _| multibvh::bind8(s),
         });
         r
@@ -350,8 +387,25 @@ impl Registry {
     }
 
     /// The method `name`: an entry's name (tile from `options`) or, for a tiled method,
-    /// `NAME-TILE` (e.g. `mft-16`). An unknown name is an error listing the known ones.
+    /// `NAME-TILE` (e.g. `mft-16`). An unknown name is an error listing the known ones, and
+    /// so is [`SoftGrouping::PerPoint`] for a method without a per-point kernel.
     pub fn select(&self, name: &str, options: Options) -> Result<Selected, Error> {
+        let selected = self.select_name(name, options)?;
+        let entry = &self.entries[selected.entry];
+        if options.soft == SoftGrouping::PerPoint && entry.per_point_soft_kernel.is_none() {
+            let with: Vec<&str> =
+                self.entries.iter().filter(|e| e.per_point_soft_kernel.is_some()).map(|e| e.name).collect();
+            return Err(Error::Usage(format!(
+                "{}: no per-point soft-shadow kernel (methods with one: {})",
+                selected.name,
+                with.join(", ")
+            )));
+        }
+        Ok(selected)
+    }
+
+    /// [`Registry::select`] without the soft-grouping check.
+    fn select_name(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let name = name.trim();
         if let Some(entry) = self.entries.iter().position(|e| e.name == name) {
             let e = &self.entries[entry];
@@ -380,13 +434,14 @@ impl Registry {
     }
 }
 
-/// An entry of ours on our kd-tree, with its hard- and soft-shadow kernels.
+/// An entry of ours on our kd-tree, with its hard- and soft-shadow kernels (and its
+/// per-point soft-shadow kernel, if any).
 fn ours(
     name: &'static str,
     summary: &'static str,
     tiled: bool,
     packets: bool,
-    (shadow, soft): (&'static str, &'static str),
+    (shadow, soft, per_point_soft): (&'static str, &'static str, Option<&'static str>),
     bind: Bind,
 ) -> Entry {
     Entry {
@@ -398,6 +453,7 @@ fn ours(
         structure: KDTREE,
         shadow_kernel: shadow,
         soft_kernel: soft,
+        per_point_soft_kernel: per_point_soft,
         bind,
     }
 }
@@ -407,9 +463,11 @@ fn tiled<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Box<d
     Ok(Box::new(Driven(tiled_method(s, o, kernel)?)))
 }
 
-/// The [`Tiled`] method of `kernel` on the kd-tree, with the tile and culling of `o`.
+/// The [`Tiled`] method of `kernel` on the kd-tree, with the tile, culling and soft-shadow
+/// grouping of `o`.
 fn tiled_method<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Tiled<'s>, Error> {
-    Tiled::new(s.kdtree(), kernel, o.tile, o.culling).map_err(|e| Error::Usage(format!("tile: {e}")))
+    let tiled = Tiled::new(s.kdtree(), kernel, o.tile, o.culling).map_err(|e| Error::Usage(format!("tile: {e}")))?;
+    Ok(tiled.with_soft(o.soft))
 }
 
 #[cfg(test)]
@@ -442,7 +500,26 @@ mod tests {
         let r = Registry::ours();
         let bad = r.select("mft-6", Options::default()).unwrap();
         assert!(r.bind(&bad, &s).unwrap_err().to_string().starts_with("mft-6:"));
-        let good = r.select("mono", Options { tile: 7, culling: true }).unwrap();
+        let good = r.select("mono", Options { tile: 7, ..Options::default() }).unwrap();
         assert!(r.bind(&good, &s).is_ok());
+    }
+
+    #[test]
+    fn per_point_soft_shadows_name_their_kernel_or_are_refused() {
+        let r = Registry::ours();
+        let per_point = Options { soft: SoftGrouping::PerPoint, ..Options::default() };
+        for (method, strata, thesis) in [
+            ("packet", "kd-stratum-packets", "kd-pyramid"),
+            ("mft-8", "kd-stratum-packets", "kd-pyramid"),
+            ("cone-16", "kd-stratum-packets", "kd-cone"),
+        ] {
+            let e = r.entry(r.select(method, Options::default()).unwrap().entry);
+            assert_eq!(e.soft_kernel_for(&Options::default()), strata);
+            assert_eq!(e.soft_kernel_for(&r.select(method, per_point).unwrap().options), thesis);
+        }
+        for method in ["mono", "multi-frusta-16", "mbvh-8"] {
+            let e = r.select(method, per_point).unwrap_err().to_string();
+            assert!(e.contains("no per-point") && e.contains("packet, samesign"), "{e}");
+        }
     }
 }

@@ -185,8 +185,11 @@ pub struct RenderReport {
     pub threads: usize,
     /// The ray-triangle test (`wald` or `watertight`).
     pub intersector: String,
-    /// `none` or `hard`.
+    /// `none`, `hard`, `soft16` or `edge-width`.
     pub shadows: String,
+    /// The kernel tracing the shadow rays (the registry's kernel name: `kd-packets`,
+    /// `kd-stratum-packets`, ...; `edge-width`; empty without shadows).
+    pub shadow_kernel: String,
     /// `color`, `depth` or `prim`.
     pub aov: String,
     /// Triangles in the scene.
@@ -387,7 +390,7 @@ impl fmt::Display for RenderReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "render       {}x{}, view {}, method {} (tile {}{}), shadows {}, {} threads",
+            "render       {}x{}, view {}, method {} (tile {}{}), shadows {}{}, {} threads",
             self.width,
             self.height,
             self.view,
@@ -395,6 +398,7 @@ impl fmt::Display for RenderReport {
             self.tile,
             if self.culling { "" } else { ", no culling" },
             self.shadows,
+            if self.shadow_kernel.is_empty() { String::new() } else { format!(" ({})", self.shadow_kernel) },
             self.threads
         )?;
         writeln!(

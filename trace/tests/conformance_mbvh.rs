@@ -18,7 +18,7 @@ fn plan(registry: &Registry) -> Plan {
     let (mut checks, mut oracles) = (Vec::new(), Vec::new());
     for e in registry.entries().iter().filter(|e| e.family == "ours" && e.structure != KDTREE) {
         for tile in conformance::TILES {
-            let options = Options { tile, culling: true };
+            let options = Options { tile, ..Options::default() };
             checks.push(Check { method: e.name.into(), options, reference: "mono".into(), rule: Rule::Equivalent });
         }
         oracles.push(OracleCheck { method: e.name.into(), test: OracleTest::Tree, rule: Rule::Exact });

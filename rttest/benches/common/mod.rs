@@ -29,10 +29,11 @@ pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &
 
 /// The criterion groups `group-hard/scene` and `group-soft16/scene` timing one hard-shadow
 /// pass and one 16-sample soft-shadow pass (light radius 1 in Sponza units) of each
-/// registered method of `names`, from the same primary hits (made once by single rays), on
-/// all cores, with single rays (`mono`) as the reference.
+/// registered method of `methods` with its soft-shadow grouping (a per-point one is timed on
+/// soft shadows only, as `NAME per-point`), from the same primary hits (made once by single
+/// rays), on all cores, with single rays (`mono`) as the reference.
 #[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
-pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[&str]) {
+pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, methods: &[(&str, trace::SoftGrouping)]) {
     use criterion::Throughput;
     use trace::frame::View;
     use trace::{Options, Registry, Structures, TileLayout, soft};
@@ -60,15 +61,24 @@ pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, names: &[
             // The rays alone, made as every method makes them and not traced: the part of
             // each pass below that no kernel can save.
             g.bench_function("rays-only", |b| b.iter(|| make_rays(&view, &hits, &light, kind == "hard")));
-            for &method in std::iter::once(&"mono").chain(names) {
-                let selected = registry.select(method, Options::default()).expect("bench methods are registered");
+            for &(method, soft) in std::iter::once(&("mono", trace::SoftGrouping::Strata)).chain(methods) {
+                // Per-point soft shadows are soft-shadow kernels only.
+                if kind == "hard" && soft == trace::SoftGrouping::PerPoint {
+                    continue;
+                }
+                let options = Options { soft, ..Options::default() };
+                let selected = registry.select(method, options).expect("bench methods are registered");
                 let bound = registry.bind(&selected, &structures).expect("bench tile sizes are valid");
                 let layout = TileLayout::new(camera.width, camera.height, bound.options.tile);
                 // The hits in this method's tile order.
                 let mut method_hits = vec![None; layout.pixel_count()];
                 mono.tracer.primary(&layout, &camera, &mut method_hits, None);
                 let view = View { layout: &layout, ..view };
-                g.bench_function(&bound.name, |b| match kind {
+                let id = match soft {
+                    trace::SoftGrouping::PerPoint => format!("{} per-point", bound.name),
+                    trace::SoftGrouping::Strata => bound.name.clone(),
+                };
+                g.bench_function(&id, |b| match kind {
                     "hard" => b.iter(|| bound.tracer.shadow(&view, &method_hits, &mut occluded, None)),
                     _ => b.iter(|| bound.tracer.soft(&view, &method_hits, &light, &mut visible, None)),
                 });

@@ -131,7 +131,7 @@ pub fn compare(global: &GlobalArgs, built: &Built, args: &RenderArgs, methods: &
         return Err(Error::Usage("--compare-methods needs at least one method".into()));
     }
     let registry = baselines::registry();
-    let options = Options { tile: args.tile, culling: !args.no_culling };
+    let options = Options { tile: args.tile, culling: !args.no_culling, ..Options::default() };
     let selected: Vec<_> = methods.iter().map(|m| registry.select(m, options)).collect::<Result<_, _>>()?;
     let (camera, view): (Camera, String) = camera_for(&built.scene, args)?;
     let stem = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("{}-{}", built.scene.name, cost.name())));

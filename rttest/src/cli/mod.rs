@@ -18,7 +18,7 @@ use trace::registry::{KDTREE, Selected, TILE_SIZE};
 use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, WorkloadReport};
 use trace::timing::mrays_per_s;
 use trace::workload::{self, Incoherent};
-use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, Structures};
+use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, SoftGrouping, Structures};
 
 use crate::progress::{self, Bar};
 
@@ -374,6 +374,11 @@ pub struct RenderArgs {
     /// Turn packet/leaf culling off (frustum methods; thesis Table 4.2).
     #[arg(long)]
     pub no_culling: bool,
+    /// How the tiled methods of ours trace 16-sample soft shadows: each tile's rays to each
+    /// light stratum together, or each point's 16 rays under their pyramid or cone (the
+    /// thesis's, Table 4.6; packet, samesign, frustum, mft, cone and mft-cone).
+    #[arg(long, value_enum, default_value_t = SoftGroupingArg::Strata)]
+    pub soft_grouping: SoftGroupingArg,
     /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray
     /// (and, for packet methods, per 2x2 packet).
     #[arg(long)]
@@ -395,6 +400,24 @@ pub enum WorkloadArg {
     Ao,
     /// One diffuse bounce per hit (closest hit).
     Diffuse,
+}
+
+/// `--soft-grouping` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SoftGroupingArg {
+    /// Each tile's rays to each light stratum together, as 2x2 packets (Benthin & Wald 2009).
+    Strata,
+    /// Each point's 16 rays under their pyramid or cone (thesis 4.1.9, Table 4.6).
+    PerPoint,
+}
+
+impl From<SoftGroupingArg> for SoftGrouping {
+    fn from(arg: SoftGroupingArg) -> SoftGrouping {
+        match arg {
+            SoftGroupingArg::Strata => SoftGrouping::Strata,
+            SoftGroupingArg::PerPoint => SoftGrouping::PerPoint,
+        }
+    }
 }
 
 /// `--shadows` values.
@@ -784,7 +807,11 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     }
     check_cost_args(args)?;
     let registry = baselines::registry();
-    let selected = registry.select(&args.method, Options { tile: args.tile, culling: !args.no_culling })?;
+    let options = Options { tile: args.tile, culling: !args.no_culling, soft: args.soft_grouping.into() };
+    let selected = registry.select(&args.method, options).map_err(|e| match e {
+        Error::Usage(m) if m.contains("no per-point") => Error::Usage(format!("--soft-grouping per-point: {m}")),
+        e => e,
+    })?;
     let (camera, view) = camera_for(&built.scene, args)?;
     let out = out_path(&built.scene, args);
     let structures = structures_for(&registry, &selected, built)?;
@@ -821,6 +848,12 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         threads: rayon::current_num_threads(),
         intersector: built.report.intersector.clone(),
         shadows: shadows.name().to_string(),
+        shadow_kernel: match shadows {
+            Shadows::None => String::new(),
+            Shadows::Hard => method.entry.shadow_kernel_for(&method.options),
+            Shadows::Soft16 => method.entry.soft_kernel_for(&method.options),
+            Shadows::EdgeWidth => "edge-width".to_string(),
+        },
         aov: args.aov.name().to_string(),
         triangles: built.report.tree.triangles,
         build_ms: built.report.build_ms,
