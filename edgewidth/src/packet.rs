@@ -14,7 +14,8 @@
 //! which both traversals find whole, so it equals the single-ray answer (tested).
 
 use glam::{BVec4A, Vec3, Vec4};
-use kdtree::{Intersector, KdTree, STACK_SIZE};
+use kdtree::stack::Stack;
+use kdtree::{Intersector, KdTree};
 use packets::packet::{widen_down, widen_up};
 use packets::triangle4::PacketTest;
 use packets::{PacketHit, RayPacket};
@@ -52,12 +53,6 @@ struct StackEntry4 {
     t0: Vec4,
     t1: Vec4,
     mask: BVec4A,
-}
-
-impl Default for StackEntry4 {
-    fn default() -> Self {
-        StackEntry4 { node: 0, t0: Vec4::INFINITY, t1: Vec4::NEG_INFINITY, mask: BVec4A::splat(false) }
-    }
 }
 
 #[inline(always)]
@@ -103,8 +98,7 @@ fn kernel4<T: PacketTest>(
     }
     let prepared = T::prepare4(rays);
     let nodes = tree.nodes();
-    let mut stack = [StackEntry4::default(); STACK_SIZE];
-    let mut sp = 0usize;
+    let mut stack = Stack::<StackEntry4>::new();
     let mut index = 0usize;
     // Lanes still tracing (not ended early).
     let mut live = active;
@@ -129,13 +123,12 @@ fn kernel4<T: PacketTest>(
                 let nan = t_plane.cmpne(t_plane);
                 let both = wants_front & wants_back;
                 let back_t0 = Vec4::select(both & !nan, t_plane, t0);
-                stack[sp % STACK_SIZE] = StackEntry4 {
+                stack.push(StackEntry4 {
                     node: back as u32,
                     t0: Vec4::select(wants_back, back_t0, Vec4::INFINITY),
                     t1: Vec4::select(wants_back, t1, Vec4::NEG_INFINITY),
                     mask: wants_back,
-                };
-                sp += 1;
+                });
                 t1 = Vec4::select(both & !nan, t_plane, t1);
                 active = wants_front;
                 index = front;
@@ -158,7 +151,7 @@ fn kernel4<T: PacketTest>(
         // Pair what no later leaf can precede, lane by lane (as the single-ray kernel: the
         // smallest start on the stack, less the slack).
         let mut next_start = Vec4::INFINITY;
-        for e in &stack[..sp.min(STACK_SIZE)] {
+        for e in stack.entries() {
             next_start = next_start.min(e.t0);
         }
         for lane in lanes(live) {
@@ -171,11 +164,10 @@ fn kernel4<T: PacketTest>(
         }
         // Next voxel that a live lane visits.
         loop {
-            if sp == 0 || !live.any() {
+            if !live.any() {
                 break 'trace;
             }
-            sp -= 1;
-            let entry = stack[sp % STACK_SIZE];
+            let Some(entry) = stack.pop() else { break 'trace };
             if (entry.mask & live).any() {
                 index = entry.node as usize;
                 (t0, t1, active) = (entry.t0, entry.t1, entry.mask & live);

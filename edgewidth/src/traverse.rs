@@ -27,9 +27,10 @@
 //! the rounding of plane distances and of the triangle test's `t`, so that no hit found later
 //! lies before the hits already paired. Traversal stops once the width passes `R`.
 
+use kdtree::stack::Stack;
 use kdtree::traverse::{WIDEN, clip_to_box};
 use kdtree::triangle::TriangleTest;
-use kdtree::{Aabb, Intersector, KdTree, Ray, STACK_SIZE};
+use kdtree::{Aabb, Intersector, KdTree, Ray};
 
 use crate::pairing::{HitList, LeakRemedies, Pairing};
 
@@ -42,7 +43,7 @@ pub struct EdgeScratch {
 
 /// The flush margin, relative to the span of ray parameter that crosses the scene: hits are
 /// paired once they lie this far before every voxel still to visit. It covers the widened
-/// plane distances of a descent of [`STACK_SIZE`] levels (`64 * 8` ulps) and a triangle test's
+/// plane distances of a descent of [`kdtree::STACK_SIZE`] levels (`64 * 8` ulps) and a triangle test's
 /// error in `t` of up to about 2000 ulps of the scene's size (the error grows as the ray
 /// grazes the triangle), and costs only that hits stay pending a little longer.
 pub const SLACK: f32 = 1.0 / 4096.0;
@@ -85,7 +86,7 @@ pub fn edge_width(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies, scr
 /// One deferred back voxel: its node and interval, and `min_t0`, the smallest start of this
 /// entry and every entry below it (what bounds the hits still to be found while this entry
 /// is the top of the stack).
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct StackEntry {
     node: u32,
     t0: f32,
@@ -112,8 +113,7 @@ fn kernel<T: TriangleTest>(
     let inv_dir = ray.inv_dir.extend(0.0).to_array();
     let upper_first = ray.dir.is_negative_bitmask() as usize;
     let nodes = tree.nodes();
-    let mut stack = [StackEntry::default(); STACK_SIZE];
-    let mut sp = 0usize;
+    let mut stack = Stack::<StackEntry>::new();
     let mut index = 0usize;
     let (mut t0_wide, mut t1_wide) = (widen_down(t0), widen_up(t1));
     loop {
@@ -132,10 +132,9 @@ fn kernel<T: TriangleTest>(
             } else {
                 // Both; a ray in the plane (NaN) visits both over its whole interval.
                 let t_split = if t_plane.is_nan() { t0 } else { t_plane };
-                let below = if sp == 0 { f32::INFINITY } else { stack[(sp - 1) % STACK_SIZE].min_t0 };
+                let below = stack.top().map_or(f32::INFINITY, |e| e.min_t0);
                 let min_t0 = below.min(t_split);
-                stack[sp % STACK_SIZE] = StackEntry { node: back as u32, t0: t_split, t1, min_t0 };
-                sp += 1;
+                stack.push(StackEntry { node: back as u32, t0: t_split, t1, min_t0 });
                 index = front;
                 if !t_plane.is_nan() {
                     t1 = t_plane;
@@ -153,15 +152,11 @@ fn kernel<T: TriangleTest>(
         }
 
         // Pair the hits no later leaf can precede; stop once the width passes R.
-        let bound = if sp == 0 { f32::INFINITY } else { stack[(sp - 1) % STACK_SIZE].min_t0 - slack };
+        let bound = stack.top().map_or(f32::INFINITY, |e| e.min_t0 - slack);
         if pending.flush_below(bound, r, &mut pairing, tree, remedies) {
             return f32::INFINITY;
         }
-        if sp == 0 {
-            break;
-        }
-        sp -= 1;
-        let entry = stack[sp % STACK_SIZE];
+        let Some(entry) = stack.pop() else { break };
         index = entry.node as usize;
         (t0, t1) = (entry.t0, entry.t1);
         (t0_wide, t1_wide) = (widen_down(t0), widen_up(t1));

@@ -11,6 +11,8 @@
 //!   (structure-of-arrays) and tested four at a time against one ray.
 //! - [`traverse`]: iterative single-ray traversal with a fixed stack, closest hit
 //!   ([`KdTree::intersect`]) and any hit ([`KdTree::occluded`]).
+//! - [`stack`]: the fixed, uninitialised traversal stack every kernel's deferred voxels go
+//!   on.
 //! - [`oracle`]: a brute-force intersector over all triangles, the reference every traversal
 //!   method is tested against.
 //! - [`surface`]: per-triangle records for starting rays on surfaces (hit point, facing
@@ -27,6 +29,7 @@ pub mod leaf;
 pub mod node;
 pub mod oracle;
 pub mod ray;
+pub mod stack;
 pub mod stats;
 pub mod surface;
 #[cfg(test)]

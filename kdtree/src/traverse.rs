@@ -31,12 +31,11 @@
 //!   interval, stop" test would be wrong for the in-plane case, whose two children share one
 //!   interval.)
 
-use std::mem::MaybeUninit;
-
 use crate::counters::{Counters, NoCounters};
 use crate::leaf::{LANES, LeafGroup};
+use crate::stack::Stack;
 use crate::triangle::{Intersector, TriangleTest};
-use crate::{Aabb, Hit, KdTree, Ray, STACK_SIZE};
+use crate::{Aabb, Hit, KdTree, Ray};
 
 /// Relative widening of interval comparisons: about 8 ulps. Every traversal method of the
 /// workspace widens its plane distances and box intervals by this much.
@@ -141,41 +140,6 @@ struct StackEntry {
     node: u32,
     t0: f32,
     t1: f32,
-}
-
-/// The traversal stack of deferred back voxels: [`STACK_SIZE`] slots left uninitialised,
-/// because zeroing its 768 bytes took about 1.5% of a primary ray's time on Sponza (`perf`:
-/// `memset` under `intersect`). A push past the last slot wraps around and overwrites the
-/// oldest entry, as the other kernels' `sp % STACK_SIZE` does; the builder's depth limit
-/// ([`crate::MAX_DEPTH`] < `STACK_SIZE`) keeps that from happening in a valid tree.
-struct Stack {
-    slots: [MaybeUninit<StackEntry>; STACK_SIZE],
-    len: usize,
-}
-
-impl Stack {
-    #[inline(always)]
-    fn new() -> Stack {
-        Stack { slots: [const { MaybeUninit::uninit() }; STACK_SIZE], len: 0 }
-    }
-
-    #[inline(always)]
-    fn push(&mut self, entry: StackEntry) {
-        self.slots[self.len % STACK_SIZE].write(entry);
-        self.len += 1;
-    }
-
-    #[inline(always)]
-    fn pop(&mut self) -> Option<StackEntry> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: `len` changes only by `push` (+1, after writing slot `len % STACK_SIZE`)
-        // and `pop` (-1). The last time `len` went from `L` to `L + 1` (here `L` is the new
-        // `len`), that push wrote slot `L % STACK_SIZE`; so the slot read here is initialised.
-        Some(unsafe { self.slots[self.len % STACK_SIZE].assume_init() })
-    }
 }
 
 /// `t` moved outward by [`WIDEN`]: `t + |t| W` (towards +inf) or `t - |t| W` (towards -inf).

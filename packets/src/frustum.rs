@@ -46,8 +46,9 @@
 use std::ops::Range;
 
 use glam::Vec4;
+use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{Counters, KdTree, STACK_SIZE};
+use kdtree::{Counters, KdTree};
 
 use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
 use crate::packet::{mask_of, max_where, widen_down};
@@ -381,7 +382,7 @@ fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32; 4], hi: [
 }
 
 /// One deferred back voxel: its box and the frusta's intervals in it.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Entry<L> {
     node: u32,
     unordered: bool,
@@ -426,8 +427,7 @@ fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
     let mut limit = L::INFINITY;
     let nodes = tree.nodes();
     let refs = tree.prim_refs();
-    let mut stack = [Entry::<L>::default(); STACK_SIZE];
-    let mut sp = 0usize;
+    let mut stack = Stack::<Entry<L>>::new();
     let mut index = 0usize;
     loop {
         let node = nodes[index];
@@ -440,9 +440,7 @@ fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
             if dist == 0.0 || dist.is_nan() {
                 // Origin on the plane: both children over the whole intervals, lower first.
                 let (back_lo, back_hi) = c.back_box;
-                stack[sp % STACK_SIZE] =
-                    Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi };
-                sp += 1;
+                stack.push(Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi });
                 (index, (lo, hi), unordered) = (c.front, c.front_box, true);
                 continue;
             }
@@ -455,9 +453,7 @@ fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
                 (index, near, (lo, hi)) = (c.back, back_near, c.back_box);
             } else {
                 let (back_lo, back_hi) = c.back_box;
-                stack[sp % STACK_SIZE] =
-                    Entry { node: c.back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi };
-                sp += 1;
+                stack.push(Entry { node: c.back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi });
                 (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
             }
             continue;
@@ -475,11 +471,7 @@ fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
             }
         }
         loop {
-            if sp == 0 {
-                return;
-            }
-            sp -= 1;
-            let e = stack[sp % STACK_SIZE];
+            let Some(e) = stack.pop() else { return };
             near = e.near;
             far = L::min(e.far, L::distance_up(limit, f.hit_scale));
             if L::any_open(near, far) {

@@ -24,8 +24,9 @@
 //! - Rays must start at the origin (`t_min >= 0`): [`OmniPacket::new`] checks it.
 
 use glam::{BVec4A, Vec4};
+use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{Counters, KdNode, KdTree, STACK_SIZE};
+use kdtree::{Counters, KdNode, KdTree};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
 use crate::triangle4::PacketTest;
@@ -37,12 +38,6 @@ pub(crate) struct Entry {
     pub(crate) node: u32,
     pub(crate) near: Vec4,
     pub(crate) far: Vec4,
-}
-
-impl Default for Entry {
-    fn default() -> Entry {
-        Entry { node: 0, near: Vec4::INFINITY, far: Vec4::NEG_INFINITY }
-    }
 }
 
 /// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
@@ -156,8 +151,7 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
     let data = T::prepare4(rays);
     let nodes = tree.nodes();
     let refs = tree.prim_refs();
-    let mut stack = [Entry::default(); STACK_SIZE];
-    let mut sp = 0usize;
+    let mut stack = Stack::new();
     let mut index = start;
     if !near.cmple(far).any() {
         return hit;
@@ -168,13 +162,11 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
         if !node.is_leaf() {
             match order.step(rays, node, near, far) {
                 Step::Both { first, second } => {
-                    stack[sp % STACK_SIZE] = Entry { node: second as u32, near, far };
-                    sp += 1;
+                    stack.push(Entry { node: second as u32, near, far });
                     index = first;
                 }
                 Step::Split { front, back, front_far, back_near } => {
-                    (index, near, far) =
-                        descend(&mut stack, &mut sp, (front, back), (near, far), (front_far, back_near));
+                    (index, near, far) = descend(&mut stack, (front, back), (near, far), (front_far, back_near));
                 }
             }
             continue;
@@ -199,7 +191,7 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
         }
 
         // Next voxel: pop, with each lane clamped to its closest hit.
-        match pop(&stack, &mut sp, limit) {
+        match pop(&mut stack, limit) {
             Some((node, n, f)) => (index, near, far) = (node, n, f),
             None => return hit,
         }
@@ -213,8 +205,7 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
 /// child is pushed when lanes are active in both.
 #[inline(always)]
 pub(crate) fn descend(
-    stack: &mut [Entry; STACK_SIZE],
-    sp: &mut usize,
+    stack: &mut Stack<Entry>,
     (front, back): (usize, usize),
     (near, far): (Vec4, Vec4),
     (front_far, back_near): (Vec4, Vec4),
@@ -226,8 +217,7 @@ pub(crate) fn descend(
     } else if !in_front.any() {
         (back, back_near, far)
     } else {
-        stack[*sp % STACK_SIZE] = Entry { node: back as u32, near: back_near, far };
-        *sp += 1;
+        stack.push(Entry { node: back as u32, near: back_near, far });
         (front, near, front_far)
     }
 }
@@ -236,10 +226,8 @@ pub(crate) fn descend(
 /// clamped to `limit` (its closest hit): `(node, near, far)`, or `None` when the stack runs
 /// out. Entries where no lane is left active are dropped.
 #[inline(always)]
-pub(crate) fn pop(stack: &[Entry; STACK_SIZE], sp: &mut usize, limit: Vec4) -> Option<(usize, Vec4, Vec4)> {
-    while *sp > 0 {
-        *sp -= 1;
-        let entry = stack[*sp % STACK_SIZE];
+pub(crate) fn pop(stack: &mut Stack<Entry>, limit: Vec4) -> Option<(usize, Vec4, Vec4)> {
+    while let Some(entry) = stack.pop() {
         let far = entry.far.min(limit);
         if entry.near.cmple(far).any() {
             return Some((entry.node as usize, entry.near, far));
