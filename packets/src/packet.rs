@@ -10,7 +10,7 @@
 //! *invalid*: they carry an empty interval (`t_min = +inf`, `t_max = -inf`) and take part in
 //! no test.
 
-use glam::{BVec4A, Vec3, Vec4};
+use glam::{BVec4A, Mat4, Vec3, Vec4};
 use kdtree::traverse::WIDEN;
 use kdtree::{Hit, Ray};
 
@@ -52,32 +52,24 @@ impl RayPacket {
     pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
         let usable = lanes.map(|ray| ray.filter(Ray::is_valid));
         let fill = usable.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
-        let mut o = [[0.0f32; 4]; 4];
-        let mut d = [[0.0f32; 4]; 4];
-        let mut inv = [[0.0f32; 4]; 4];
-        let mut t_min = [f32::INFINITY; 4];
-        let mut t_max = [f32::NEG_INFINITY; 4];
-        let mut valid = [false; 4];
-        for (lane, usable) in usable.iter().enumerate() {
-            let r = usable.unwrap_or(fill);
-            for axis in 0..3 {
-                o[axis][lane] = r.origin[axis];
-                d[axis][lane] = r.dir[axis];
-                inv[axis][lane] = r.inv_dir[axis];
-            }
-            if usable.is_some() {
-                t_min[lane] = r.t_min;
-                t_max[lane] = r.t_max;
-                valid[lane] = true;
-            }
-        }
+        let rays = usable.map(|ray| ray.unwrap_or(fill));
+        let valid = BVec4A::new(usable[0].is_some(), usable[1].is_some(), usable[2].is_some(), usable[3].is_some());
+        // Each vector field's four lanes as the columns of a matrix: its transpose has one
+        // axis per column (and zeros in the fourth), in shuffles rather than 48 scalar stores
+        // read back as vectors.
+        let soa = |field: fn(&Ray) -> Vec3| {
+            let m = Mat4::from_cols_array_2d(&rays.each_ref().map(|r| field(r).extend(0.0).to_array())).transpose();
+            [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
+        };
+        let lane =
+            |field: fn(&Ray) -> f32| Vec4::new(field(&rays[0]), field(&rays[1]), field(&rays[2]), field(&rays[3]));
         RayPacket {
-            o: o.map(Vec4::from_array),
-            d: d.map(Vec4::from_array),
-            inv: inv.map(Vec4::from_array),
-            t_min: Vec4::from_array(t_min),
-            t_max: Vec4::from_array(t_max),
-            valid: BVec4A::new(valid[0], valid[1], valid[2], valid[3]),
+            o: soa(|r| r.origin),
+            d: soa(|r| r.dir),
+            inv: soa(|r| r.inv_dir),
+            t_min: Vec4::select(valid, lane(|r| r.t_min), Vec4::INFINITY),
+            t_max: Vec4::select(valid, lane(|r| r.t_max), Vec4::NEG_INFINITY),
+            valid,
         }
     }
 
@@ -275,6 +267,36 @@ mod tests {
         assert_eq!((p.t_min[3], p.t_max[3]), (f32::INFINITY, f32::NEG_INFINITY));
         let bad = Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X, 0.0, 1.0);
         assert_eq!(RayPacket::new(&[bad, r[0]]).valid.bitmask(), 0b0010);
+    }
+
+    #[test]
+    fn lanes_are_the_rays_fields_one_axis_per_vector() {
+        let r = rays();
+        let bad = Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0);
+        for lanes in [
+            [Some(r[0]), Some(r[1]), Some(r[2]), Some(r[3])],
+            [None, Some(r[2]), Some(bad), Some(r[0])],
+            [None, None, None, None],
+        ] {
+            let p = RayPacket::from_lanes(lanes);
+            let usable = lanes.map(|l| l.filter(Ray::is_valid));
+            let fill = usable.iter().flatten().next().copied();
+            for (lane, usable) in usable.iter().enumerate() {
+                assert_eq!(p.valid.bitmask() >> lane & 1 != 0, usable.is_some());
+                let ray = usable.or(fill).unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
+                for axis in 0..3 {
+                    assert_eq!(p.o[axis][lane].to_bits(), ray.origin[axis].to_bits());
+                    assert_eq!(p.d[axis][lane].to_bits(), ray.dir[axis].to_bits());
+                    assert_eq!(p.inv[axis][lane].to_bits(), ray.inv_dir[axis].to_bits());
+                }
+                assert_eq!((p.o[3][lane], p.d[3][lane], p.inv[3][lane]), (0.0, 0.0, 0.0));
+                let (t_min, t_max) = match usable {
+                    Some(ray) => (ray.t_min, ray.t_max),
+                    None => (f32::INFINITY, f32::NEG_INFINITY),
+                };
+                assert_eq!((p.t_min[lane], p.t_max[lane]), (t_min, t_max));
+            }
+        }
     }
 
     #[test]
