@@ -73,6 +73,49 @@ impl RayPacket {
         }
     }
 
+    /// The packet of the segments from `origins[i]` to `targets[i]` (up to four pairs; the
+    /// lanes past them are invalid): bit for bit [`RayPacket::new`] of the rays
+    /// `Ray::new(origin, target - origin, 0.0, 1.0)`, the shadow rays of a light point or
+    /// sample, made four at a time in vectors (one division per axis for the four
+    /// reciprocals) instead of ray by ray. Four finite segments of non-zero length take the
+    /// vector path; any other input goes ray by ray.
+    pub fn segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket {
+        let n = origins.len().min(targets.len()).min(4);
+        if n == 4 {
+            let soa = |v: &[Vec3]| {
+                let m = Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0))
+                    .transpose();
+                [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
+            };
+            let (o, t) = (soa(origins), soa(targets));
+            let raw: [Vec4; 3] = std::array::from_fn(|a| t[a] - o[a]);
+            let finite = |v: &[Vec4]| v.iter().fold(BVec4A::splat(true), |m, c| m & c.is_finite_mask());
+            // As `Ray::new`: a component whose reciprocal overflows (a denormal) is flushed to
+            // a zero of its sign; then `Ray::is_valid` wants finite, non-zero directions.
+            let inv: [Vec4; 3] = std::array::from_fn(|a| raw[a].recip());
+            let d: [Vec4; 3] = std::array::from_fn(|a| {
+                let keep = inv[a].is_finite_mask() | raw[a].cmpeq(Vec4::ZERO);
+                Vec4::select(keep, raw[a], Vec4::ZERO.copysign(raw[a]))
+            });
+            let zero = d.iter().fold(BVec4A::splat(true), |m, c| m & c.cmpeq(Vec4::ZERO));
+            if (finite(&o[..3]) & finite(&raw) & !zero).all() {
+                return RayPacket {
+                    o,
+                    d: [d[0], d[1], d[2], Vec4::ZERO],
+                    inv: [inv[0], inv[1], inv[2], Vec4::ZERO],
+                    t_min: Vec4::ZERO,
+                    t_max: Vec4::ONE,
+                    valid: BVec4A::splat(true),
+                };
+            }
+        }
+        let mut lanes = [None; 4];
+        for (lane, (&o, &t)) in lanes.iter_mut().zip(origins.iter().zip(targets)) {
+            *lane = Some(Ray::new(o, t - o, 0.0, 1.0));
+        }
+        RayPacket::from_lanes(lanes)
+    }
+
     /// The ray in `lane` (also for an invalid lane, whose content is filler).
     pub fn ray(&self, lane: usize) -> Ray {
         let origin = Vec3::new(self.o[0][lane], self.o[1][lane], self.o[2][lane]);
@@ -296,6 +339,43 @@ mod tests {
                 };
                 assert_eq!((p.t_min[lane], p.t_max[lane]), (t_min, t_max));
             }
+        }
+    }
+
+    #[test]
+    fn segments_are_the_packet_of_their_rays_bit_for_bit() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+        };
+        let (nan, inf, tiny) = (f32::NAN, f32::INFINITY, 6e-45f32);
+        for case in 0..400 {
+            let scale = [1e-3, 1.0, 1e5][case % 3];
+            let mut origins: Vec<Vec3> = (0..4).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
+            let mut targets: Vec<Vec3> = (0..4).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
+            // Hard lanes: a shared end, a zero-length segment, a denormal or zero component,
+            // non-finite input, fewer than four segments.
+            match case % 9 {
+                1 => targets = vec![targets[0]; 4],
+                2 => targets[1] = origins[1],
+                3 => targets[2] = origins[2] + Vec3::new(tiny, 1.0, 0.0),
+                4 => targets[3].x = origins[3].x,
+                5 => origins[0].y = nan,
+                6 => targets[2].z = inf,
+                7 => origins.truncate(3),
+                8 => targets.truncate(1),
+                _ => {}
+            }
+            let rays: Vec<Ray> = origins.iter().zip(&targets).map(|(&o, &t)| Ray::new(o, t - o, 0.0, 1.0)).collect();
+            let (got, want) = (RayPacket::segments(&origins, &targets), RayPacket::new(&rays));
+            let bits = |p: &RayPacket| {
+                let v = |x: &[Vec4]| x.iter().flat_map(|c| c.to_array()).map(f32::to_bits).collect::<Vec<_>>();
+                (v(&p.o), v(&p.d), v(&p.inv), v(&[p.t_min, p.t_max]), p.valid.bitmask())
+            };
+            assert_eq!(bits(&got), bits(&want), "case {case}");
         }
     }
 

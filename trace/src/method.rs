@@ -246,6 +246,13 @@ impl ShadowJob<'_> {
     pub fn ray(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
         hard_shadow_ray(self.scene, self.surfaces, self.camera, x, y, hit)
     }
+
+    /// The ends of [`ShadowJob::ray`] (`shade::shadow_segment`): its origin and the light.
+    #[inline]
+    pub fn segment(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<(Vec3, Vec3)> {
+        let hit = hit.as_ref()?;
+        shade::shadow_segment(self.surfaces, &self.scene.point_light, self.camera.pixel_ray(x, y).1, hit)
+    }
 }
 
 /// What a soft-shadow pass traced.

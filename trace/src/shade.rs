@@ -39,6 +39,15 @@ pub fn facing_normal(mesh: &Mesh, hit: &Hit, dir: Vec3) -> Vec3 {
 /// direction is unnormalised and reaches the light at `t = 1`.
 #[inline]
 pub fn shadow_ray(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit) -> Option<Ray> {
+    let (start, end) = shadow_segment(surfaces, light, dir, hit)?;
+    Some(Ray::new(start, end - start, 0.0, 1.0))
+}
+
+/// The ends of [`shadow_ray`]: its origin and the light (the ray is
+/// `Ray::new(start, end - start, 0.0, 1.0)`), for kernels that build their packets from the
+/// ends (`packets::RayPacket::segments`).
+#[inline]
+pub fn shadow_segment(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit) -> Option<(Vec3, Vec3)> {
     let s: &Surface = surfaces.get(hit.prim);
     let n = s.facing_normal(dir);
     let p = s.point(hit);
@@ -46,8 +55,7 @@ pub fn shadow_ray(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit)
     if n.dot(to_light) <= 0.0 {
         return None;
     }
-    let start = s.offset_origin(p, to_light);
-    Some(Ray::new(start, light.position - start, 0.0, 1.0))
+    Some((s.offset_origin(p, to_light), light.position))
 }
 
 /// The colour of the primary hit `hit` of the ray `origin + t * dir`.

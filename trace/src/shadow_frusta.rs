@@ -20,10 +20,10 @@
 //! [`SoftJob::point`]), and every kernel here answers each ray exactly as the single ray does
 //! (the conformance harness checks it).
 
-use cones::shadows::{SAMPLES, shadow_ray};
+use cones::shadows::SAMPLES;
 use glam::Vec3;
 use kdtree::{KdTree, Ray};
-use packets::{ShadowFrustum, samesign};
+use packets::{RayPacket, ShadowFrustum, samesign};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
@@ -41,12 +41,14 @@ pub enum Grouping {
 #[derive(Debug, Default)]
 pub struct ShadowScratch {
     frustum: ShadowFrustum,
-    /// The rays of one group, and the pixel (tile index) of each.
-    rays: Vec<Ray>,
+    /// The rays of one group as segments (ray `i` is `Ray::new(starts[i], ends[i] -
+    /// starts[i], 0, 1)`), and the pixel (tile index) of each.
+    starts: Vec<Vec3>,
+    ends: Vec<Vec3>,
     slots: Vec<u32>,
     blocked: Vec<bool>,
-    /// Per pixel: its hard shadow ray, `None` where none is cast.
-    hard: Vec<Option<Ray>>,
+    /// Per pixel: its hard shadow ray's ends, `None` where none is cast.
+    hard: Vec<Option<(Vec3, Vec3)>>,
     /// Per pixel: its soft shadow rays' origin and light samples.
     soft: Vec<Option<(Vec3, [Vec3; SAMPLES])>>,
     masks: Vec<u16>,
@@ -66,15 +68,29 @@ impl ShadowScratch {
         }
     }
 
-    /// Traces the group in `rays` with `grouping`, the answers into `blocked`.
+    /// Empties the group.
+    fn clear(&mut self) {
+        self.starts.clear();
+        self.ends.clear();
+        self.slots.clear();
+    }
+
+    /// Traces the group with `grouping`, the answers into `blocked`. Packets are made from
+    /// the segments four at a time (`RayPacket::segments`: the rays' packet, bit for bit).
     fn trace<C: TileCounters>(&mut self, tree: &KdTree, grouping: Grouping, counters: &mut C) {
         self.blocked.clear();
         match grouping {
-            Grouping::Packets => samesign::occluded_fours(tree, &self.rays, &mut self.blocked, counters),
+            Grouping::Packets => {
+                for (starts, ends) in self.starts.chunks(4).zip(self.ends.chunks(4)) {
+                    let packet = RayPacket::segments(starts, ends);
+                    let found = samesign::occluded(tree, &packet, counters).found.bitmask();
+                    self.blocked.extend((0..starts.len()).map(|lane| found >> lane & 1 != 0));
+                }
+            }
             Grouping::Frusta => {
                 self.frustum.clear();
-                for ray in &self.rays {
-                    self.frustum.push(*ray);
+                for (&start, &end) in self.starts.iter().zip(&self.ends) {
+                    self.frustum.push(Ray::new(start, end - start, 0.0, 1.0));
                 }
                 self.frustum.trace(tree, counters);
                 self.blocked.extend_from_slice(self.frustum.blocked());
@@ -114,14 +130,15 @@ pub fn hard<C: TileCounters>(
     counters: &mut C,
 ) -> (u64, u64) {
     scratch.hard.clear();
-    scratch.hard.extend(job.pixels().map(|(x, y, hit)| job.ray(x, y, hit)));
+    scratch.hard.extend(job.pixels().map(|(x, y, hit)| job.segment(x, y, hit)));
     scratch.morton_order(job.tile);
-    scratch.rays.clear();
-    scratch.slots.clear();
-    for &i in &scratch.order {
-        if let Some(ray) = scratch.hard[i as usize] {
-            scratch.rays.push(ray);
-            scratch.slots.push(i);
+    scratch.clear();
+    let ShadowScratch { hard, order, starts, ends, slots, .. } = &mut *scratch;
+    for &i in order.iter() {
+        if let Some((start, end)) = hard[i as usize] {
+            starts.push(start);
+            ends.push(end);
+            slots.push(i);
         }
     }
     scratch.trace(tree, grouping, counters);
@@ -131,7 +148,7 @@ pub fn hard<C: TileCounters>(
         out[slot as usize] = b;
         blocked += u64::from(b);
     }
-    (scratch.rays.len() as u64, blocked)
+    (scratch.slots.len() as u64, blocked)
 }
 
 /// The 16-sample soft shadows of `job`, the tile's rays to each light stratum grouped by
@@ -151,13 +168,14 @@ pub fn soft<C: TileCounters>(
     scratch.masks.resize(visible.len(), 0);
     scratch.morton_order(job.hits.tile);
     for k in 0..SAMPLES {
-        scratch.rays.clear();
-        scratch.slots.clear();
-        for &i in &scratch.order {
-            if let Some((start, samples)) = &scratch.soft[i as usize] {
-                // Ray `k` of `SoftJob::point`.
-                scratch.rays.push(shadow_ray(*start, samples[k]));
-                scratch.slots.push(i);
+        scratch.clear();
+        let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
+        for &i in order.iter() {
+            if let Some((start, samples)) = &soft[i as usize] {
+                // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
+                starts.push(*start);
+                ends.push(samples[k]);
+                slots.push(i);
             }
         }
         scratch.trace(tree, grouping, counters);
