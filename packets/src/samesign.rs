@@ -73,16 +73,23 @@ fn split_by_signs<C: Counters, const ANY_HIT: bool>(
     from: Option<(usize, (Vec4, Vec4))>,
     counters: &mut C,
 ) -> PacketHit {
+    let traverse_group = |sub: &RayPacket, counters: &mut C| match tree.intersector() {
+        Intersector::Wald => traverse::<_, C, ANY_HIT>(tree, tree.wald_records(), sub, from, counters),
+        Intersector::Watertight => traverse::<_, C, ANY_HIT>(tree, tree.watertight_records(), sub, from, counters),
+    };
+    // The common case (neighbouring rays to one light): every valid lane in one sign group.
+    // The group is then the packet itself, and so is its hit (invalid lanes hold empty
+    // intervals and keep `PacketHit::new`'s values either way).
+    if one_sign_group(packet) {
+        return traverse_group(packet, counters);
+    }
     let mut hit = PacketHit::new(packet);
     for group in sign_groups(packet) {
         let mut sub = *packet;
         sub.valid &= group;
         sub.t_min = Vec4::select(group, sub.t_min, Vec4::INFINITY);
         sub.t_max = Vec4::select(group, sub.t_max, Vec4::NEG_INFINITY);
-        let part = match tree.intersector() {
-            Intersector::Wald => traverse::<_, C, ANY_HIT>(tree, tree.wald_records(), &sub, from, counters),
-            Intersector::Watertight => traverse::<_, C, ANY_HIT>(tree, tree.watertight_records(), &sub, from, counters),
-        };
+        let part = traverse_group(&sub, counters);
         hit.t = Vec4::select(group, part.t, hit.t);
         hit.u = Vec4::select(group, part.u, hit.u);
         hit.v = Vec4::select(group, part.v, hit.v);
@@ -94,6 +101,17 @@ fn split_by_signs<C: Counters, const ANY_HIT: bool>(
         }
     }
     hit
+}
+
+/// Whether the valid lanes (at least one) share their direction signs on every axis.
+#[inline(always)]
+fn one_sign_group(packet: &RayPacket) -> bool {
+    let valid = packet.valid.bitmask();
+    valid != 0
+        && (0..3).all(|a| {
+            let negative = packet.d[a].is_negative_bitmask() & valid;
+            negative == 0 || negative == valid
+        })
 }
 
 /// The valid lanes grouped by direction sign pattern (sign bits of x, y, z): one mask per
