@@ -169,7 +169,13 @@ pub struct ShadingPoint {
 impl ShadingPoint {
     /// The shading point of `hit` on `tri` seen along `view_dir`.
     pub fn new(tri: [Vec3; 3], hit: Hit, view_dir: Vec3) -> ShadingPoint {
-        let surface = Surface::new(&tri);
+        ShadingPoint::with_surface(tri, Surface::new(&tri), hit, view_dir)
+    }
+
+    /// [`ShadingPoint::new`] with the triangle's record made beforehand (`surface` must be
+    /// `Surface::new(&tri)`: then the point is the same).
+    #[inline]
+    pub fn with_surface(tri: [Vec3; 3], surface: Surface, hit: Hit, view_dir: Vec3) -> ShadingPoint {
         ShadingPoint { tri, hit, normal: surface.facing_normal(view_dir), point: surface.point(&hit), surface }
     }
 
@@ -179,13 +185,21 @@ impl ShadingPoint {
     /// `kdtree::ray::offset_origin(tri, hit, target - point)`.
     #[inline]
     pub fn shadow_ray(&self, target: Vec3) -> Option<Ray> {
+        let (start, target) = self.shadow_segment(target)?;
+        Some(Ray::new(start, target - start, 0.0, 1.0))
+    }
+
+    /// The ends of [`ShadingPoint::shadow_ray`]: its origin and `target` (the ray is
+    /// `Ray::new(start, target - start, 0.0, 1.0)`), for kernels that build their packets
+    /// from the ends (`packets::RayPacket::segments`).
+    #[inline]
+    pub fn shadow_segment(&self, target: Vec3) -> Option<(Vec3, Vec3)> {
         let to = target - self.point;
         // Written so that NaN fails.
         if !(to.is_finite() && self.normal.dot(to) > 0.0) {
             return None;
         }
-        let start = self.surface.offset_origin(self.point, to);
-        Some(Ray::new(start, target - start, 0.0, 1.0))
+        Some((self.surface.offset_origin(self.point, to), target))
     }
 }
 

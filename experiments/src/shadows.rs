@@ -34,6 +34,7 @@ use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
 use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
 use glam::Vec3;
+use kdtree::surface::Surface;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{RayPacket, samesign};
 use rayon::prelude::*;
@@ -224,6 +225,8 @@ pub struct ShadowSetup<'a> {
     edge_scale: f32,
     shared_vertex: bool,
     thickness: Option<Vec<f32>>,
+    /// Each triangle's surface record, made once (`ShadingPoint::with_surface`).
+    surfaces: Vec<Surface>,
 }
 
 /// One rendered frame.
@@ -249,7 +252,18 @@ impl<'a> ShadowSetup<'a> {
     /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`.
     pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Self {
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
-        ShadowSetup { scene, tree, camera, light, layout, edge_scale: 1.0, shared_vertex: false, thickness: None }
+        let surfaces = (0..tree.triangle_count() as u32).map(|p| Surface::new(&tree.triangle(p))).collect();
+        ShadowSetup {
+            scene,
+            tree,
+            camera,
+            light,
+            layout,
+            edge_scale: 1.0,
+            shared_vertex: false,
+            thickness: None,
+            surfaces,
+        }
     }
 
     /// With the edge-width options: `R` scale, shared-vertex rule, per-triangle thickness.
@@ -269,7 +283,7 @@ impl<'a> ShadowSetup<'a> {
 
     fn shading_point(&self, x: u32, y: u32, hit: &Hit) -> ShadingPoint {
         let (_, dir) = self.camera.pixel_ray(x, y);
-        ShadingPoint::new(self.tree.triangle(hit.prim), *hit, dir)
+        ShadingPoint::with_surface(self.tree.triangle(hit.prim), self.surfaces[hit.prim as usize], *hit, dir)
     }
 
     /// `R` (Eq. 5.1) and the edge-width ray of a shading point, or `None` when the light's
@@ -409,7 +423,7 @@ impl<'a> ShadowSetup<'a> {
                 .collect::<Vec<_>>()
         };
         let ray_of = |(p, rng): &(ShadingPoint, Rng), k: usize| {
-            p.shadow_ray(self.light.sample(p.point, adaptive::sample_position(*rng, k)))
+            p.shadow_segment(self.light.sample(p.point, adaptive::sample_position(*rng, k)))
         };
         let mut probes = vec![NO_HIT; hits.len()];
         tiles.par_iter().zip(self.layout.chunks(hits)).zip(self.layout.chunks_mut(&mut probes)).for_each(
@@ -481,7 +495,7 @@ impl<'a> ShadowSetup<'a> {
             })
             .collect();
         let ray = |i: usize, k: usize| {
-            points[i].as_ref().and_then(|p| p.shadow_ray(self.light.sample(p.point, positions[n as usize * i + k])))
+            points[i].as_ref().and_then(|p| p.shadow_segment(self.light.sample(p.point, positions[n as usize * i + k])))
         };
         let samples: Vec<usize> = (0..n as usize).collect();
         let mut visible = vec![0u32; hits.len()];
@@ -552,31 +566,36 @@ impl<'a> ShadowSetup<'a> {
     }
 }
 
-/// Adds to `visible[i]` how many of pixel `i`'s rays `ray(i, k)`, `k` in `samples`, are not
-/// blocked; a `None` ray counts as blocked. The rays go sample by sample, each sample's in
-/// the pixel order `order` (Morton order of a tile: neighbours' rays to the same light
-/// stratum side by side) as 2x2 same-sign any-hit packets, as `trace::shadow_frusta` groups
-/// a render's soft shadows (Benthin & Wald 2009).
+/// Adds to `visible[i]` how many of pixel `i`'s rays are not blocked, the ray of sample `k`
+/// (`k` in `samples`) being `ray(i, k)`'s segment (`ShadingPoint::shadow_segment`); a `None`
+/// ray counts as blocked. The rays go sample by sample, each sample's in the pixel order
+/// `order` (Morton order of a tile: neighbours' rays to the same light stratum side by side)
+/// as 2x2 same-sign any-hit packets made from the segments (`RayPacket::segments`), as
+/// `trace::shadow_frusta` groups a render's soft shadows (Benthin & Wald 2009).
 fn count_visible_by_sample(
     tree: &KdTree,
     order: &[u32],
     samples: &[usize],
-    ray: impl Fn(usize, usize) -> Option<Ray>,
+    ray: impl Fn(usize, usize) -> Option<(Vec3, Vec3)>,
     visible: &mut [u32],
 ) {
-    let (mut group, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut starts, mut ends, mut slots) = (Vec::new(), Vec::new(), Vec::new());
     for &k in samples {
-        group.clear();
+        starts.clear();
+        ends.clear();
         slots.clear();
         for &i in order {
-            if let Some(r) = ray(i as usize, k) {
-                group.push(r);
+            if let Some((start, end)) = ray(i as usize, k) {
+                starts.push(start);
+                ends.push(end);
                 slots.push(i as usize);
             }
         }
-        samesign::occluded_fours(tree, &group, &mut blocked, &mut NoCounters);
-        for (&i, &b) in slots.iter().zip(&blocked) {
-            visible[i] += u32::from(!b);
+        for ((starts, ends), slots) in starts.chunks(4).zip(ends.chunks(4)).zip(slots.chunks(4)) {
+            let found = samesign::occluded(tree, &RayPacket::segments(starts, ends), &mut NoCounters).found.bitmask();
+            for (lane, &i) in slots.iter().enumerate() {
+                visible[i] += u32::from(found >> lane & 1 == 0);
+            }
         }
     }
 }

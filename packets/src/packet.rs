@@ -83,8 +83,8 @@ impl RayPacket {
         let n = origins.len().min(targets.len()).min(4);
         if n == 4 {
             let soa = |v: &[Vec3]| {
-                let m = Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0))
-                    .transpose();
+                let m =
+                    Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0)).transpose();
                 [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
             };
             let (o, t) = (soa(origins), soa(targets));
