@@ -108,6 +108,16 @@ fuzz_target!(|input: Input| {
             let (got, want) = (found >> lane & 1 != 0, tree.occluded(ray));
             assert!(oracle.equivalent_occlusion(ray, got, want), "shadow packet {c} lane {lane}: {got}, single {want}");
         }
+        // The same rays' ends, as the shadow kernels keep them: `RayPacket::segments` must be
+        // the packet of `Ray::new(start, end - start, 0, 1)` bit for bit.
+        let starts: Vec<Vec3> = four.iter().map(|r| r.origin).collect();
+        let ends: Vec<Vec3> = four.iter().map(|r| r.origin + r.dir).collect();
+        let rays: Vec<Ray> = starts.iter().zip(&ends).map(|(&s, &e)| Ray::new(s, e - s, 0.0, 1.0)).collect();
+        let bits = |p: &RayPacket| {
+            let v = |x: &[glam::Vec4]| x.iter().flat_map(|c| c.to_array()).map(f32::to_bits).collect::<Vec<_>>();
+            (v(&p.o), v(&p.d), v(&p.inv), v(&[p.t_min, p.t_max]), p.valid.bitmask())
+        };
+        assert_eq!(bits(&RayPacket::segments(&starts, &ends)), bits(&RayPacket::new(&rays)), "segments {c}");
     }
 
     // The tile tracer's any-hit mode (shadow rays), which no registered stream uses: the
