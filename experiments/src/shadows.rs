@@ -1084,30 +1084,32 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    #[test]
-    fn sampled_packets_give_the_sampled_frame() {
+    /// Runs `test` on `touching-boxes` at 40x30 under its light scaled by 2 (penumbrae on
+    /// the boxes and the floor), once per triangle test.
+    fn on_touching_boxes(test: impl Fn(&ShadowSetup)) {
         let scene = scenes::load_scene("touching-boxes").unwrap();
         for intersector in [Intersector::Wald, Intersector::Watertight] {
             let config = BuildConfig { intersector, ..BuildConfig::default() };
             let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
             let camera = scene.default_view().camera(40, 30).unwrap();
-            let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+            test(&ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0)));
+        }
+    }
+
+    #[test]
+    fn sampled_packets_give_the_sampled_frame() {
+        on_touching_boxes(|setup| {
             let single = setup.frame(ShadowMethod::Sampled(16));
             let packets = setup.frame(ShadowMethod::SampledPackets(16));
             assert_eq!(single.visibility, packets.visibility);
             assert_eq!(single.shadow_rays, packets.shadow_rays);
             assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
-        }
+        });
     }
 
     #[test]
     fn adaptive_frames_are_sampled_16_but_on_unrefined_pixels_whose_16_samples_disagree() {
-        let scene = scenes::load_scene("touching-boxes").unwrap();
-        for intersector in [Intersector::Wald, Intersector::Watertight] {
-            let config = BuildConfig { intersector, ..BuildConfig::default() };
-            let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
-            let camera = scene.default_view().camera(40, 30).unwrap();
-            let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+        on_touching_boxes(|setup| {
             let sampled = setup.frame(ShadowMethod::Sampled(16));
             let adaptive = setup.frame(ShadowMethod::Adaptive);
             assert_eq!(sampled.hits, adaptive.hits);
@@ -1126,7 +1128,7 @@ mod tests {
             assert_eq!(adaptive.shadow_rays, 4 * hits + 12 * refined);
             assert!(refined > 0 && refined < hits / 2, "{refined} of {hits} refined");
             assert_eq!(sampled.shadow_rays, 16 * hits);
-        }
+        });
     }
 
     #[test]
