@@ -38,14 +38,6 @@ impl<T: Copy> Stack<T> {
         self.len += 1;
     }
 
-    /// Writes `entry` to the next slot and keeps it only if `keep`: a store and an add,
-    /// never a branch.
-    #[inline(always)]
-    pub fn push_if(&mut self, entry: T, keep: bool) {
-        self.slots[self.len % STACK_SIZE].write(entry);
-        self.len += usize::from(keep);
-    }
-
     /// The last entry pushed and not popped, or `None`.
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
@@ -53,8 +45,8 @@ impl<T: Copy> Stack<T> {
             return None;
         }
         self.len -= 1;
-        // SAFETY: `len` changes only by `push`/`push_if` (+1 or +0, after writing slot
-        // `len % STACK_SIZE`) and `pop` (-1). The last time `len` went from `L` to `L + 1`
+        // SAFETY: `len` changes only by `push` (+1, after writing slot `len % STACK_SIZE`)
+        // and `pop` (-1). The last time `len` went from `L` to `L + 1`
         // (here `L` is the new `len`), that push wrote slot `L % STACK_SIZE`; so the slot
         // read here is initialised.
         Some(unsafe { self.slots[self.len % STACK_SIZE].assume_init() })
@@ -64,8 +56,8 @@ impl<T: Copy> Stack<T> {
     #[inline(always)]
     pub fn top(&self) -> Option<T> {
         let len = self.len.checked_sub(1)?;
-        // SAFETY: as in `pop`, the slot of entry `len - 1` was written by the push that
-        // made `len` what it is.
+        // SAFETY: as in `pop`: slot `(self.len - 1) % STACK_SIZE` was written by the push
+        // that made `self.len` what it is.
         Some(unsafe { self.slots[len % STACK_SIZE].assume_init() })
     }
 
@@ -103,8 +95,7 @@ mod tests {
         for i in 0..10u32 {
             s.push(i);
         }
-        s.push_if(99, false);
-        s.push_if(10, true);
+        s.push(10);
         assert_eq!(s.len(), 11);
         assert_eq!((0..11).map(|_| s.pop().unwrap()).collect::<Vec<_>>(), (0..=10).rev().collect::<Vec<_>>());
         assert!(s.is_empty() && s.pop().is_none() && s.top().is_none() && s.entries().is_empty());
