@@ -21,9 +21,8 @@
 //! [`visible_fraction`]: crate::sampling::visible_fraction
 
 use glam::Vec2;
-use kdtree::KdTree;
 
-use crate::sampling::{AreaLight, Rng, ShadingPoint, strata, stratified};
+use crate::sampling::{Rng, strata, stratified};
 
 /// Samples per refined pixel.
 pub const SAMPLES: u32 = 16;
@@ -41,33 +40,6 @@ pub const REST: [usize; 12] = [1, 2, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14];
 #[inline]
 pub fn sample_position(rng: Rng, k: usize) -> Vec2 {
     stratified(k as u32, strata(SAMPLES), &mut rng.skipped(2 * k as u64))
-}
-
-/// How many of the samples `which` of the pixel with generator `rng` see `light` from `p`.
-/// Samples behind the surface, or not finite, count as blocked, as in
-/// [`visible_fraction`](crate::sampling::visible_fraction).
-#[inline]
-fn visible(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, rng: Rng, which: &[usize]) -> u8 {
-    let mut seen = 0u8;
-    for &k in which {
-        if let Some(ray) = p.shadow_ray(light.sample(p.point, sample_position(rng, k))) {
-            seen += u8::from(!tree.occluded(&ray));
-        }
-    }
-    seen
-}
-
-/// How many of the four [`PROBES`] of the pixel with generator `rng` are visible (`0..=4`).
-#[inline]
-pub fn probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, rng: Rng) -> u8 {
-    visible(tree, light, p, rng, &PROBES)
-}
-
-/// How many of the 12 other samples ([`REST`]) are visible (`0..=12`): with the probes'
-/// count, the visible samples of all 16.
-#[inline]
-pub fn refine(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, rng: Rng) -> u8 {
-    visible(tree, light, p, rng, &REST)
 }
 
 /// Whether a pixel whose probes found `own` of 4 visible needs its other 12 samples: when
@@ -92,8 +64,9 @@ pub fn fraction(probes: u8, rest: Option<u8>) -> f32 {
 mod tests {
     use super::*;
     use crate::sampling::visible_fraction;
+    use crate::sampling::{AreaLight, ShadingPoint};
     use glam::Vec3;
-    use kdtree::{BuildConfig, Hit};
+    use kdtree::{BuildConfig, Hit, KdTree};
     use scenes::{RectLight, SphereLight};
 
     /// A floor triangle under a light, a blocker half covering the light, as seen from
@@ -119,8 +92,12 @@ mod tests {
                 let p = ShadingPoint::new(floor, hit, Vec3::NEG_Y);
                 let seed = 1000 + i as u64;
                 let all = visible_fraction(&tree, &light, &p, 16, &mut Rng::new(seed));
-                let (probes, rest) =
-                    (probe(&tree, &light, &p, Rng::new(seed)), refine(&tree, &light, &p, Rng::new(seed)));
+                // The samples `which`, traced one by one as `visible_fraction` traces them.
+                let seen = |which: &[usize]| {
+                    let target = |k: usize| light.sample(p.point, sample_position(Rng::new(seed), k));
+                    which.iter().filter_map(|&k| p.shadow_ray(target(k))).filter(|r| !tree.occluded(r)).count() as u8
+                };
+                let (probes, rest) = (seen(&PROBES), seen(&REST));
                 assert_eq!(fraction(probes, Some(rest)), all, "point {i}");
                 partial += usize::from(all > 0.0 && all < 1.0);
                 // Unrefined, a pixel keeps its probes' answer: exact wherever all 16 agree.

@@ -147,17 +147,13 @@ pub fn stratified(k: u32, (nx, ny): (u32, u32), rng: &mut Rng) -> Vec2 {
     Vec2::new((i as f32 + rng.next_f32()) / nx as f32, (j as f32 + rng.next_f32()) / ny as f32)
 }
 
-/// Where a shadow ray towards the light starts, and the surface side it may leave on: the
-/// primary hit `hit` on triangle `tri`, with `normal` its geometric normal facing the viewer.
-/// It keeps the triangle's [`Surface`] record, so that each of its shadow rays costs a dot
-/// product and a select to start ([`Surface::offset_origin`]) instead of the `f64` normal of
-/// [`kdtree::ray::offset_origin`], with the same origin bit for bit.
+/// Where a shadow ray towards the light starts, and the surface side it may leave on: a
+/// primary hit on a triangle, with `normal` the triangle's geometric normal facing the
+/// viewer. It keeps the triangle's [`Surface`] record, so that each of its shadow rays costs a
+/// dot product and a select to start ([`Surface::offset_origin`]) instead of the `f64`
+/// normal of [`kdtree::ray::offset_origin`], with the same origin bit for bit.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadingPoint {
-    /// The triangle's vertices.
-    pub tri: [Vec3; 3],
-    /// The primary hit.
-    pub hit: Hit,
     /// The geometric normal, facing the viewer.
     pub normal: Vec3,
     /// The hit point from its barycentrics (`kdtree::ray::surface_point`).
@@ -169,14 +165,15 @@ pub struct ShadingPoint {
 impl ShadingPoint {
     /// The shading point of `hit` on `tri` seen along `view_dir`.
     pub fn new(tri: [Vec3; 3], hit: Hit, view_dir: Vec3) -> ShadingPoint {
-        ShadingPoint::with_surface(tri, Surface::new(&tri), hit, view_dir)
+        ShadingPoint::on(&Surface::new(&tri), &hit, view_dir)
     }
 
-    /// [`ShadingPoint::new`] with the triangle's record made beforehand (`surface` must be
-    /// `Surface::new(&tri)`: then the point is the same).
+    /// The shading point of `hit` on the triangle of the record `surface` (made once per
+    /// scene, `kdtree::surface::Surfaces`) seen along `view_dir`: [`ShadingPoint::new`] of
+    /// that triangle, the same point.
     #[inline]
-    pub fn with_surface(tri: [Vec3; 3], surface: Surface, hit: Hit, view_dir: Vec3) -> ShadingPoint {
-        ShadingPoint { tri, hit, normal: surface.facing_normal(view_dir), point: surface.point(&hit), surface }
+    pub fn on(surface: &Surface, hit: &Hit, view_dir: Vec3) -> ShadingPoint {
+        ShadingPoint { normal: surface.facing_normal(view_dir), point: surface.point(hit), surface: *surface }
     }
 
     /// The shadow ray from this point to `target` (`t` in `[0, 1]`, reaching `target` at 1),

@@ -34,7 +34,7 @@ use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
 use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
 use glam::Vec3;
-use kdtree::surface::Surface;
+use kdtree::surface::Surfaces;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{RayPacket, samesign};
 use rayon::prelude::*;
@@ -225,8 +225,8 @@ pub struct ShadowSetup<'a> {
     edge_scale: f32,
     shared_vertex: bool,
     thickness: Option<Vec<f32>>,
-    /// Each triangle's surface record, made once (`ShadingPoint::with_surface`).
-    surfaces: Vec<Surface>,
+    /// Each triangle's surface record, made once (`ShadingPoint::on`).
+    surfaces: Surfaces,
 }
 
 /// One rendered frame.
@@ -252,7 +252,7 @@ impl<'a> ShadowSetup<'a> {
     /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`.
     pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Self {
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
-        let surfaces = (0..tree.triangle_count() as u32).map(|p| Surface::new(&tree.triangle(p))).collect();
+        let surfaces = trace::shade::surfaces(&scene.mesh);
         ShadowSetup {
             scene,
             tree,
@@ -283,7 +283,7 @@ impl<'a> ShadowSetup<'a> {
 
     fn shading_point(&self, x: u32, y: u32, hit: &Hit) -> ShadingPoint {
         let (_, dir) = self.camera.pixel_ray(x, y);
-        ShadingPoint::with_surface(self.tree.triangle(hit.prim), self.surfaces[hit.prim as usize], *hit, dir)
+        ShadingPoint::on(self.surfaces.get(hit.prim), hit, dir)
     }
 
     /// `R` (Eq. 5.1) and the edge-width ray of a shading point, or `None` when the light's
@@ -570,8 +570,8 @@ impl<'a> ShadowSetup<'a> {
 /// (`k` in `samples`) being `ray(i, k)`'s segment (`ShadingPoint::shadow_segment`); a `None`
 /// ray counts as blocked. The rays go sample by sample, each sample's in the pixel order
 /// `order` (Morton order of a tile: neighbours' rays to the same light stratum side by side)
-/// as 2x2 same-sign any-hit packets made from the segments (`RayPacket::segments`), as
-/// `trace::shadow_frusta` groups a render's soft shadows (Benthin & Wald 2009).
+/// as 2x2 same-sign any-hit packets made from the segments (`samesign::occluded_segments`),
+/// as `trace::shadow_frusta` groups a render's soft shadows (Benthin & Wald 2009).
 fn count_visible_by_sample(
     tree: &KdTree,
     order: &[u32],
@@ -579,7 +579,7 @@ fn count_visible_by_sample(
     ray: impl Fn(usize, usize) -> Option<(Vec3, Vec3)>,
     visible: &mut [u32],
 ) {
-    let (mut starts, mut ends, mut slots) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut starts, mut ends, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for &k in samples {
         starts.clear();
         ends.clear();
@@ -591,11 +591,9 @@ fn count_visible_by_sample(
                 slots.push(i as usize);
             }
         }
-        for ((starts, ends), slots) in starts.chunks(4).zip(ends.chunks(4)).zip(slots.chunks(4)) {
-            let found = samesign::occluded(tree, &RayPacket::segments(starts, ends), &mut NoCounters).found.bitmask();
-            for (lane, &i) in slots.iter().enumerate() {
-                visible[i] += u32::from(found >> lane & 1 == 0);
-            }
+        samesign::occluded_segments(tree, &starts, &ends, &mut blocked, &mut NoCounters);
+        for (&i, &b) in slots.iter().zip(&blocked) {
+            visible[i] += u32::from(!b);
         }
     }
 }

@@ -146,7 +146,7 @@ pub fn surface_point(tri: &[Vec3; 3], hit: &Hit) -> Vec3 {
 /// light), so that the new ray cannot hit the surface it starts on.
 ///
 /// The one offset scheme of the workspace, used by every method that spawns rays (shadow
-/// rays: `bench::shade::shadow_ray`):
+/// rays: `trace::shade::shadow_ray`):
 ///
 /// 1. the hit point is taken from the barycentrics ([`surface_point`]), so its distance to the
 ///    triangle's plane is a few ulps of the triangle's largest coordinate magnitude `M`,

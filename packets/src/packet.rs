@@ -14,6 +14,21 @@ use glam::{BVec4A, Mat4, Vec3, Vec4};
 use kdtree::traverse::WIDEN;
 use kdtree::{Hit, Ray};
 
+/// Four rays' directions and their reciprocals as [`Ray::new`] makes them, one axis per
+/// vector: `1 / d` per lane (one division per axis for four rays, each correctly rounded as
+/// the scalar division), and a component whose reciprocal overflows (a denormal) flushed to a
+/// zero of its sign. NaN components stay NaN, as `Ray::new` keeps them. Shared by the packets
+/// built without `Ray`s: [`RayPacket::segments`] and the tile tracer's primary rays.
+#[inline(always)]
+pub(crate) fn directions(raw: [Vec4; 3]) -> ([Vec4; 3], [Vec4; 3]) {
+    let inv = raw.map(Vec4::recip);
+    let d = std::array::from_fn(|a| {
+        let keep = inv[a].is_finite_mask() | raw[a].cmpeq(Vec4::ZERO) | raw[a].is_nan_mask();
+        Vec4::select(keep, raw[a], Vec4::ZERO.copysign(raw[a]))
+    });
+    (d, inv)
+}
+
 /// Four rays in structure-of-arrays form.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
@@ -90,13 +105,8 @@ impl RayPacket {
             let (o, t) = (soa(origins), soa(targets));
             let raw: [Vec4; 3] = std::array::from_fn(|a| t[a] - o[a]);
             let finite = |v: &[Vec4]| v.iter().fold(BVec4A::splat(true), |m, c| m & c.is_finite_mask());
-            // As `Ray::new`: a component whose reciprocal overflows (a denormal) is flushed to
-            // a zero of its sign; then `Ray::is_valid` wants finite, non-zero directions.
-            let inv: [Vec4; 3] = std::array::from_fn(|a| raw[a].recip());
-            let d: [Vec4; 3] = std::array::from_fn(|a| {
-                let keep = inv[a].is_finite_mask() | raw[a].cmpeq(Vec4::ZERO);
-                Vec4::select(keep, raw[a], Vec4::ZERO.copysign(raw[a]))
-            });
+            // Then `Ray::is_valid` wants finite, non-zero directions.
+            let (d, inv) = directions(raw);
             let zero = d.iter().fold(BVec4A::splat(true), |m, c| m & c.cmpeq(Vec4::ZERO));
             if (finite(&o[..3]) & finite(&raw) & !zero).all() {
                 return RayPacket {

@@ -16,7 +16,7 @@
 //! rays may start behind their origin, `t_min < 0`), and a lane lying in the split plane
 //! (`d` NaN) visits both children over its whole interval.
 
-use glam::{BVec4A, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
 
@@ -40,14 +40,22 @@ pub fn occluded<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C
     split_by_signs::<C, true>(tree, packet, None, counters)
 }
 
-/// Whether each ray of `rays` is blocked, four consecutive rays at a time as one packet
-/// ([`occluded`]): the answers, in order, appended to `blocked` after clearing it. Rays of
-/// neighbouring pixels (a tile's shadow rays in Morton order) make coherent packets.
-pub fn occluded_fours<C: Counters>(tree: &KdTree, rays: &[kdtree::Ray], blocked: &mut Vec<bool>, counters: &mut C) {
+/// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::new(start, end - start, 0,
+/// 1)`, a shadow ray) is blocked, four consecutive ones at a time as one packet
+/// ([`RayPacket::segments`], [`occluded`]): the answers, in order, appended to `blocked`
+/// after clearing it. Segments of neighbouring pixels (a tile's shadow rays in Morton order)
+/// make coherent packets.
+pub fn occluded_segments<C: Counters>(
+    tree: &KdTree,
+    starts: &[Vec3],
+    ends: &[Vec3],
+    blocked: &mut Vec<bool>,
+    counters: &mut C,
+) {
     blocked.clear();
-    for four in rays.chunks(4) {
-        let found = occluded(tree, &RayPacket::new(four), counters).found.bitmask();
-        blocked.extend((0..four.len()).map(|lane| found >> lane & 1 != 0));
+    for (starts, ends) in starts.chunks(4).zip(ends.chunks(4)) {
+        let found = occluded(tree, &RayPacket::segments(starts, ends), counters).found.bitmask();
+        blocked.extend((0..starts.len().min(ends.len())).map(|lane| found >> lane & 1 != 0));
     }
 }
 

@@ -19,7 +19,7 @@ use kdtree::triangle::{Intersector, WatertightTriangle};
 use kdtree::{Hit, KdTree};
 use scenes::{Camera, Tile};
 
-use crate::packet::{OmniPacket, PacketHit, RayPacket};
+use crate::packet::{OmniPacket, PacketHit, RayPacket, directions};
 use crate::triangle4::{PacketTest, ShearedPacket};
 
 /// Why a tile could not be loaded.
@@ -345,13 +345,8 @@ impl PrimaryRays {
         let (dx, dy, dz) = (comp(0), comp(1), comp(2));
         // Vec3::normalize: d * (1 / sqrt(d . d)).
         let len_recip = Vec4::ONE / Vec4::from_array((dx * dx + dy * dy + dz * dz).to_array().map(f32::sqrt));
-        let d = [dx * len_recip, dy * len_recip, dz * len_recip];
         // Ray::new: reciprocals, and components whose reciprocal overflows flushed to zeros.
-        let inv = d.map(|d| Vec4::ONE / d);
-        let d = [0, 1, 2].map(|a| {
-            let keep = inv[a].is_finite_mask() | d[a].cmpeq(Vec4::ZERO) | d[a].is_nan_mask();
-            Vec4::select(keep, d[a], Vec4::ZERO.copysign(d[a]))
-        });
+        let (d, inv) = directions([dx * len_recip, dy * len_recip, dz * len_recip]);
         let inside = BVec4A::new(true, x + 1 < tile.x1, y + 1 < tile.y1, x + 1 < tile.x1 && y + 1 < tile.y1);
         RayPacket {
             o: [Vec4::splat(c.eye.x), Vec4::splat(c.eye.y), Vec4::splat(c.eye.z), Vec4::ZERO],

@@ -63,16 +63,6 @@ pub enum SoftGrouping {
     PerPoint,
 }
 
-impl SoftGrouping {
-    /// The name on the command line: `strata` or `per-point`.
-    pub fn name(self) -> &'static str {
-        match self {
-            SoftGrouping::Strata => "strata",
-            SoftGrouping::PerPoint => "per-point",
-        }
-    }
-}
-
 /// The structures a frame's methods trace: our kd-tree, and the others built by the
 /// registry's [`StructureEntry`]s.
 pub struct Structures<'a> {

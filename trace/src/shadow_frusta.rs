@@ -23,7 +23,7 @@
 use cones::shadows::SAMPLES;
 use glam::Vec3;
 use kdtree::{KdTree, Ray};
-use packets::{RayPacket, ShadowFrustum, samesign};
+use packets::{ShadowFrustum, samesign};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
@@ -76,16 +76,12 @@ impl ShadowScratch {
     }
 
     /// Traces the group with `grouping`, the answers into `blocked`. Packets are made from
-    /// the segments four at a time (`RayPacket::segments`: the rays' packet, bit for bit).
+    /// the segments four at a time (`samesign::occluded_segments`).
     fn trace<C: TileCounters>(&mut self, tree: &KdTree, grouping: Grouping, counters: &mut C) {
         self.blocked.clear();
         match grouping {
             Grouping::Packets => {
-                for (starts, ends) in self.starts.chunks(4).zip(self.ends.chunks(4)) {
-                    let packet = RayPacket::segments(starts, ends);
-                    let found = samesign::occluded(tree, &packet, counters).found.bitmask();
-                    self.blocked.extend((0..starts.len()).map(|lane| found >> lane & 1 != 0));
-                }
+                samesign::occluded_segments(tree, &self.starts, &self.ends, &mut self.blocked, counters);
             }
             Grouping::Frusta => {
                 self.frustum.clear();

@@ -808,8 +808,12 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     check_cost_args(args)?;
     let registry = baselines::registry();
     let options = Options { tile: args.tile, culling: !args.no_culling, soft: args.soft_grouping.into() };
+    // A method that exists but has no per-point kernel: name the option that asked for one.
+    let strata = Options { soft: SoftGrouping::Strata, ..options };
     let selected = registry.select(&args.method, options).map_err(|e| match e {
-        Error::Usage(m) if m.contains("no per-point") => Error::Usage(format!("--soft-grouping per-point: {m}")),
+        Error::Usage(m) if options != strata && registry.select(&args.method, strata).is_ok() => {
+            Error::Usage(format!("--soft-grouping per-point: {m}"))
+        }
         e => e,
     })?;
     let (camera, view) = camera_for(&built.scene, args)?;
