@@ -183,7 +183,11 @@ fn traverse<G: LeafGroup, C: Counters, const ANY_HIT: bool, const SIMD: bool>(
     let mut index = 0usize;
     let (mut t0_wide, mut t1_wide) = (widen_down(t0), widen_up(t1));
     loop {
-        let node = nodes[index];
+        // SAFETY: `index` is the root (0), a child of an inner node, or a stack entry pushed
+        // as one, and `KdTree`'s invariant (checked by `KdTree::assemble`, through which every
+        // tree is made) puts the root and every inner node's children in `nodes`. The bounds
+        // check this skips cost 2% of single-ray throughput.
+        let node = unsafe { *nodes.get_unchecked(index) };
         counters.node();
         if !node.is_leaf() {
             // Inner node: front voxel, back voxel or both.

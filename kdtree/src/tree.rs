@@ -15,6 +15,9 @@ use crate::{Aabb, KdNode};
 /// record per triangle for the tree's [`Intersector`] (the packet, frustum, cone and
 /// edge-width kernels read them through `prim_refs`), and the SIMD leaves: group `g` of
 /// [`crate::leaf`] holds the records of references `4g .. 4g + 4` (what single rays read).
+///
+/// Invariant (checked when the tree is made, relied on by the single-ray kernel's unchecked
+/// node reads): `nodes` is not empty and every inner node's children are in it.
 #[derive(Clone, Debug)]
 pub struct KdTree {
     pub(crate) nodes: Vec<KdNode>,
@@ -199,6 +202,10 @@ impl KdTree {
     /// references are laid out again in node order, each non-empty leaf's starting at a
     /// multiple of 4 (so that its SIMD groups are `first / 4 ..`), and the groups are made.
     /// Laying out an already laid-out tree again changes nothing.
+    ///
+    /// Every tree passes through here, which checks the invariant the single-ray kernel reads
+    /// nodes by without bounds checks: there is a root, and each inner node's two children
+    /// are in the node array.
     fn assemble(
         tris: Vec<[Vec3; 3]>,
         mut nodes: Vec<KdNode>,
@@ -206,6 +213,18 @@ impl KdTree {
         bounds: Aabb,
         config: &BuildConfig,
     ) -> Result<KdTree, String> {
+        if nodes.is_empty() {
+            return Err("no nodes".into());
+        }
+        if let Some((i, n)) = nodes.iter().enumerate().find(|(_, n)| !n.is_leaf() && n.left_child() + 1 >= nodes.len())
+        {
+            return Err(format!(
+                "node {i} has children {} and {} of {} nodes",
+                n.left_child(),
+                n.left_child() + 1,
+                nodes.len()
+            ));
+        }
         let prim_refs = align_leaves(&mut nodes, &prim_refs)?;
         let (mut wald, mut watertight, mut wald4, mut watertight4) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         match config.intersector {

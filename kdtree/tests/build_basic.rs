@@ -240,6 +240,12 @@ fn non_finite_input_is_an_error_naming_it() {
     }
     let e = from(&tris, &nodes, Aabb { max: v(1.0, f32::NAN, 0.0), ..bounds }).unwrap_err();
     assert!(e.contains("bounds") && e.contains("NaN"), "{e}");
+    // Children out of range, reachable or not: the single-ray kernel reads nodes unchecked.
+    let e = from(&tris, &[KdNode::inner(0, 0.5, 2), nodes[1], nodes[2]], bounds).unwrap_err();
+    assert!(e.contains("node 0") && e.contains("of 3"), "{e}");
+    let unreachable = [nodes[0], nodes[1], nodes[2], KdNode::inner(1, 0.5, 3)];
+    let e = from(&tris, &unreachable, bounds).unwrap_err();
+    assert!(e.contains("node 3") && e.contains("of 4"), "{e}");
 }
 
 /// Four small triangles at the corners of a box: priced per triangle (leaf width 1) the
