@@ -29,6 +29,14 @@ pub(crate) fn directions(raw: [Vec4; 3]) -> ([Vec4; 3], [Vec4; 3]) {
     (d, inv)
 }
 
+/// Four vectors, one per lane, as one `Vec4` per axis (and zeros in the fourth): a 4x4
+/// transpose in shuffles rather than scalar stores read back as vectors.
+#[inline(always)]
+fn axes(v: [Vec3; 4]) -> [Vec4; 4] {
+    let m = Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0)).transpose();
+    [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
+}
+
 /// Four rays in structure-of-arrays form.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
@@ -69,13 +77,8 @@ impl RayPacket {
         let fill = usable.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
         let rays = usable.map(|ray| ray.unwrap_or(fill));
         let valid = BVec4A::new(usable[0].is_some(), usable[1].is_some(), usable[2].is_some(), usable[3].is_some());
-        // Each vector field's four lanes as the columns of a matrix: its transpose has one
-        // axis per column (and zeros in the fourth), in shuffles rather than 48 scalar stores
-        // read back as vectors.
-        let soa = |field: fn(&Ray) -> Vec3| {
-            let m = Mat4::from_cols_array_2d(&rays.each_ref().map(|r| field(r).extend(0.0).to_array())).transpose();
-            [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
-        };
+        // Each vector field one axis per vector (`axes`).
+        let soa = |field: fn(&Ray) -> Vec3| axes(rays.each_ref().map(field));
         let lane =
             |field: fn(&Ray) -> f32| Vec4::new(field(&rays[0]), field(&rays[1]), field(&rays[2]), field(&rays[3]));
         RayPacket {
@@ -97,11 +100,7 @@ impl RayPacket {
     pub fn segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket {
         let n = origins.len().min(targets.len()).min(4);
         if n == 4 {
-            let soa = |v: &[Vec3]| {
-                let m =
-                    Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0)).transpose();
-                [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
-            };
+            let soa = |v: &[Vec3]| axes([v[0], v[1], v[2], v[3]]);
             let (o, t) = (soa(origins), soa(targets));
             let raw: [Vec4; 3] = std::array::from_fn(|a| t[a] - o[a]);
             let finite = |v: &[Vec4]| v.iter().fold(BVec4A::splat(true), |m, c| m & c.is_finite_mask());

@@ -247,11 +247,10 @@ impl ShadowJob<'_> {
         hard_shadow_ray(self.scene, self.surfaces, self.camera, x, y, hit)
     }
 
-    /// The ends of [`ShadowJob::ray`] (`shade::shadow_segment`): its origin and the light.
+    /// The ends of [`ShadowJob::ray`]: [`hard_shadow_segment`].
     #[inline]
     pub fn segment(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<(Vec3, Vec3)> {
-        let hit = hit.as_ref()?;
-        shade::shadow_segment(self.surfaces, &self.scene.point_light, self.camera.pixel_ray(x, y).1, hit)
+        hard_shadow_segment(self.scene, self.surfaces, self.camera, x, y, hit)
     }
 }
 
@@ -341,7 +340,7 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
 }
 
 /// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit` toward the scene's point
-/// light ([`shade::shadow_ray`], with `surfaces` the scene's [`shade::surfaces`]); `None` for
+/// light ([`shade::shadow_ray`]'s ray, with `surfaces` the scene's [`shade::surfaces`]); `None` for
 /// misses and surfaces facing away from the light. Every method traces exactly these rays.
 #[inline]
 pub fn hard_shadow_ray(
@@ -352,6 +351,21 @@ pub fn hard_shadow_ray(
     y: u32,
     hit: &Option<Hit>,
 ) -> Option<Ray> {
+    let (start, end) = hard_shadow_segment(scene, surfaces, camera, x, y, hit)?;
+    Some(Ray::new(start, end - start, 0.0, 1.0))
+}
+
+/// The ends of [`hard_shadow_ray`] ([`shade::shadow_segment`]): its origin and the light, for
+/// the kernels that build their packets from the ends (`packets::RayPacket::segments`).
+#[inline]
+pub fn hard_shadow_segment(
+    scene: &Scene,
+    surfaces: &Surfaces,
+    camera: &Camera,
+    x: u32,
+    y: u32,
+    hit: &Option<Hit>,
+) -> Option<(Vec3, Vec3)> {
     let hit = hit.as_ref()?;
-    shade::shadow_ray(surfaces, &scene.point_light, camera.pixel_ray(x, y).1, hit)
+    shade::shadow_segment(surfaces, &scene.point_light, camera.pixel_ray(x, y).1, hit)
 }
