@@ -722,10 +722,12 @@ mod tests {
             let differing = if bvh { m.prim_mismatch - m.prim_ties } else { m.prim_mismatch };
             assert_eq!(differing, 0, "{}: {m:?}", r.method);
             // Hard shadows: the BVHs' own, single rays for `mono`, shadow frusta for
-            // `multi-frusta-N`, 2x2 packets for the other tiled and packet methods.
+            // `multi-frusta-N`, frusta in SIMD lanes for `lane-frusta-N`, 2x2 packets for the
+            // other tiled and packet methods.
             let kernel = match r.method.as_str() {
                 m if bvh => m.to_string(),
                 "mono" => "kd-single".to_string(),
+                m if m.starts_with("lane-frusta-") => "kd-lane-frusta".to_string(),
                 m => m.strip_prefix("multi-frusta-").map_or("kd-packets".to_string(), |t| format!("kd-frusta-{t}")),
             };
             assert_eq!(r.shadow_kernel.as_deref(), Some(kernel.as_str()));
@@ -748,6 +750,7 @@ mod tests {
         assert_eq!(soft("mft-8").as_deref(), Some("kd-stratum-packets"));
         assert_eq!(soft("cone-16").as_deref(), Some("kd-stratum-packets"));
         assert_eq!(soft("multi-frusta-16").as_deref(), Some("kd-multi-frusta-16"));
+        assert_eq!(soft("lane-frusta-16").as_deref(), Some("kd-lane-frusta"));
         let text = report.to_string();
         assert!(text.contains("| mft-cone-16 |") && text.contains("| mbvh-4 |") && text.contains("ao Mrays/s"));
         let quiet = CompareConfig { no_incoherent: true, ..config(&["mbvh-4"]) };

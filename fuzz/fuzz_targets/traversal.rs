@@ -13,7 +13,7 @@ use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use libfuzzer_sys::fuzz_target;
-use packets::{OmniPacket, RayPacket, ShadowFrustum, TileMethod, TileTracer};
+use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, TileMethod, TileTracer};
 use trace::{Options, Registry, Structures};
 
 #[derive(Arbitrary, Debug)]
@@ -101,6 +101,32 @@ fuzz_target!(|input: Input| {
     for (i, (ray, &got)) in accepted.iter().zip(frustum.blocked()).enumerate() {
         let want = tree.occluded(ray);
         assert!(oracle.equivalent_occlusion(ray, got, want), "shadow frustum ray {i}: {got}, single ray {want}");
+    }
+    // Benthin & Wald's multi-frusta in SIMD lanes (`packets::lane_frusta`), at every width:
+    // each run of up to 16 rays' segments as pushed (mostly no shared end: ray by ray), and
+    // the same ends from the run's first origin (a shared apex: traced in lanes).
+    let mut frusta: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
+    for run in accepted.chunks(16) {
+        let ends: Vec<Vec3> = run.iter().map(|r| r.origin + r.dir).collect();
+        frusta.push((run.iter().map(|r| r.origin).collect(), ends.clone()));
+        frusta.push((vec![run[0].origin; run.len()], ends));
+    }
+    for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::Eight] {
+        let mut lanes = LaneFrusta::new();
+        for (starts, ends) in &frusta {
+            lanes.push(starts, ends);
+        }
+        lanes.trace(&tree, width, &mut NoCounters);
+        for (f, ((starts, ends), &mask)) in frusta.iter().zip(lanes.blocked()).enumerate() {
+            for (k, (&a, &b)) in starts.iter().zip(ends).enumerate() {
+                let ray = Ray::new(a, b - a, 0.0, 1.0);
+                let (got, want) = (mask >> k & 1 != 0, tree.occluded(&ray));
+                assert!(
+                    oracle.equivalent_occlusion(&ray, got, want),
+                    "lane frustum {f} ray {k} ({width:?}): {got}, single ray {want}"
+                );
+            }
+        }
     }
     for (c, four) in accepted.chunks(4).enumerate() {
         let found = packets::samesign::occluded(&tree, &RayPacket::new(four), &mut NoCounters).found.bitmask();

@@ -19,6 +19,9 @@
 //! - [`shadow_frustum`]: groups of shadow rays that share no origin (a tile's rays to a
 //!   light, or to one cell of an area light) as one frustum from the box of their starts to
 //!   the box of their ends (Benthin & Wald 2009), any hit per ray, exact per ray.
+//! - [`lane_frusta`]: Benthin & Wald's multi-frusta: shadow frusta that share one end (a
+//!   point's 16 soft-shadow rays, a 4x4 block's hard ones), 4 or 8 of them in SIMD lanes,
+//!   with plane and edge culling of each leaf triangle before any ray is made.
 //! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
 //! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant: the
 //!   scratch state of a trace.
@@ -36,6 +39,7 @@
 
 pub mod bound;
 pub mod frustum;
+pub mod lane_frusta;
 pub mod method;
 pub mod mirror;
 pub mod omni;
@@ -47,6 +51,7 @@ pub mod triangle4;
 
 pub use bound::FrustumBound;
 pub use frustum::Frusta;
+pub use lane_frusta::{LaneFrusta, LaneWidth};
 pub use method::TileMethod;
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use shadow_frustum::ShadowFrustum;

@@ -58,19 +58,19 @@ pub fn pad(tree_bounds: &Aabb, a: &Aabb, b: &Aabb) -> f32 {
 
 /// One axis of the swept box: `lo(s) = lo0 + s * lo_slope`, `hi(s) = hi0 + s * hi_slope`.
 #[derive(Clone, Copy, Debug, Default)]
-struct SweptAxis {
-    lo0: f32,
-    lo_slope: f32,
-    lo_inv: f32,
-    hi0: f32,
-    hi_slope: f32,
-    hi_inv: f32,
+pub(crate) struct SweptAxis {
+    pub(crate) lo0: f32,
+    pub(crate) lo_slope: f32,
+    pub(crate) lo_inv: f32,
+    pub(crate) hi0: f32,
+    pub(crate) hi_slope: f32,
+    pub(crate) hi_inv: f32,
 }
 
 impl SweptAxis {
     /// The part of `[s0, s1]` where `lo(s) <= p` (the lower child's share).
     #[inline(always)]
-    fn below(&self, s0: f32, s1: f32, p: f32) -> (f32, f32) {
+    pub(crate) fn below(&self, s0: f32, s1: f32, p: f32) -> (f32, f32) {
         if self.lo_slope > 0.0 {
             (s0, s1.min((p - self.lo0) * self.lo_inv))
         } else if self.lo_slope < 0.0 {
@@ -84,7 +84,7 @@ impl SweptAxis {
 
     /// The part of `[s0, s1]` where `hi(s) >= p` (the upper child's share).
     #[inline(always)]
-    fn above(&self, s0: f32, s1: f32, p: f32) -> (f32, f32) {
+    pub(crate) fn above(&self, s0: f32, s1: f32, p: f32) -> (f32, f32) {
         if self.hi_slope > 0.0 {
             (s0.max((p - self.hi0) * self.hi_inv), s1)
         } else if self.hi_slope < 0.0 {
@@ -487,7 +487,7 @@ fn lane_mask(bits: u8) -> BVec4A {
 }
 
 /// The swept box of segments starting in `a` and ending in `b`, both padded by `pad`.
-fn swept_axes(a: &Aabb, b: &Aabb, pad: f32) -> [SweptAxis; 3] {
+pub(crate) fn swept_axes(a: &Aabb, b: &Aabb, pad: f32) -> [SweptAxis; 3] {
     let (a_lo, a_hi) = (a.min - Vec3::splat(pad), a.max + Vec3::splat(pad));
     let (b_lo, b_hi) = (b.min - Vec3::splat(pad), b.max + Vec3::splat(pad));
     std::array::from_fn(|k| {

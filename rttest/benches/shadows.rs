@@ -2,9 +2,8 @@
 //! shadows from the same primary hits, as single rays, as 2x2 packets of neighbouring
 //! pixels' rays (`packet`, `mft-16`: per light stratum for soft shadows), under the thesis's
 //! pyramid and cone (`packet per-point`, `cone-16 per-point`, soft), and as Benthin & Wald's
-//! shadow frusta
-//! (`multi-frusta-16`), on the atrium and Sponza; and the rays alone, made and not traced
-//! (`rays-only`).
+//! shadow frusta (`multi-frusta-16`) and multi-frusta in SIMD lanes (`lane-frusta-16`), on
+//! the atrium and Sponza; and the rays alone, made and not traced (`rays-only`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 
@@ -18,6 +17,7 @@ fn shadows(c: &mut Criterion) {
         ("mft-16", Strata),
         ("cone-16", PerPoint),
         ("multi-frusta-16", Strata),
+        ("lane-frusta-16", Strata),
     ];
     common::bench_shadow_methods(c, "shadows", &methods);
 }

@@ -16,7 +16,7 @@
 use cones::shadows::SAMPLES;
 use cones::{Cone, ConeMethod, ShadowMethod, SoftShadowTracer};
 use kdtree::{Hit, KdTree, Ray};
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
+use packets::{LaneWidth, OmniPacket, RayPacket, TileMethod, TileTracer, omni, samesign};
 use scenes::{Camera, Tile};
 
 use crate::method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points};
@@ -71,6 +71,9 @@ pub enum TileShadows {
     /// Benthin & Wald's shadow frusta: one per tile for hard shadows, one per tile and light
     /// stratum for soft shadows.
     Frusta,
+    /// Benthin & Wald's multi-frusta in SIMD lanes (`packets::lane_frusta`): each 4x4
+    /// block's hard shadow rays, each point's 16 soft-shadow rays, one frustum per lane.
+    Lanes(LaneWidth),
 }
 
 /// A tile kernel over our kd-tree, with its tile size, packet/leaf culling switch and shadow
@@ -161,6 +164,7 @@ impl Method for Tiled<'_> {
         let grouping = match self.shadows {
             TileShadows::Packets => Grouping::Packets,
             TileShadows::Frusta => Grouping::Frusta,
+            TileShadows::Lanes(width) => Grouping::Lanes(width),
         };
         shadow_frusta::hard(self.tree, grouping, &mut scratch.shadows, job, out, c)
     }
@@ -177,6 +181,7 @@ impl Method for Tiled<'_> {
     ) -> SoftStats {
         let grouping = match (self.shadows, self.soft) {
             (TileShadows::Frusta, _) => Grouping::Frusta,
+            (TileShadows::Lanes(width), _) => Grouping::Lanes(width),
             (TileShadows::Packets, SoftGrouping::Strata) => Grouping::Packets,
             (TileShadows::Packets, SoftGrouping::PerPoint) => {
                 return soft_by_points(self, scratch, job, visible, counters);

@@ -14,7 +14,7 @@
 use std::any::Any;
 
 use kdtree::KdTree;
-use packets::TileMethod;
+use packets::{LaneWidth, TileMethod};
 use scenes::Scene;
 
 use crate::Error;
@@ -29,8 +29,8 @@ pub const KDTREE: &str = "kdtree";
 /// Default tile side: the unit of work of a thread, and the frustum of the tiled methods.
 pub const TILE_SIZE: u32 = 16;
 
-/// How a method is bound to its structure: tile size, packet/leaf culling and soft-shadow
-/// grouping.
+/// How a method is bound to its structure: tile size, packet/leaf culling, soft-shadow
+/// grouping and the SIMD lanes of `lane-frusta`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Options {
     /// Tile side: the frame driver's unit of work, and the frustum (or cone) of the tiled
@@ -40,11 +40,14 @@ pub struct Options {
     pub culling: bool,
     /// How the tiled methods group their 16-sample soft-shadow rays.
     pub soft: SoftGrouping,
+    /// How many shadow frusta `lane-frusta` traces at once (`packets::lane_frusta`): by
+    /// default the widest this CPU runs natively ([`LaneWidth::widest`]).
+    pub lanes: LaneWidth,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { tile: TILE_SIZE, culling: true, soft: SoftGrouping::Strata }
+        Options { tile: TILE_SIZE, culling: true, soft: SoftGrouping::Strata, lanes: LaneWidth::widest() }
     }
 }
 
@@ -270,6 +273,18 @@ impl Registry {
             |s, o| {
                 Ok(Box::new(Driven(
                     tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Frusta),
+                )))
+            },
+        ));
+        r.add(ours(
+            "lane-frusta",
+            "MFT primaries; shadows as Benthin & Wald's (2009) multi-frusta in SIMD lanes: a 4x4 block's or a point's rays per frustum, 8 (AVX2) or 4 frusta at once",
+            true,
+            true,
+            ("kd-lane-frusta", "kd-lane-frusta", None),
+            |s, o| {
+                Ok(Box::new(Driven(
+                    tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Lanes(o.lanes)),
                 )))
             },
         ));

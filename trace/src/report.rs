@@ -287,6 +287,10 @@ pub struct TraversalReport {
     pub shadow_leaves_per_ray: f64,
     /// Ray-triangle tests per shadow ray.
     pub shadow_isects_per_ray: f64,
+    /// Percentage of what the shadow kernel considered at leaves that it culled before any
+    /// ray test (packets for the frustum kernels, frustum-triangle pairs for `lane-frusta`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shadow_culled_percent: Option<f64>,
 }
 
 impl TraversalReport {
@@ -314,6 +318,7 @@ impl TraversalReport {
             shadow_nodes_per_ray: per(shadow.nodes, shadow_rays),
             shadow_leaves_per_ray: per(shadow.leaves, shadow_rays),
             shadow_isects_per_ray: per(shadow.tests, shadow_rays),
+            shadow_culled_percent: shadow.culled_percent(),
         }
     }
 }
@@ -440,6 +445,9 @@ impl fmt::Display for RenderReport {
                     Some(c) => writeln!(f, ", {c:.1}% of packets culled at leaves")?,
                     None => writeln!(f)?,
                 }
+            }
+            if let Some(c) = t.shadow_culled_percent {
+                writeln!(f, "shadow       {c:.1}% culled at leaves before any ray test")?;
             }
         }
         match &self.out {

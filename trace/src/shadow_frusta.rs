@@ -23,7 +23,8 @@
 use cones::shadows::SAMPLES;
 use glam::Vec3;
 use kdtree::{KdTree, Ray};
-use packets::{ShadowFrustum, samesign};
+use packets::lane_frusta::FRUSTUM_RAYS;
+use packets::{LaneFrusta, LaneWidth, ShadowFrustum, samesign};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
@@ -35,12 +36,16 @@ pub enum Grouping {
     Packets,
     /// One shadow frustum per tile (and light stratum), split where wide.
     Frusta,
+    /// Frusta that share one end, several in SIMD lanes (`packets::lane_frusta`): each 4x4
+    /// block's hard shadow rays (the light their apex), each point's 16 soft-shadow rays.
+    Lanes(LaneWidth),
 }
 
 /// Per-thread space for one tile's shadow rays.
 #[derive(Debug, Default)]
 pub struct ShadowScratch {
     frustum: ShadowFrustum,
+    lanes: LaneFrusta,
     /// The rays of one group as segments (ray `i` is `Ray::new(starts[i], ends[i] -
     /// starts[i], 0, 1)`), and the pixel (tile index) of each.
     starts: Vec<Vec3>,
@@ -82,6 +87,18 @@ impl ShadowScratch {
         match grouping {
             Grouping::Packets => {
                 samesign::occluded_segments(tree, &self.starts, &self.ends, &mut self.blocked, counters);
+            }
+            Grouping::Lanes(width) => {
+                // Each run of 16 (a 4x4 block in Morton order) as one frustum.
+                self.lanes.clear();
+                for (starts, ends) in self.starts.chunks(FRUSTUM_RAYS).zip(self.ends.chunks(FRUSTUM_RAYS)) {
+                    self.lanes.push(starts, ends);
+                }
+                self.lanes.trace(tree, width, counters);
+                for (f, &mask) in self.lanes.blocked().iter().enumerate() {
+                    let count = (self.starts.len() - f * FRUSTUM_RAYS).min(FRUSTUM_RAYS);
+                    self.blocked.extend((0..count).map(|k| mask >> k & 1 != 0));
+                }
             }
             Grouping::Frusta => {
                 self.frustum.clear();
@@ -163,20 +180,37 @@ pub fn soft<C: TileCounters>(
     scratch.masks.clear();
     scratch.masks.resize(visible.len(), 0);
     scratch.morton_order(job.hits.tile);
-    for k in 0..SAMPLES {
-        scratch.clear();
-        let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
+    if let Grouping::Lanes(width) = grouping {
+        // Each point's 16 rays, which share its origin, as one frustum.
+        let ShadowScratch { soft, order, lanes, slots, masks, .. } = &mut *scratch;
+        lanes.clear();
+        slots.clear();
         for &i in order.iter() {
             if let Some((start, samples)) = &soft[i as usize] {
-                // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
-                starts.push(*start);
-                ends.push(samples[k]);
+                lanes.push(&[*start; SAMPLES], samples);
                 slots.push(i);
             }
         }
-        scratch.trace(tree, grouping, counters);
-        for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
-            scratch.masks[slot as usize] |= u16::from(b) << k;
+        lanes.trace(tree, width, counters);
+        for (&slot, &mask) in slots.iter().zip(lanes.blocked()) {
+            masks[slot as usize] = mask;
+        }
+    } else {
+        for k in 0..SAMPLES {
+            scratch.clear();
+            let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
+            for &i in order.iter() {
+                if let Some((start, samples)) = &soft[i as usize] {
+                    // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
+                    starts.push(*start);
+                    ends.push(samples[k]);
+                    slots.push(i);
+                }
+            }
+            scratch.trace(tree, grouping, counters);
+            for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
+                scratch.masks[slot as usize] |= u16::from(b) << k;
+            }
         }
     }
     let mut stats = SoftStats::default();

@@ -12,6 +12,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
 use kdtree::treefile::Checks;
 use kdtree::{BuildConfig, BuildStrategy, CostModel, Intersector, KdTree};
+use packets::LaneWidth;
 use scenes::{Camera, Scene};
 use serde::Serialize;
 use trace::registry::{KDTREE, Selected, TILE_SIZE};
@@ -379,6 +380,10 @@ pub struct RenderArgs {
     /// thesis's, Table 4.6; packet, samesign, frustum, mft, cone and mft-cone).
     #[arg(long, value_enum, default_value_t = SoftGroupingArg::Strata)]
     pub soft_grouping: SoftGroupingArg,
+    /// How many shadow frusta `lane-frusta` traces at once: the widest this CPU runs (8
+    /// with AVX2, else 4), or 1 (the scalar twin), 4 or 8.
+    #[arg(long, value_enum, default_value_t = LanesArg::Auto)]
+    pub lanes: LanesArg,
     /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray
     /// (and, for packet methods, per 2x2 packet).
     #[arg(long)]
@@ -416,6 +421,33 @@ impl From<SoftGroupingArg> for SoftGrouping {
         match arg {
             SoftGroupingArg::Strata => SoftGrouping::Strata,
             SoftGroupingArg::PerPoint => SoftGrouping::PerPoint,
+        }
+    }
+}
+
+/// `--lanes` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LanesArg {
+    /// The widest this CPU runs natively.
+    Auto,
+    /// One frustum at a time (the scalar twin).
+    #[value(name = "1")]
+    One,
+    /// Four frusta (SSE).
+    #[value(name = "4")]
+    Four,
+    /// Eight frusta (AVX2; four without it).
+    #[value(name = "8")]
+    Eight,
+}
+
+impl From<LanesArg> for LaneWidth {
+    fn from(arg: LanesArg) -> LaneWidth {
+        match arg {
+            LanesArg::Auto => LaneWidth::widest(),
+            LanesArg::One => LaneWidth::Scalar,
+            LanesArg::Four => LaneWidth::Four,
+            LanesArg::Eight => LaneWidth::Eight,
         }
     }
 }
@@ -807,7 +839,12 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     }
     check_cost_args(args)?;
     let registry = baselines::registry();
-    let options = Options { tile: args.tile, culling: !args.no_culling, soft: args.soft_grouping.into() };
+    let options = Options {
+        tile: args.tile,
+        culling: !args.no_culling,
+        soft: args.soft_grouping.into(),
+        lanes: args.lanes.into(),
+    };
     // A method that exists but has no per-point kernel: name the option that asked for one.
     let strata = Options { soft: SoftGrouping::Strata, ..options };
     let selected = registry.select(&args.method, options).map_err(|e| match e {
