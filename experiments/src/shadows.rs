@@ -36,7 +36,7 @@ use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_fact
 use glam::Vec3;
 use kdtree::surface::Surfaces;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
-use packets::{RayPacket, samesign};
+use packets::{LaneFrusta, LaneWidth, RayPacket, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Image, Scene, SphereLight, View};
@@ -174,6 +174,9 @@ pub enum ShadowMethod {
     /// packets of neighbouring pixels' rays (`trace::shadow_frusta`'s grouping, Benthin &
     /// Wald 2009).
     SampledPackets(u32),
+    /// The same `N` samples (at most 16), each pixel's rays as one frustum, several pixels'
+    /// in SIMD lanes (`packets::lane_frusta`, Benthin & Wald 2009's multi-frusta).
+    SampledLanes(u32),
     /// Four probes of the 16 stratified samples per pixel, all 16 where the probes of the
     /// pixel or a neighbour disagree (`edgewidth::adaptive`).
     Adaptive,
@@ -184,7 +187,7 @@ pub enum ShadowMethod {
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 12] = [
+pub const METHODS: [ShadowMethod; 13] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
@@ -192,6 +195,7 @@ pub const METHODS: [ShadowMethod; 12] = [
     ShadowMethod::Sampled(8),
     ShadowMethod::Sampled(16),
     ShadowMethod::SampledPackets(16),
+    ShadowMethod::SampledLanes(16),
     ShadowMethod::Adaptive,
     ShadowMethod::Sampled(32),
     ShadowMethod::Sampled(256),
@@ -208,6 +212,7 @@ impl ShadowMethod {
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Sampled(n) => format!("sampled-{n}"),
             ShadowMethod::SampledPackets(n) => format!("sampled-{n}-packets"),
+            ShadowMethod::SampledLanes(n) => format!("sampled-{n}-lanes"),
             ShadowMethod::Adaptive => "adaptive-16".into(),
             ShadowMethod::InterleavedRaw => "interleaved-16-raw".into(),
             ShadowMethod::Interleaved => "interleaved-16".into(),
@@ -363,6 +368,7 @@ impl<'a> ShadowSetup<'a> {
                 }
             }
             ShadowMethod::SampledPackets(n) => rays = self.sampled_packets(n, tile, hits, out),
+            ShadowMethod::SampledLanes(n) => rays = self.sampled_lanes(n, tile, hits, out),
             _ => {
                 let mut scratch = EdgeScratch::default();
                 for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
@@ -391,7 +397,10 @@ impl<'a> ShadowSetup<'a> {
                             rays += 16;
                             sets.visible_fraction(tree, &self.light, &p, x, y)
                         }
-                        ShadowMethod::EdgeWidthPacket | ShadowMethod::SampledPackets(_) | ShadowMethod::Adaptive => {
+                        ShadowMethod::EdgeWidthPacket
+                        | ShadowMethod::SampledPackets(_)
+                        | ShadowMethod::SampledLanes(_)
+                        | ShadowMethod::Adaptive => {
                             unreachable!("handled above")
                         }
                     };
@@ -502,6 +511,35 @@ impl<'a> ShadowSetup<'a> {
         count_visible_by_sample(self.tree, &morton_order(w, tile.height()), &samples, ray, &mut visible);
         for ((slot, hit), v) in out.iter_mut().zip(hits).zip(visible) {
             *slot = if hit.is_some() { v as f32 / n as f32 } else { 0.0 };
+        }
+        u64::from(n) * hits.iter().filter(|h| h.is_some()).count() as u64
+    }
+
+    /// [`ShadowMethod::SampledLanes`] on one tile: each pixel's `n` rays (`n <= 16`) exactly
+    /// as `visible_fraction` makes them (same seed), as one frustum, the tile's frusta in
+    /// Morton order of their pixels, 8 or 4 at a time in SIMD lanes (`LaneWidth::widest`).
+    /// A sample without a ray counts as blocked, as in [`count_visible_by_sample`]. Returns
+    /// the rays traced (`n` per hit).
+    fn sampled_lanes(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
+        let grid = strata(n);
+        let w = tile.width();
+        let mut lanes = LaneFrusta::new();
+        let mut slots = Vec::new();
+        for i in morton_order(w, tile.height()) {
+            let i = i as usize;
+            let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
+            let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
+            let positions: Vec<_> = (0..n).map(|k| stratified(k, grid, &mut rng)).collect();
+            let Some(p) = hits[i].as_ref().map(|hit| self.shading_point(x, y, hit)) else { continue };
+            let (starts, ends): (Vec<Vec3>, Vec<Vec3>) =
+                positions.iter().filter_map(|&pos| p.shadow_segment(self.light.sample(p.point, pos))).unzip();
+            lanes.push(&starts, &ends);
+            slots.push((i, starts.len() as u32));
+        }
+        lanes.trace(self.tree, LaneWidth::widest(), &mut NoCounters);
+        out.fill(0.0);
+        for (&(i, rays), &blocked) in slots.iter().zip(lanes.blocked()) {
+            out[i] = (rays - blocked.count_ones()) as f32 / n as f32;
         }
         u64::from(n) * hits.iter().filter(|h| h.is_some()).count() as u64
     }
@@ -1095,12 +1133,15 @@ mod tests {
     }
 
     #[test]
-    fn sampled_packets_give_the_sampled_frame() {
+    fn sampled_packets_and_lanes_give_the_sampled_frame() {
         on_touching_boxes(|setup| {
             let single = setup.frame(ShadowMethod::Sampled(16));
             let packets = setup.frame(ShadowMethod::SampledPackets(16));
             assert_eq!(single.visibility, packets.visibility);
             assert_eq!(single.shadow_rays, packets.shadow_rays);
+            let lanes = setup.frame(ShadowMethod::SampledLanes(16));
+            assert_eq!(single.visibility, lanes.visibility);
+            assert_eq!(single.shadow_rays, lanes.shadow_rays);
             assert!(single.visibility.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
         });
     }

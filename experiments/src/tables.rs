@@ -71,7 +71,8 @@ struct SoftRow {
     scene: String,
     /// Light radius in Sponza units (scaled to the scene).
     radius: f32,
-    /// The row's name (`single`, `pyramid`, `cone`, `stratum packets`, `multi-frusta`).
+    /// The row's name (`single`, `pyramid`, `cone`, `stratum packets`, `multi-frusta`,
+    /// `lane frusta`).
     label: &'static str,
     /// The thesis's method, for the thesis's rows.
     thesis: Option<ShadowMethod>,
@@ -215,14 +216,16 @@ fn measure(
 /// The rows of Table 4.6: (name, the registered method and soft-shadow grouping whose kernel
 /// it is, the thesis's method). The thesis's three per point (single rays, the pyramid of the
 /// 16 rays, their cone), then each tile's rays to each light stratum as 2x2 packets (`mft`,
-/// the default of every packet and cone method) and as Benthin & Wald's shadow frusta
-/// (`multi-frusta`).
-const SOFT_ROWS: [(&str, &str, SoftGrouping, Option<ShadowMethod>); 5] = [
+/// the default of every packet and cone method), as Benthin & Wald's shadow frusta
+/// (`multi-frusta`), and each point's 16 rays as one of their multi-frusta in SIMD lanes
+/// (`lane-frusta`).
+const SOFT_ROWS: [(&str, &str, SoftGrouping, Option<ShadowMethod>); 6] = [
     ("single", "mono", SoftGrouping::Strata, Some(ShadowMethod::Single)),
     ("pyramid", "packet", SoftGrouping::PerPoint, Some(ShadowMethod::Pyramid)),
     ("cone", "cone", SoftGrouping::PerPoint, Some(ShadowMethod::Cone)),
     ("stratum packets", "mft", SoftGrouping::Strata, None),
     ("multi-frusta", "multi-frusta", SoftGrouping::Strata, None),
+    ("lane frusta", "lane-frusta", SoftGrouping::Strata, None),
 ];
 
 /// Times the 16-sample soft shadows of every hit of the default view to a spherical light at
@@ -577,7 +580,7 @@ fn soft_markdown(rows: &[SoftRow], config: &TablesConfig, threads: usize) -> Str
     );
     let _ = writeln!(
         out,
-        "Default views, {w}x{h}, {} threads, best of {} frames of the shadow pass alone (primary hits made once by single rays). Light at the scene's point light, radius 1 and 2 in Sponza units scaled by the scene's diagonal / {:.2}. fps = 1 / shadow pass; N = traversal steps and I = packet-triangle tests (single rays: tests / 4) per shaded point of 16 rays (multi-frusta: ray-triangle tests at frustum leaves plus packet-triangle tests of the 2x2 packets it hands over); every row agrees with single rays ray by ray (checked). `stratum packets` (`mft`) and `multi-frusta` trace each tile's rays to each of the 16 light strata together (Benthin & Wald 2009), as 2x2 packets or as shadow frusta.\n",
+        "Default views, {w}x{h}, {} threads, best of {} frames of the shadow pass alone (primary hits made once by single rays). Light at the scene's point light, radius 1 and 2 in Sponza units scaled by the scene's diagonal / {:.2}. fps = 1 / shadow pass; N = traversal steps and I = packet-triangle tests (single rays: tests / 4) per shaded point of 16 rays (multi-frusta: ray-triangle tests at frustum leaves plus packet-triangle tests of the 2x2 packets it hands over; lane frusta: steps of 8 or 4 frusta together, and 4-ray packet-triangle tests); every row agrees with single rays ray by ray (checked). `stratum packets` (`mft`) and `multi-frusta` trace each tile's rays to each of the 16 light strata together (Benthin & Wald 2009), as 2x2 packets or as shadow frusta; `lane frusta` (`lane-frusta`) each point's 16 rays as one frustum, several points in SIMD lanes.\n",
         threads,
         config.frames.min(3),
         soft::SPONZA_DIAGONAL
