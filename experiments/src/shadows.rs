@@ -33,7 +33,7 @@ use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
 use edgewidth::{AreaLight, EdgeScratch, LeakRemedies, edge_width, occlusion_factor, width_from_light};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use kdtree::surface::Surfaces;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{LaneFrusta, LaneWidth, RayPacket, samesign};
@@ -182,12 +182,15 @@ pub enum ShadowMethod {
     Adaptive,
     /// 4x4 interleaved sampling (16 samples), unfiltered.
     InterleavedRaw,
+    /// The same interleaved samples (the same rays, so the same image), each pixel's 16 as
+    /// one frustum in SIMD lanes (`packets::lane_frusta`), unfiltered.
+    InterleavedLanes,
     /// 4x4 interleaved sampling (16 samples) and the 4x4 discontinuity filter.
     Interleaved,
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 13] = [
+pub const METHODS: [ShadowMethod; 14] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
@@ -200,6 +203,7 @@ pub const METHODS: [ShadowMethod; 13] = [
     ShadowMethod::Sampled(32),
     ShadowMethod::Sampled(256),
     ShadowMethod::InterleavedRaw,
+    ShadowMethod::InterleavedLanes,
     ShadowMethod::Interleaved,
 ];
 
@@ -215,6 +219,7 @@ impl ShadowMethod {
             ShadowMethod::SampledLanes(n) => format!("sampled-{n}-lanes"),
             ShadowMethod::Adaptive => "adaptive-16".into(),
             ShadowMethod::InterleavedRaw => "interleaved-16-raw".into(),
+            ShadowMethod::InterleavedLanes => "interleaved-16-raw-lanes".into(),
             ShadowMethod::Interleaved => "interleaved-16".into(),
         }
     }
@@ -368,7 +373,17 @@ impl<'a> ShadowSetup<'a> {
                 }
             }
             ShadowMethod::SampledPackets(n) => rays = self.sampled_packets(n, tile, hits, out),
-            ShadowMethod::SampledLanes(n) => rays = self.sampled_lanes(n, tile, hits, out),
+            ShadowMethod::SampledLanes(n) => {
+                let grid = strata(n);
+                let positions = |x: u32, y: u32| {
+                    let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
+                    (0..n).map(|k| stratified(k, grid, &mut rng)).collect()
+                };
+                rays = self.lanes(n, tile, hits, out, positions);
+            }
+            ShadowMethod::InterleavedLanes => {
+                rays = self.lanes(16, tile, hits, out, |x, y| sets.for_pixel(x, y).to_vec())
+            }
             _ => {
                 let mut scratch = EdgeScratch::default();
                 for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
@@ -400,6 +415,7 @@ impl<'a> ShadowSetup<'a> {
                         ShadowMethod::EdgeWidthPacket
                         | ShadowMethod::SampledPackets(_)
                         | ShadowMethod::SampledLanes(_)
+                        | ShadowMethod::InterleavedLanes
                         | ShadowMethod::Adaptive => {
                             unreachable!("handled above")
                         }
@@ -515,24 +531,29 @@ impl<'a> ShadowSetup<'a> {
         u64::from(n) * hits.iter().filter(|h| h.is_some()).count() as u64
     }
 
-    /// [`ShadowMethod::SampledLanes`] on one tile: each pixel's `n` rays (`n <= 16`) exactly
-    /// as `visible_fraction` makes them (same seed), as one frustum, the tile's frusta in
-    /// Morton order of their pixels, 8 or 4 at a time in SIMD lanes (`LaneWidth::widest`).
-    /// A sample without a ray counts as blocked, as in [`count_visible_by_sample`]. Returns
-    /// the rays traced (`n` per hit).
-    fn sampled_lanes(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
-        let grid = strata(n);
+    /// [`ShadowMethod::SampledLanes`] and [`ShadowMethod::InterleavedLanes`] on one tile:
+    /// each pixel's `n` rays (`n <= 16`, to the light positions `positions(x, y)`, as the
+    /// single-ray methods make them) as one frustum, the tile's frusta in Morton order of
+    /// their pixels, 8 or 4 at a time in SIMD lanes (`LaneWidth::widest`). A sample without a
+    /// ray counts as blocked, as in [`count_visible_by_sample`]. Returns the rays traced (`n`
+    /// per hit).
+    fn lanes(
+        &self,
+        n: u32,
+        tile: &scenes::Tile,
+        hits: &[Option<Hit>],
+        out: &mut [f32],
+        positions: impl Fn(u32, u32) -> Vec<Vec2>,
+    ) -> u64 {
         let w = tile.width();
         let mut lanes = LaneFrusta::new();
         let mut slots = Vec::new();
         for i in morton_order(w, tile.height()) {
             let i = i as usize;
             let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
-            let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
-            let positions: Vec<_> = (0..n).map(|k| stratified(k, grid, &mut rng)).collect();
             let Some(p) = hits[i].as_ref().map(|hit| self.shading_point(x, y, hit)) else { continue };
             let (starts, ends): (Vec<Vec3>, Vec<Vec3>) =
-                positions.iter().filter_map(|&pos| p.shadow_segment(self.light.sample(p.point, pos))).unzip();
+                positions(x, y).iter().filter_map(|&pos| p.shadow_segment(self.light.sample(p.point, pos))).unzip();
             lanes.push(&starts, &ends);
             slots.push((i, starts.len() as u32));
         }
@@ -1171,7 +1192,7 @@ mod tests {
     }
 
     #[test]
-    fn interleaved_frames_are_the_raw_ones_filtered() {
+    fn interleaved_frames_are_the_raw_ones_filtered_and_lanes_give_the_raw_ones() {
         let scene = scenes::load_scene("touching-boxes").unwrap();
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(40, 30).unwrap();
@@ -1182,6 +1203,9 @@ mod tests {
         assert_eq!(raw.shadow_rays, 16 * raw.hits.iter().flatten().count() as u64);
         assert_eq!(setup.filtered(&raw.hits, &raw.visibility), filtered.visibility);
         assert_ne!(raw.visibility, filtered.visibility, "the filter changes something here");
+        // The same rays as frusta in SIMD lanes: the raw image, bit for bit.
+        let lanes = setup.frame(ShadowMethod::InterleavedLanes);
+        assert_eq!((lanes.visibility, lanes.shadow_rays), (raw.visibility, raw.shadow_rays));
     }
 
     #[test]
