@@ -685,7 +685,7 @@ impl fmt::Display for ShadowReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{:<16} {:<20} {:>9.2} ms {:>8.2} Mrays/s  rmse {:.4}  max {:.3}  psnr {:>6.2} dB{}",
+            "{:<16} {:<24} {:>9.2} ms {:>8.2} Mrays/s  rmse {:.4}  max {:.3}  psnr {:>6.2} dB{}",
             self.scene,
             self.method,
             self.ms_per_frame,
