@@ -43,16 +43,15 @@
 //! lanes without branches for the compiler to vectorise: [`LaneWidth::Scalar`] is the scalar
 //! twin (one frustum at a time), [`LaneWidth::Four`] four frusta, and [`LaneWidth::Eight`]
 //! eight, compiled for AVX2 and chosen at run time (`is_x86_feature_detected!`). All give the
-//! same answers, bit for bit (tested). On Zen 1 the widths differ by a few percent
-//! (`docs/results/coherent-shadows.md`): the leaves' ray tests, not the lane loops, hold the
-//! time.
+//! same answers, bit for bit (tested). On Zen 1, 8 lanes measure 1.1-1.4x faster than 4,
+//! and up to 1.8x the scalar twin (`docs/results/coherent-shadows.md`).
 
 use glam::{BVec4A, Vec3};
 use kdtree::triangle::{Intersector, WaldTriangle, WatertightTriangle};
 use kdtree::{Aabb, Counters, KdTree, Ray};
 
 use crate::packet::{PacketHit, RayPacket};
-use crate::shadow_frustum::{SweptAxis, pad, swept_axes};
+use crate::shadow_frustum::{SweptAxis, nearer_first, pad, swept_axes};
 use crate::triangle4::PacketTest;
 
 /// The most segments one frustum holds (a point's 16 soft-shadow rays, a 4x4 block's hard
@@ -347,23 +346,10 @@ impl LaneFrusta {
                         lower_first = lower_first.min(if l { lower.s0[i] } else { f32::INFINITY });
                         upper_first = upper_first.min(if u { upper.s0[i] } else { f32::INFINITY });
                     }
-                    match (lower_any, upper_any) {
-                        (true, true) => {
-                            let (first, second) =
-                                if lower_first <= upper_first { (lower, upper) } else { (upper, lower) };
-                            stack.push(second);
-                            current = first;
-                            continue;
-                        }
-                        (true, false) => {
-                            current = lower;
-                            continue;
-                        }
-                        (false, true) => {
-                            current = upper;
-                            continue;
-                        }
-                        (false, false) => {}
+                    let (lower, upper) = (lower_any.then_some(lower), upper_any.then_some(upper));
+                    if let Some(next) = nearer_first(lower, upper, lower_first <= upper_first, &mut stack) {
+                        current = next;
+                        continue;
                     }
                 } else if node.prim_count() > 0 {
                     counters.leaf();
@@ -720,47 +706,7 @@ impl<const L: usize> Lanes<L> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kdtree::BuildConfig;
-
-    /// A deterministic generator (xorshift).
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f32 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-
-        fn vec(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
-            lo + (hi - lo) * Vec3::new(self.next(), self.next(), self.next())
-        }
-    }
-
-    fn trees(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<KdTree> {
-        [Intersector::Wald, Intersector::Watertight]
-            .into_iter()
-            .map(|intersector| {
-                let config = BuildConfig { intersector, ..BuildConfig::default() };
-                KdTree::build(positions, triangles, &config).unwrap()
-            })
-            .collect()
-    }
-
-    fn soup(rng: &mut Rng, n: usize, lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for i in 0..n as u32 {
-            let c = rng.vec(lo, hi);
-            let s = (hi - lo).max_element() * 0.05;
-            for _ in 0..3 {
-                positions.push(c + rng.vec(Vec3::splat(-s), Vec3::splat(s)));
-            }
-            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        (positions, triangles)
-    }
+    use crate::test_support::{self, Rng, soup, trees};
 
     type Frustum = (Vec<Vec3>, Vec<Vec3>);
 
@@ -868,26 +814,10 @@ mod tests {
         }
     }
 
-    /// A grid of axis-aligned quads, so that split planes lie on the quads' planes.
+    /// The shared grid of quads, with a flat (zero-area) triangle and one with a repeated
+    /// vertex.
     fn grid() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for i in 0..6 {
-            for j in 0..6 {
-                let (x, z) = (i as f32, j as f32);
-                let y = ((i + j) % 3) as f32;
-                let base = positions.len() as u32;
-                positions.extend([
-                    Vec3::new(x, y, z),
-                    Vec3::new(x + 0.8, y, z),
-                    Vec3::new(x + 0.8, y, z + 0.8),
-                    Vec3::new(x, y, z + 0.8),
-                ]);
-                triangles.push([base, base + 1, base + 2]);
-                triangles.push([base, base + 2, base + 3]);
-            }
-        }
-        // A flat (zero-area) triangle and one with a repeated vertex.
+        let (mut positions, mut triangles) = test_support::grid();
         let base = positions.len() as u32;
         positions.extend([Vec3::new(1.0, 1.5, 1.0), Vec3::new(3.0, 1.5, 3.0), Vec3::new(2.0, 1.5, 2.0)]);
         triangles.push([base, base + 1, base + 2]);

@@ -46,6 +46,8 @@ pub mod omni;
 pub mod packet;
 pub mod samesign;
 pub mod shadow_frustum;
+#[cfg(test)]
+mod test_support;
 pub mod tile;
 pub mod triangle4;
 

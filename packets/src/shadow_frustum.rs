@@ -370,22 +370,11 @@ impl ShadowFrustum {
                     lower.hi[k] = p;
                     let mut upper = Deferred { node: left + 1, s0: r0, s1: r1, ..current };
                     upper.lo[k] = p;
-                    match (l0 <= l1, r0 <= r1) {
-                        (true, true) => {
-                            let (first, second) = if l0 <= r0 { (lower, upper) } else { (upper, lower) };
-                            stack.push(second);
-                            current = first;
-                            continue;
-                        }
-                        (true, false) => {
-                            current = lower;
-                            continue;
-                        }
-                        (false, true) => {
-                            current = upper;
-                            continue;
-                        }
-                        (false, false) => {}
+                    if let Some(next) =
+                        nearer_first((l0 <= l1).then_some(lower), (r0 <= r1).then_some(upper), l0 <= r0, &mut stack)
+                    {
+                        current = next;
+                        continue;
                     }
                 } else if node.prim_count() > 0 {
                     counters.leaf();
@@ -480,6 +469,20 @@ impl ShadowFrustum {
     }
 }
 
+/// The child a frustum goes on with: of two, the one entered first (`lower_first`: the lower
+/// one), the other deferred on `stack`; else the one it enters; `None` for neither.
+#[inline(always)]
+pub(crate) fn nearer_first<T>(lower: Option<T>, upper: Option<T>, lower_first: bool, stack: &mut Vec<T>) -> Option<T> {
+    match (lower, upper) {
+        (Some(lower), Some(upper)) => {
+            let (first, second) = if lower_first { (lower, upper) } else { (upper, lower) };
+            stack.push(second);
+            Some(first)
+        }
+        (one, None) | (None, one) => one,
+    }
+}
+
 /// The lanes of the bit mask `bits` as a `BVec4A`.
 #[inline(always)]
 fn lane_mask(bits: u8) -> BVec4A {
@@ -533,33 +536,7 @@ fn inside(rays: &RayPacket, lo: Vec3, hi: Vec3) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kdtree::BuildConfig;
-
-    /// A deterministic generator (xorshift).
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f32 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-
-        fn vec(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
-            lo + (hi - lo) * Vec3::new(self.next(), self.next(), self.next())
-        }
-    }
-
-    fn trees(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<KdTree> {
-        [Intersector::Wald, Intersector::Watertight]
-            .into_iter()
-            .map(|intersector| {
-                let config = BuildConfig { intersector, ..BuildConfig::default() };
-                KdTree::build(positions, triangles, &config).unwrap()
-            })
-            .collect()
-    }
+    use crate::test_support::{Rng, grid, soup, trees};
 
     /// Every ray's answer from the frustum equals the single ray's.
     fn check(tree: &KdTree, rays: &[Ray]) -> FrustumStats {
@@ -580,20 +557,6 @@ mod tests {
             }
         }
         group.stats()
-    }
-
-    fn soup(rng: &mut Rng, n: usize, lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for i in 0..n as u32 {
-            let c = rng.vec(lo, hi);
-            let s = (hi - lo).max_element() * 0.05;
-            for _ in 0..3 {
-                positions.push(c + rng.vec(Vec3::splat(-s), Vec3::splat(s)));
-            }
-            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        (positions, triangles)
     }
 
     /// Rays from points of `tile` (a box) to one light, as hard shadows.
@@ -647,28 +610,6 @@ mod tests {
                 check(&tree, &rays);
             }
         }
-    }
-
-    /// A grid of axis-aligned quads, so that split planes lie on the quads' planes.
-    fn grid() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for i in 0..6 {
-            for j in 0..6 {
-                let (x, z) = (i as f32, j as f32);
-                let y = ((i + j) % 3) as f32;
-                let base = positions.len() as u32;
-                positions.extend([
-                    Vec3::new(x, y, z),
-                    Vec3::new(x + 0.8, y, z),
-                    Vec3::new(x + 0.8, y, z + 0.8),
-                    Vec3::new(x, y, z + 0.8),
-                ]);
-                triangles.push([base, base + 1, base + 2]);
-                triangles.push([base, base + 2, base + 3]);
-            }
-        }
-        (positions, triangles)
     }
 
     #[test]
