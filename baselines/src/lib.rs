@@ -5,7 +5,7 @@
 //! Each is a [`trace::Method`], so the frame driver runs it over a frame exactly as it runs
 //! ours (rayon over the same tiles, per-pixel buffers in tile order, ray generation inside
 //! the timed pass), and with exactly our rays: primary rays from `scenes::Camera::pixel_ray`,
-//! hard shadow rays from `trace::method::hard_shadow_ray` on *our* single-ray hits,
+//! hard shadow rays from `trace::method::hard_shadow_segment` on *our* single-ray hits,
 //! soft-shadow rays from `trace::soft::shadow_start` and `cones::shadows`.
 //!
 //! - `embree`: our own small FFI to Embree 3 (device, scene, `rtcIntersect1/4/8/16`,

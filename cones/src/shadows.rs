@@ -142,7 +142,7 @@ pub fn shadow_rays(origin: Vec3, samples: &[Vec3; SAMPLES]) -> [Ray; SAMPLES] {
 /// One of [`shadow_rays`]: from `origin` to the light sample `sample`, over `[0, 1]`.
 #[inline]
 pub fn shadow_ray(origin: Vec3, sample: Vec3) -> Ray {
-    Ray::new(origin, sample - origin, 0.0, 1.0)
+    Ray::segment(origin, sample)
 }
 
 /// Scratch space for tracing groups of 16 shadow rays from one point, one per thread.
@@ -334,7 +334,7 @@ mod tests {
         let mut rays = good;
         let q = Vec3::new(0.5, 0.0, 0.0);
         for r in &mut rays[8..] {
-            *r = Ray::new(q, light.center - q, 0.0, 1.0);
+            *r = Ray::segment(q, light.center);
         }
         cases.push((rays, 0xFFFF));
         for (rays, mask) in cases {

@@ -183,11 +183,11 @@ impl ShadingPoint {
     #[inline]
     pub fn shadow_ray(&self, target: Vec3) -> Option<Ray> {
         let (start, target) = self.shadow_segment(target)?;
-        Some(Ray::new(start, target - start, 0.0, 1.0))
+        Some(Ray::segment(start, target))
     }
 
     /// The ends of [`ShadingPoint::shadow_ray`]: its origin and `target` (the ray is
-    /// `Ray::new(start, target - start, 0.0, 1.0)`), for kernels that build their packets
+    /// `Ray::segment(start, target)`), for kernels that build their packets
     /// from the ends (`packets::RayPacket::segments`).
     #[inline]
     pub fn shadow_segment(&self, target: Vec3) -> Option<(Vec3, Vec3)> {

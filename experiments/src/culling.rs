@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
 use serde::Serialize;
 use trace::frame::stream_occluded_pass;
-use trace::method::{hard_shadow_ray, primary_ray};
+use trace::method::{hard_shadow_segment, primary_ray};
 use trace::progress::Progress;
 use trace::setup::view_camera;
 use trace::timing::{median, timed};
@@ -62,8 +62,8 @@ pub fn shadow_rays(scene: &Scene, tree: &KdTree, camera: &Camera) -> Vec<Ray> {
             let mut out = Vec::new();
             for x in 0..camera.width {
                 let hit: Option<Hit> = tree.intersect(&primary_ray(camera, x, y));
-                if let Some(ray) = hard_shadow_ray(scene, &surfaces, camera, x, y, &hit) {
-                    out.push(ray);
+                if let Some((start, end)) = hard_shadow_segment(scene, &surfaces, camera, x, y, &hit) {
+                    out.push(Ray::segment(start, end));
                 }
             }
             out

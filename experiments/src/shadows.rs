@@ -373,16 +373,9 @@ impl<'a> ShadowSetup<'a> {
                 }
             }
             ShadowMethod::SampledPackets(n) => rays = self.sampled_packets(n, tile, hits, out),
-            ShadowMethod::SampledLanes(n) => {
-                let grid = strata(n);
-                let positions = |x: u32, y: u32| {
-                    let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
-                    (0..n).map(|k| stratified(k, grid, &mut rng)).collect()
-                };
-                rays = self.lanes(n, tile, hits, out, positions);
-            }
+            ShadowMethod::SampledLanes(n) => rays = self.lanes(n, tile, hits, out, |x, y| pixel_samples(x, y, n)),
             ShadowMethod::InterleavedLanes => {
-                rays = self.lanes(16, tile, hits, out, |x, y| sets.for_pixel(x, y).to_vec())
+                rays = self.lanes(16, tile, hits, out, |x, y| sets.for_pixel(x, y).iter().copied())
             }
             _ => {
                 let mut scratch = EdgeScratch::default();
@@ -505,7 +498,6 @@ impl<'a> ShadowSetup<'a> {
     /// ([`count_visible_by_sample`]). Returns the rays traced (`n` per hit, as
     /// [`ShadowMethod::Sampled`] counts them).
     fn sampled_packets(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
-        let grid = strata(n);
         let w = tile.width();
         // Per pixel, its shading point; its `n` sample positions at `n * i ..`.
         let mut positions = Vec::with_capacity(n as usize * hits.len());
@@ -514,8 +506,7 @@ impl<'a> ShadowSetup<'a> {
             .enumerate()
             .map(|(i, hit)| {
                 let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
-                let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
-                positions.extend((0..n).map(|k| stratified(k, grid, &mut rng)));
+                positions.extend(pixel_samples(x, y, n));
                 hit.as_ref().map(|hit| self.shading_point(x, y, hit))
             })
             .collect();
@@ -537,23 +528,29 @@ impl<'a> ShadowSetup<'a> {
     /// their pixels, 8 or 4 at a time in SIMD lanes (`LaneWidth::widest`). A sample without a
     /// ray counts as blocked, as in [`count_visible_by_sample`]. Returns the rays traced (`n`
     /// per hit).
-    fn lanes(
+    fn lanes<P: IntoIterator<Item = Vec2>>(
         &self,
         n: u32,
         tile: &scenes::Tile,
         hits: &[Option<Hit>],
         out: &mut [f32],
-        positions: impl Fn(u32, u32) -> Vec<Vec2>,
+        positions: impl Fn(u32, u32) -> P,
     ) -> u64 {
         let w = tile.width();
         let mut lanes = LaneFrusta::new();
-        let mut slots = Vec::new();
+        let (mut slots, mut starts, mut ends) = (Vec::new(), Vec::new(), Vec::new());
         for i in morton_order(w, tile.height()) {
             let i = i as usize;
             let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
             let Some(p) = hits[i].as_ref().map(|hit| self.shading_point(x, y, hit)) else { continue };
-            let (starts, ends): (Vec<Vec3>, Vec<Vec3>) =
-                positions(x, y).iter().filter_map(|&pos| p.shadow_segment(self.light.sample(p.point, pos))).unzip();
+            starts.clear();
+            ends.clear();
+            for pos in positions(x, y) {
+                if let Some((start, end)) = p.shadow_segment(self.light.sample(p.point, pos)) {
+                    starts.push(start);
+                    ends.push(end);
+                }
+            }
             lanes.push(&starts, &ends);
             slots.push((i, starts.len() as u32));
         }
@@ -623,6 +620,14 @@ impl<'a> ShadowSetup<'a> {
         });
         vis
     }
+}
+
+/// Pixel `(x, y)`'s `n` stratified light positions, as `visible_fraction` draws them for
+/// `sampled-N` (the same seed, so the same rays).
+fn pixel_samples(x: u32, y: u32, n: u32) -> impl Iterator<Item = Vec2> {
+    let grid = strata(n);
+    let mut rng = Rng::new(pixel_seed(x, y, u64::from(n)));
+    (0..n).map(move |k| stratified(k, grid, &mut rng))
 }
 
 /// Adds to `visible[i]` how many of pixel `i`'s rays are not blocked, the ray of sample `k`

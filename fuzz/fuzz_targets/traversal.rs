@@ -119,7 +119,7 @@ fuzz_target!(|input: Input| {
         lanes.trace(&tree, width, &mut NoCounters);
         for (f, ((starts, ends), &mask)) in frusta.iter().zip(lanes.blocked()).enumerate() {
             for (k, (&a, &b)) in starts.iter().zip(ends).enumerate() {
-                let ray = Ray::new(a, b - a, 0.0, 1.0);
+                let ray = Ray::segment(a, b);
                 let (got, want) = (mask >> k & 1 != 0, tree.occluded(&ray));
                 assert!(
                     oracle.equivalent_occlusion(&ray, got, want),
@@ -135,10 +135,10 @@ fuzz_target!(|input: Input| {
             assert!(oracle.equivalent_occlusion(ray, got, want), "shadow packet {c} lane {lane}: {got}, single {want}");
         }
         // The same rays' ends, as the shadow kernels keep them: `RayPacket::segments` must be
-        // the packet of `Ray::new(start, end - start, 0, 1)` bit for bit.
+        // the packet of `Ray::segment(start, end)` bit for bit.
         let starts: Vec<Vec3> = four.iter().map(|r| r.origin).collect();
         let ends: Vec<Vec3> = four.iter().map(|r| r.origin + r.dir).collect();
-        let rays: Vec<Ray> = starts.iter().zip(&ends).map(|(&s, &e)| Ray::new(s, e - s, 0.0, 1.0)).collect();
+        let rays: Vec<Ray> = starts.iter().zip(&ends).map(|(&s, &e)| Ray::segment(s, e)).collect();
         let bits = |p: &RayPacket| {
             let v = |x: &[glam::Vec4]| x.iter().flat_map(|c| c.to_array()).map(f32::to_bits).collect::<Vec<_>>();
             (v(&p.o), v(&p.d), v(&p.inv), v(&[p.t_min, p.t_max]), p.valid.bitmask())

@@ -60,6 +60,14 @@ impl Ray {
         Ray { origin, dir, inv_dir, t_min, t_max }
     }
 
+    /// The segment from `start` to `end` as a ray over `[0, 1]`: `Ray::new(start, end -
+    /// start, 0.0, 1.0)`, the form every shadow ray takes (to a point light or a light sample)
+    /// and that the packet kernels rebuild from the ends (`packets::RayPacket::segments`).
+    #[inline]
+    pub fn segment(start: Vec3, end: Vec3) -> Ray {
+        Ray::new(start, end - start, 0.0, 1.0)
+    }
+
     /// [`Ray::new`] for an origin or direction with a NaN or infinite component: a vector
     /// with an infinite component becomes all NaN, one with only NaN stays as it is (and the
     /// direction's tiny components are flushed as for finite rays).

@@ -47,7 +47,7 @@
 //! and up to 1.8x the scalar twin (`docs/results/coherent-shadows.md`).
 
 use glam::{BVec4A, Vec3};
-use kdtree::triangle::{Intersector, WaldTriangle, WatertightTriangle};
+use kdtree::triangle::Intersector;
 use kdtree::{Aabb, Counters, KdTree, Ray};
 
 use crate::packet::{PacketHit, RayPacket};
@@ -164,7 +164,7 @@ impl LaneFrusta {
     }
 
     /// Adds a frustum of the segments `starts[k] -> ends[k]` (ray `k` is
-    /// `Ray::new(starts[k], ends[k] - starts[k], 0, 1)`). Its answers will be bit `k` of
+    /// `Ray::segment(starts[k], ends[k])`). Its answers will be bit `k` of
     /// `blocked()[i]` for the `i`-th frustum pushed.
     ///
     /// # Panics
@@ -201,37 +201,29 @@ impl LaneFrusta {
         let n = self.frusta.len();
         self.blocked.clear();
         self.blocked.resize(n, 0);
-        match (width, tree.intersector()) {
-            (LaneWidth::Scalar, Intersector::Wald) => {
-                self.batches::<WaldTriangle, C, 1>(tree, tree.wald_records(), counters)
+        match tree.intersector() {
+            Intersector::Wald => self.at_width(tree, tree.wald_records(), width, counters),
+            Intersector::Watertight => self.at_width(tree, tree.watertight_records(), width, counters),
+        }
+    }
+
+    /// [`LaneFrusta::batches`] with the lanes of `width` (eight only where the CPU has AVX2,
+    /// else four).
+    fn at_width<T: PacketTest, C: Counters>(
+        &mut self,
+        tree: &KdTree,
+        records: &[T],
+        width: LaneWidth,
+        counters: &mut C,
+    ) {
+        match width {
+            LaneWidth::Scalar => self.batches::<T, C, 1>(tree, records, counters),
+            #[cfg(target_arch = "x86_64")]
+            LaneWidth::Eight if avx2() => {
+                // SAFETY: the CPU has AVX2 and FMA (the guard).
+                unsafe { self.batches_avx2::<T, C>(tree, records, counters) }
             }
-            (LaneWidth::Scalar, Intersector::Watertight) => {
-                self.batches::<WatertightTriangle, C, 1>(tree, tree.watertight_records(), counters)
-            }
-            (LaneWidth::Four, Intersector::Wald) => {
-                self.batches::<WaldTriangle, C, 4>(tree, tree.wald_records(), counters)
-            }
-            (LaneWidth::Four, Intersector::Watertight) => {
-                self.batches::<WatertightTriangle, C, 4>(tree, tree.watertight_records(), counters)
-            }
-            (LaneWidth::Eight, intersector) => {
-                #[cfg(target_arch = "x86_64")]
-                if avx2() {
-                    // SAFETY: the CPU has AVX2 and FMA (checked just above).
-                    unsafe {
-                        match intersector {
-                            Intersector::Wald => {
-                                self.batches_avx2::<WaldTriangle, C>(tree, tree.wald_records(), counters)
-                            }
-                            Intersector::Watertight => {
-                                self.batches_avx2::<WatertightTriangle, C>(tree, tree.watertight_records(), counters)
-                            }
-                        }
-                    }
-                    return;
-                }
-                self.trace(tree, LaneWidth::Four, counters);
-            }
+            LaneWidth::Four | LaneWidth::Eight => self.batches::<T, C, 4>(tree, records, counters),
         }
     }
 
@@ -275,7 +267,7 @@ impl LaneFrusta {
     fn single<C: Counters>(&mut self, tree: &KdTree, f: usize, counters: &mut C) {
         let s = &self.frusta[f];
         for k in 0..s.count {
-            let ray = Ray::new(s.starts[k], s.ends[k] - s.starts[k], 0.0, 1.0);
+            let ray = Ray::segment(s.starts[k], s.ends[k]);
             self.blocked[f] |= u16::from(tree.occluded_counted(&ray, counters)) << k;
             self.stats.single += 1;
         }
@@ -480,7 +472,7 @@ impl Lane {
         if s.count == 0 {
             return None;
         }
-        // What `Ray::new(a, b - a, 0, 1).is_valid()` asks: finite ends, a non-zero and
+        // What `Ray::segment(a, b).is_valid()` asks: finite ends, a non-zero and
         // finite direction.
         for (&a, &b) in starts.iter().zip(ends) {
             let d = b - a;
@@ -723,7 +715,7 @@ mod tests {
             lanes.trace(tree, width, &mut counts);
             for (f, ((starts, ends), &got)) in frusta.iter().zip(lanes.blocked()).enumerate() {
                 for (k, (&a, &b)) in starts.iter().zip(ends).enumerate() {
-                    let ray = Ray::new(a, b - a, 0.0, 1.0);
+                    let ray = Ray::segment(a, b);
                     assert_eq!(got >> k & 1 != 0, tree.occluded(&ray), "{width:?} frustum {f} ray {k}: {ray:?}");
                 }
                 assert_eq!(u32::from(got) >> starts.len(), 0, "no answer beyond the rays");
@@ -775,7 +767,7 @@ mod tests {
                 stats.pairs += s.pairs;
                 for (starts, ends) in &frusta {
                     for (&a, &b) in starts.iter().zip(ends) {
-                        blocked += usize::from(tree.occluded(&Ray::new(a, b - a, 0.0, 1.0)));
+                        blocked += usize::from(tree.occluded(&Ray::segment(a, b)));
                         total += 1;
                     }
                 }

@@ -93,7 +93,7 @@ impl RayPacket {
 
     /// The packet of the segments from `origins[i]` to `targets[i]` (up to four pairs; the
     /// lanes past them are invalid): bit for bit [`RayPacket::new`] of the rays
-    /// `Ray::new(origin, target - origin, 0.0, 1.0)`, the shadow rays of a light point or
+    /// `Ray::segment(origin, target)`, the shadow rays of a light point or
     /// sample, made four at a time in vectors (one division per axis for the four
     /// reciprocals) instead of ray by ray. Four finite segments of non-zero length take the
     /// vector path; any other input goes ray by ray.
@@ -120,7 +120,7 @@ impl RayPacket {
         }
         let mut lanes = [None; 4];
         for (lane, (&o, &t)) in lanes.iter_mut().zip(origins.iter().zip(targets)) {
-            *lane = Some(Ray::new(o, t - o, 0.0, 1.0));
+            *lane = Some(Ray::segment(o, t));
         }
         RayPacket::from_lanes(lanes)
     }
@@ -378,7 +378,7 @@ mod tests {
                 8 => targets.truncate(1),
                 _ => {}
             }
-            let rays: Vec<Ray> = origins.iter().zip(&targets).map(|(&o, &t)| Ray::new(o, t - o, 0.0, 1.0)).collect();
+            let rays: Vec<Ray> = origins.iter().zip(&targets).map(|(&o, &t)| Ray::segment(o, t)).collect();
             let (got, want) = (RayPacket::segments(&origins, &targets), RayPacket::new(&rays));
             let bits = |p: &RayPacket| {
                 let v = |x: &[Vec4]| x.iter().flat_map(|c| c.to_array()).map(f32::to_bits).collect::<Vec<_>>();

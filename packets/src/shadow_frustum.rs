@@ -564,7 +564,7 @@ mod tests {
         (0..n)
             .map(|_| {
                 let p = rng.vec(lo, hi);
-                Ray::new(p, light - p, 0.0, 1.0)
+                Ray::segment(p, light)
             })
             .collect()
     }
@@ -604,7 +604,7 @@ mod tests {
                     .map(|_| {
                         let p = rng.vec(c - 1.0, c + 1.0);
                         let q = rng.vec(cell - 0.3, cell + 0.3);
-                        Ray::new(p, q - p, 0.0, 1.0)
+                        Ray::segment(p, q)
                     })
                     .collect();
                 check(&tree, &rays);
@@ -623,7 +623,7 @@ mod tests {
                 for i in 0..8 {
                     for j in 0..8 {
                         let p = Vec3::new(i as f32 * 0.7, 1.0, j as f32 * 0.7);
-                        rays.push(Ray::new(p, light - p, 0.0, 1.0));
+                        rays.push(Ray::segment(p, light));
                     }
                 }
                 check(&tree, &rays);
@@ -641,7 +641,7 @@ mod tests {
                 for i in 0..16 {
                     let p = Vec3::new(0.2 + i as f32 * 0.3, 0.5, 2.3);
                     let end = Vec3::new(p.x, 2.0, 2.3);
-                    rays.push(Ray::new(p, end - p, 0.0, 1.0));
+                    rays.push(Ray::segment(p, end));
                 }
                 check(&tree, &rays);
             }

@@ -33,7 +33,7 @@ use scenes::builtin::shapes::Rng;
 use scenes::{Camera, Material, Mesh, Scene, SphereLight};
 
 use crate::frame::{SoftStats, TileLayout, View};
-use crate::method::{hard_shadow_ray, primary_ray};
+use crate::method::{hard_shadow_segment, primary_ray};
 use crate::registry::{KDTREE, Options, Registry, SoftGrouping, Structures};
 use crate::soft;
 use crate::ties::{coplanar, near_shared};
@@ -915,7 +915,9 @@ fn check_case(
                 // Shadow rays that start on an edge (their primary ray grazed it) graze what
                 // meets that edge: another triangle test may see them either way.
                 let from_edge = check.rule == Rule::Loose && want.hits[i].is_some_and(on_edge);
-                let outcome = match hard_shadow_ray(scene, surfaces, camera, x, y, &want.hits[i]) {
+                let outcome = match hard_shadow_segment(scene, surfaces, camera, x, y, &want.hits[i])
+                    .map(|(s, e)| Ray::segment(s, e))
+                {
                     Some(_) if from_edge && shadow[i] != want.shadow[i] => Outcome::Tie,
                     Some(r) => judge.occlusion(check.rule, &r, shadow[i], want.shadow[i]),
                     None if shadow[i] => Outcome::Refused,

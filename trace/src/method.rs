@@ -103,7 +103,7 @@ pub trait Method: Sync {
         counters: &mut C,
     );
 
-    /// The hard shadow rays of one tile ([`ShadowJob`]: rays from [`hard_shadow_ray`] at its
+    /// The hard shadow rays of one tile ([`ShadowJob`]: rays from [`hard_shadow_segment`] at its
     /// primary hits) into `out`: `true` where blocked, `false` where lit or where no ray is
     /// cast. Returns (rays traced, rays blocked).
     fn shadow_tile<C: TileCounters>(
@@ -241,10 +241,10 @@ impl ShadowJob<'_> {
         self.tile.pixels().zip(self.hits).map(|((x, y), h)| (x, y, h))
     }
 
-    /// The hard shadow ray of pixel `(x, y)` with primary hit `hit`: [`hard_shadow_ray`].
+    /// The hard shadow ray of pixel `(x, y)` with primary hit `hit`: [`hard_shadow_segment`]'s.
     #[inline]
     pub fn ray(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
-        hard_shadow_ray(self.scene, self.surfaces, self.camera, x, y, hit)
+        self.segment(x, y, hit).map(|(start, end)| Ray::segment(start, end))
     }
 
     /// The ends of [`ShadowJob::ray`]: [`hard_shadow_segment`].
@@ -339,24 +339,12 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
     Ray::new(origin, dir, 0.0, f32::INFINITY)
 }
 
-/// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit` toward the scene's point
-/// light ([`shade::shadow_ray`]'s ray, with `surfaces` the scene's [`shade::surfaces`]); `None` for
-/// misses and surfaces facing away from the light. Every method traces exactly these rays.
-#[inline]
-pub fn hard_shadow_ray(
-    scene: &Scene,
-    surfaces: &Surfaces,
-    camera: &Camera,
-    x: u32,
-    y: u32,
-    hit: &Option<Hit>,
-) -> Option<Ray> {
-    let (start, end) = hard_shadow_segment(scene, surfaces, camera, x, y, hit)?;
-    Some(Ray::new(start, end - start, 0.0, 1.0))
-}
-
-/// The ends of [`hard_shadow_ray`] ([`shade::shadow_segment`]): its origin and the light, for
-/// the kernels that build their packets from the ends (`packets::RayPacket::segments`).
+/// The hard shadow ray of pixel `(x, y)` whose primary hit is `hit`, toward the scene's point
+/// light, as its ends (the ray is `Ray::segment(start, end)`; [`shade::shadow_segment`], with
+/// `surfaces` the scene's [`shade::surfaces`]): its origin moved off the surface, and the
+/// light. `None` for misses and surfaces facing away from the light. Every method traces
+/// exactly these rays; the packet kernels build their packets from the ends
+/// (`packets::RayPacket::segments`).
 #[inline]
 pub fn hard_shadow_segment(
     scene: &Scene,

@@ -40,11 +40,11 @@ pub fn facing_normal(mesh: &Mesh, hit: &Hit, dir: Vec3) -> Vec3 {
 #[inline]
 pub fn shadow_ray(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit) -> Option<Ray> {
     let (start, end) = shadow_segment(surfaces, light, dir, hit)?;
-    Some(Ray::new(start, end - start, 0.0, 1.0))
+    Some(Ray::segment(start, end))
 }
 
 /// The ends of [`shadow_ray`]: its origin and the light (the ray is
-/// `Ray::new(start, end - start, 0.0, 1.0)`), for kernels that build their packets from the
+/// `Ray::segment(start, end)`), for kernels that build their packets from the
 /// ends (`packets::RayPacket::segments`).
 #[inline]
 pub fn shadow_segment(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit) -> Option<(Vec3, Vec3)> {

@@ -16,7 +16,7 @@
 //!   ends, split into its 4x4 and 2x2 blocks where it is much wider than a voxel (MFT's
 //!   quadrants, thesis 4.1.5, applied again), 2x2 blocks handed over as packets.
 //!
-//! Every ray is the one single rays trace ([`crate::method::hard_shadow_ray`],
+//! Every ray is the one single rays trace ([`crate::method::hard_shadow_segment`],
 //! [`SoftJob::point`]), and every kernel here answers each ray exactly as the single ray does
 //! (the conformance harness checks it).
 
@@ -46,8 +46,8 @@ pub enum Grouping {
 pub struct ShadowScratch {
     frustum: ShadowFrustum,
     lanes: LaneFrusta,
-    /// The rays of one group as segments (ray `i` is `Ray::new(starts[i], ends[i] -
-    /// starts[i], 0, 1)`), and the pixel (tile index) of each.
+    /// The rays of one group as segments (ray `i` is `Ray::segment(starts[i],
+    /// ends[i])`), and the pixel (tile index) of each.
     starts: Vec<Vec3>,
     ends: Vec<Vec3>,
     slots: Vec<u32>,
@@ -95,15 +95,14 @@ impl ShadowScratch {
                     self.lanes.push(starts, ends);
                 }
                 self.lanes.trace(tree, width, counters);
-                for (f, &mask) in self.lanes.blocked().iter().enumerate() {
-                    let count = (self.starts.len() - f * FRUSTUM_RAYS).min(FRUSTUM_RAYS);
-                    self.blocked.extend((0..count).map(|k| mask >> k & 1 != 0));
+                for (&mask, run) in self.lanes.blocked().iter().zip(self.starts.chunks(FRUSTUM_RAYS)) {
+                    self.blocked.extend((0..run.len()).map(|k| mask >> k & 1 != 0));
                 }
             }
             Grouping::Frusta => {
                 self.frustum.clear();
                 for (&start, &end) in self.starts.iter().zip(&self.ends) {
-                    self.frustum.push(Ray::new(start, end - start, 0.0, 1.0));
+                    self.frustum.push(Ray::segment(start, end));
                 }
                 self.frustum.trace(tree, counters);
                 self.blocked.extend_from_slice(self.frustum.blocked());
