@@ -2,8 +2,8 @@
 //!
 //! The shadow ray runs from the shaded point (offset by `kdtree::ray::offset_origin`) to the
 //! light, `t` in `[0, 1]`, so widths are fractions of the ray as in the thesis. The descent is
-//! the one of `kdtree::traverse` (front voxel, back voxel or both, the same hard cases); only
-//! leaves differ.
+//! `kdtree::descent`, with the single-ray step of `kdtree::traverse` (front voxel, back voxel
+//! or both, the same hard cases); only the leaf visitor and the pop rule differ.
 //!
 //! ## Leaves, and why each hit is counted once, in order
 //! A leaf's triangles are tested with no culling, over the whole segment, and every hit joins
@@ -27,10 +27,11 @@
 //! the rounding of plane distances and of the triangle test's `t`, so that no hit found later
 //! lies before the hits already paired. Traversal stops once the width passes `R`.
 
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
-use kdtree::traverse::{WIDEN, clip_to_box};
+use kdtree::traverse::{RaySpan, clip_to_box, ray_step};
 use kdtree::triangle::TriangleTest;
-use kdtree::{Aabb, Intersector, KdTree, Ray};
+use kdtree::{Aabb, Counters, Intersector, KdNode, KdTree, NoCounters, Ray};
 
 use crate::pairing::{HitList, LeakRemedies, Pairing};
 
@@ -58,16 +59,6 @@ pub(crate) fn slack(ray: &Ray, bounds: &Aabb) -> f32 {
     if s.is_finite() { s } else { 0.0 }
 }
 
-#[inline(always)]
-fn widen_down(t: f32) -> f32 {
-    t - t.abs() * WIDEN
-}
-
-#[inline(always)]
-fn widen_up(t: f32) -> f32 {
-    t + t.abs() * WIDEN
-}
-
 /// The edge width of `ray` (Listing 5.1, corrected): the largest entry-to-exit distance along
 /// it, in units of its direction, or `f32::INFINITY` when it passes `r` (early exit) or an
 /// entry is never closed. `0` when nothing is crossed. Give the result to
@@ -83,15 +74,69 @@ pub fn edge_width(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies, scr
     }
 }
 
-/// One deferred back voxel: its node and interval, and `min_t0`, the smallest start of this
-/// entry and every entry below it (what bounds the hits still to be found while this entry
-/// is the top of the stack).
-#[derive(Clone, Copy)]
-struct StackEntry {
-    node: u32,
-    t0: f32,
-    t1: f32,
-    min_t0: f32,
+/// The edge-width ray walking the tree: the single-ray step ([`ray_step`]), a leaf visitor
+/// that adds every hit to the pending list and pairs those no later voxel can precede, and a
+/// pop rule that drops nothing (every crossing counts, not only the closest).
+struct EdgeRay<'a, T: TriangleTest> {
+    tree: &'a KdTree,
+    records: &'a [T],
+    ray: &'a Ray,
+    prepared: T::RayData,
+    origin: [f32; 4],
+    inv_dir: [f32; 4],
+    upper_first: usize,
+    r: f32,
+    slack: f32,
+    remedies: &'a LeakRemedies<'a>,
+    pending: &'a mut HitList,
+    pairing: Pairing,
+    passed_r: bool,
+}
+
+/// A deferred back voxel: its interval `(t0, t1)` and `min_t0`, the smallest start of this
+/// entry and every entry below it (what bounds the hits still to be found while this entry is
+/// the top of the stack).
+type Deferred = (f32, f32, f32);
+
+impl<T: TriangleTest> Descent for EdgeRay<'_, T> {
+    type Span = RaySpan;
+    type Deferred = Deferred;
+    type Stack = Stack<Entry<Deferred>>;
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut RaySpan, stack: &Self::Stack) -> Visit<Deferred> {
+        match ray_step(node, (&self.origin, &self.inv_dir, self.upper_first), span) {
+            Visit::Both { first, second, deferred: (t_split, t1) } => {
+                let below = stack.top().map_or(f32::INFINITY, |e| e.value.2);
+                Visit::Both { first, second, deferred: (t_split, t1, below.min(t_split)) }
+            }
+            Visit::One(child) => Visit::One(child),
+            Visit::Neither => Visit::Neither,
+        }
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, _: &RaySpan, stack: &Self::Stack, _: &mut C) -> Flow {
+        // Every hit joins the pending list, which counts each triangle once.
+        let tree = self.tree;
+        for &prim in tree.leaf_prims(node) {
+            if let Some((t, _, _)) = self.records[prim as usize].intersect(self.ray, &self.prepared, self.ray.t_max) {
+                self.pending.insert(t, prim, tree, self.ray.dir);
+            }
+        }
+        // Pair the hits no later leaf can precede; stop once the width passes R.
+        let bound = stack.top().map_or(f32::INFINITY, |e| e.value.2 - self.slack);
+        if self.pending.flush_below(bound, self.r, &mut self.pairing, tree, self.remedies) {
+            self.passed_r = true;
+            return Flow::Stop;
+        }
+        Flow::Continue
+    }
+
+    #[inline(always)]
+    fn resume(&mut self, (t0, t1, _): Deferred) -> Option<RaySpan> {
+        Some(RaySpan::new(t0, t1))
+    }
 }
 
 #[inline(always)]
@@ -105,62 +150,26 @@ fn kernel<T: TriangleTest>(
 ) -> f32 {
     let pending = &mut scratch.pending;
     pending.clear();
-    let mut pairing = Pairing::new();
-    let Some((mut t0, mut t1)) = clip_to_box(ray, &tree.bounds()) else { return 0.0 };
-    let prepared = T::prepare(ray);
-    let slack = slack(ray, &tree.bounds());
-    let origin = ray.origin.extend(0.0).to_array();
-    let inv_dir = ray.inv_dir.extend(0.0).to_array();
-    let upper_first = ray.dir.is_negative_bitmask() as usize;
-    let nodes = tree.nodes();
-    let mut stack = Stack::<StackEntry>::new();
-    let mut index = 0usize;
-    let (mut t0_wide, mut t1_wide) = (widen_down(t0), widen_up(t1));
-    loop {
-        let node = nodes[index];
-        if !node.is_leaf() {
-            // Inner node: front voxel, back voxel or both (as `kdtree::traverse`).
-            let axis = node.axis() & 3;
-            let t_plane = (node.split() - origin[axis]) * inv_dir[axis];
-            let upper = (upper_first >> axis) & 1;
-            let front = node.left_child() + upper;
-            let back = node.left_child() + 1 - upper;
-            if t_plane > t1_wide {
-                index = front;
-            } else if t_plane < t0_wide {
-                index = back;
-            } else {
-                // Both; a ray in the plane (NaN) visits both over its whole interval.
-                let t_split = if t_plane.is_nan() { t0 } else { t_plane };
-                let below = stack.top().map_or(f32::INFINITY, |e| e.min_t0);
-                let min_t0 = below.min(t_split);
-                stack.push(StackEntry { node: back as u32, t0: t_split, t1, min_t0 });
-                index = front;
-                if !t_plane.is_nan() {
-                    t1 = t_plane;
-                    t1_wide = widen_up(t1);
-                }
-            }
-            continue;
-        }
-
-        // Leaf: every hit joins the pending list, which counts each triangle once.
-        for &prim in tree.leaf_prims(node) {
-            if let Some((t, _, _)) = records[prim as usize].intersect(ray, &prepared, ray.t_max) {
-                pending.insert(t, prim, tree, ray.dir);
-            }
-        }
-
-        // Pair the hits no later leaf can precede; stop once the width passes R.
-        let bound = stack.top().map_or(f32::INFINITY, |e| e.min_t0 - slack);
-        if pending.flush_below(bound, r, &mut pairing, tree, remedies) {
-            return f32::INFINITY;
-        }
-        let Some(entry) = stack.pop() else { break };
-        index = entry.node as usize;
-        (t0, t1) = (entry.t0, entry.t1);
-        (t0_wide, t1_wide) = (widen_down(t0), widen_up(t1));
+    let Some((t0, t1)) = clip_to_box(ray, &tree.bounds()) else { return 0.0 };
+    let mut group = EdgeRay {
+        tree,
+        records,
+        ray,
+        prepared: T::prepare(ray),
+        origin: ray.origin.extend(0.0).to_array(),
+        inv_dir: ray.inv_dir.extend(0.0).to_array(),
+        upper_first: ray.dir.is_negative_bitmask() as usize,
+        r,
+        slack: slack(ray, &tree.bounds()),
+        remedies,
+        pending,
+        pairing: Pairing::new(),
+        passed_r: false,
+    };
+    descend(tree, &mut group, (0, RaySpan::new(t0, t1)), &mut Stack::new(), &mut NoCounters);
+    if group.passed_r {
+        return f32::INFINITY;
     }
-    let width = pairing.finish();
+    let width = group.pairing.finish();
     if width > r { f32::INFINITY } else { width }
 }

@@ -25,6 +25,7 @@
 pub mod aabb;
 pub mod build;
 pub mod counters;
+pub mod descent;
 pub mod leaf;
 pub mod node;
 pub mod oracle;

@@ -32,7 +32,9 @@
 //!   interval.)
 
 use crate::counters::{Counters, NoCounters};
+use crate::descent::{Descent, Entry, Flow, Visit, descend};
 use crate::leaf::{LANES, LeafGroup};
+use crate::node::KdNode;
 use crate::stack::Stack;
 use crate::triangle::{Intersector, TriangleTest};
 use crate::{Aabb, Hit, KdTree, Ray};
@@ -134,98 +136,118 @@ pub fn clip_to_box(ray: &Ray, bounds: &Aabb) -> Option<(f32, f32)> {
     if t0 <= t1 { Some((t0, t1)) } else { None }
 }
 
-/// One deferred back voxel: node index and its interval.
-#[derive(Clone, Copy)]
-struct StackEntry {
-    node: u32,
-    t0: f32,
-    t1: f32,
-}
-
 /// `t` moved outward by [`WIDEN`]: `t + |t| W` (towards +inf) or `t - |t| W` (towards -inf).
 #[inline(always)]
-fn widen_up(t: f32) -> f32 {
+pub fn widen_up(t: f32) -> f32 {
     t + t.abs() * WIDEN
 }
 
+/// `t` moved towards -inf by [`WIDEN`]: `t - |t| W`.
 #[inline(always)]
-fn widen_down(t: f32) -> f32 {
+pub fn widen_down(t: f32) -> f32 {
     t - t.abs() * WIDEN
 }
 
-/// The traversal kernel, generic over the triangle test (its SIMD leaf groups `groups` and
-/// per-triangle `records`), the counters, the query kind (`ANY_HIT`: a dedicated any-hit
-/// path, which returns at the first hit without ordering the leaf's hits) and the leaf kernel
-/// (`SIMD`: the groups of [`crate::leaf`]; else the scalar twin over `records`). Never
-/// allocates.
-#[inline(always)]
-fn traverse<G: LeafGroup, C: Counters, const ANY_HIT: bool, const SIMD: bool>(
-    tree: &KdTree,
-    groups: &[G],
-    records: &[G::Record],
-    ray: &Ray,
-    counters: &mut C,
-) -> Option<Hit> {
-    let (mut t0, mut t1) = clip_to_box(ray, &tree.bounds)?;
-    let prepared = <G::Record as TriangleTest>::prepare(ray);
-    let prepared4 = G::prepare(ray);
-    // Per-axis ray data as 4-lane arrays: an axis `& 3` indexes them without bounds checks.
-    let origin = ray.origin.extend(0.0).to_array();
-    let inv_dir = ray.inv_dir.extend(0.0).to_array();
-    // Bit `axis` is set where the direction's sign bit is: then the front voxel is the upper
-    // child. A bit mask in a register, not an array, keeps the next node's address off a
-    // memory load (the traversal step is bound by this dependency chain).
-    let upper_first = ray.dir.is_negative_bitmask() as usize;
-    let nodes = tree.nodes.as_slice();
-    let mut stack = Stack::new();
-    let mut best: Option<Hit> = None;
-    let mut t_hit = ray.t_max;
-    let mut index = 0usize;
-    let (mut t0_wide, mut t1_wide) = (widen_down(t0), widen_up(t1));
-    loop {
-        // SAFETY: `index` is the root (0), a child of an inner node, or a stack entry pushed
-        // as one, and `KdTree`'s invariant (checked by `KdTree::assemble`, through which every
-        // tree is made) puts the root and every inner node's children in `nodes`. The bounds
-        // check this skips cost 2% of single-ray throughput.
-        let node = unsafe { *nodes.get_unchecked(index) };
-        counters.node();
-        if !node.is_leaf() {
-            // Inner node: front voxel, back voxel or both.
-            let axis = node.axis() & 3;
-            let t_plane = (node.split() - origin[axis]) * inv_dir[axis];
-            // The front voxel holds the ray for t < t_plane: below the plane when the
-            // direction's sign bit is clear (this also sends +0.0 and -0.0 the right way).
-            let upper = (upper_first >> axis) & 1;
-            let front = node.left_child() + upper;
-            let back = node.left_child() + 1 - upper;
-            if t_plane > t1_wide {
-                index = front;
-            } else if t_plane < t0_wide {
-                index = back;
-            } else {
-                // Both (NaN lands here too: a ray lying in the split plane, 0 * inf, visits
-                // both children over the whole interval).
-                let t_split = if t_plane.is_nan() { t0 } else { t_plane };
-                stack.push(StackEntry { node: back as u32, t0: t_split, t1 });
-                index = front;
-                if !t_plane.is_nan() {
-                    t1 = t_plane;
-                    t1_wide = widen_up(t1);
-                }
-            }
-            continue;
-        }
+/// A single ray's interval in the voxel it is in, with its ends widened by [`WIDEN`] for the
+/// plane comparisons (kept beside the exact ends so they are widened once per voxel, not once
+/// per node).
+#[derive(Clone, Copy, Debug)]
+pub struct RaySpan {
+    /// Entry parameter.
+    pub t0: f32,
+    /// Exit parameter.
+    pub t1: f32,
+    /// `t0` widened down.
+    pub t0_wide: f32,
+    /// `t1` widened up.
+    pub t1_wide: f32,
+}
 
-        // Leaf: test its triangles against the closest hit so far (I counts triangles, not
+impl RaySpan {
+    /// The span `[t0, t1]` with its widened ends.
+    #[inline(always)]
+    pub fn new(t0: f32, t1: f32) -> RaySpan {
+        RaySpan { t0, t1, t0_wide: widen_down(t0), t1_wide: widen_up(t1) }
+    }
+}
+
+/// The interval step of one ray at an inner node (Listing 2.1, with the hard cases of this
+/// module's documentation): the front voxel, the back voxel, or both, front first, the back
+/// voxel deferred with `[t_split, t1]`. `origin` and `inv_dir` are the ray's as 4-lane arrays
+/// (an axis `& 3` indexes them without bounds checks), `upper_first` has bit `axis` set where
+/// the direction's sign bit is. Every single-ray kd-tree kernel (closest and any hit, edge
+/// widths) steps with it.
+#[inline(always)]
+pub fn ray_step(
+    node: KdNode,
+    (origin, inv_dir, upper_first): (&[f32; 4], &[f32; 4], usize),
+    span: &mut RaySpan,
+) -> Visit<(f32, f32)> {
+    let axis = node.axis() & 3;
+    let t_plane = (node.split() - origin[axis]) * inv_dir[axis];
+    // The front voxel holds the ray for t < t_plane: below the plane when the direction's
+    // sign bit is clear (this also sends +0.0 and -0.0 the right way).
+    let upper = (upper_first >> axis) & 1;
+    let front = node.left_child() + upper;
+    let back = node.left_child() + 1 - upper;
+    if t_plane > span.t1_wide {
+        Visit::One(front)
+    } else if t_plane < span.t0_wide {
+        Visit::One(back)
+    } else {
+        // Both (NaN lands here too: a ray lying in the split plane, 0 * inf, visits both
+        // children over the whole interval).
+        let t_split = if t_plane.is_nan() { span.t0 } else { t_plane };
+        let deferred = (t_split, span.t1);
+        if !t_plane.is_nan() {
+            span.t1 = t_plane;
+            span.t1_wide = widen_up(t_plane);
+        }
+        Visit::Both { first: front, second: back, deferred }
+    }
+}
+
+/// One ray walking the tree for its closest hit (or any hit, `ANY_HIT`: a dedicated any-hit
+/// path, which returns at the first hit without ordering the leaf's hits), with the triangle
+/// test's SIMD leaf groups `groups` (`SIMD`; else the scalar twin over the per-triangle
+/// `records`).
+struct SingleRay<'a, G: LeafGroup, const ANY_HIT: bool, const SIMD: bool> {
+    tree: &'a KdTree,
+    groups: &'a [G],
+    records: &'a [G::Record],
+    ray: &'a Ray,
+    prepared: <G::Record as TriangleTest>::RayData,
+    prepared4: G::RayData,
+    origin: [f32; 4],
+    inv_dir: [f32; 4],
+    upper_first: usize,
+    best: Option<Hit>,
+    t_hit: f32,
+}
+
+impl<G: LeafGroup, const ANY_HIT: bool, const SIMD: bool> Descent for SingleRay<'_, G, ANY_HIT, SIMD> {
+    type Span = RaySpan;
+    type Deferred = (f32, f32);
+    type Stack = Stack<Entry<(f32, f32)>>;
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut RaySpan, _: &Self::Stack) -> Visit<(f32, f32)> {
+        ray_step(node, (&self.origin, &self.inv_dir, self.upper_first), span)
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, _: &RaySpan, _: &Self::Stack, counters: &mut C) -> Flow {
+        // Test the leaf's triangles against the closest hit so far (I counts triangles, not
         // groups, so that it stays the thesis's measure).
         counters.leaf();
         counters.tests(node.prim_count() as u64);
+        let (tree, ray) = (self.tree, self.ray);
         if SIMD {
             // The leaf's references start at a multiple of 4: its groups are `first / 4 ..`.
             let first = node.first_ref() / LANES;
             let count = node.prim_count().div_ceil(LANES);
-            for (g, group) in groups[first..first + count].iter().enumerate() {
-                let hits = group.intersect(ray, &prepared4, t_hit);
+            for (g, group) in self.groups[first..first + count].iter().enumerate() {
+                let hits = group.intersect(ray, &self.prepared4, self.t_hit);
                 let lane = if ANY_HIT {
                     let bits = hits.mask.bitmask();
                     if bits == 0 { None } else { Some(bits.trailing_zeros() as usize) }
@@ -235,39 +257,59 @@ fn traverse<G: LeafGroup, C: Counters, const ANY_HIT: bool, const SIMD: bool>(
                 if let Some(lane) = lane {
                     let prim = tree.prim_refs[(first + g) * LANES + lane];
                     let (t, u, v) = (hits.t.to_array()[lane], hits.u.to_array()[lane], hits.v.to_array()[lane]);
-                    let hit = Hit { t, u, v, prim };
+                    self.best = Some(Hit { t, u, v, prim });
                     if ANY_HIT {
-                        return Some(hit);
+                        return Flow::Stop;
                     }
-                    best = Some(hit);
-                    t_hit = t;
+                    self.t_hit = t;
                 }
             }
         } else {
             for &prim in &tree.prim_refs[node.prim_range()] {
-                if let Some((t, u, v)) = records[prim as usize].intersect(ray, &prepared, t_hit) {
-                    let hit = Hit { t, u, v, prim };
+                if let Some((t, u, v)) = self.records[prim as usize].intersect(ray, &self.prepared, self.t_hit) {
+                    self.best = Some(Hit { t, u, v, prim });
                     if ANY_HIT {
-                        return Some(hit);
+                        return Flow::Stop;
                     }
-                    best = Some(hit);
-                    t_hit = t;
+                    self.t_hit = t;
                 }
             }
         }
-
-        // Next voxel: pop, skipping those that start beyond the closest hit.
-        loop {
-            let Some(entry) = stack.pop() else {
-                return best;
-            };
-            if entry.t0 <= t_hit {
-                index = entry.node as usize;
-                t0 = entry.t0;
-                t1 = entry.t1.min(t_hit);
-                (t0_wide, t1_wide) = (widen_down(t0), widen_up(t1));
-                break;
-            }
-        }
+        Flow::Continue
     }
+
+    /// Drops voxels that start beyond the closest hit; clamps the others to it.
+    #[inline(always)]
+    fn resume(&mut self, (t0, t1): (f32, f32)) -> Option<RaySpan> {
+        (t0 <= self.t_hit).then(|| RaySpan::new(t0, t1.min(self.t_hit)))
+    }
+}
+
+/// The single-ray kernel: [`SingleRay`] through [`descend`]. Never allocates.
+#[inline(always)]
+fn traverse<G: LeafGroup, C: Counters, const ANY_HIT: bool, const SIMD: bool>(
+    tree: &KdTree,
+    groups: &[G],
+    records: &[G::Record],
+    ray: &Ray,
+    counters: &mut C,
+) -> Option<Hit> {
+    let (t0, t1) = clip_to_box(ray, &tree.bounds)?;
+    let mut group = SingleRay::<G, ANY_HIT, SIMD> {
+        tree,
+        groups,
+        records,
+        ray,
+        prepared: <G::Record as TriangleTest>::prepare(ray),
+        prepared4: G::prepare(ray),
+        origin: ray.origin.extend(0.0).to_array(),
+        inv_dir: ray.inv_dir.extend(0.0).to_array(),
+        // A bit mask in a register, not an array, keeps the next node's address off a memory
+        // load (the traversal step is bound by this dependency chain).
+        upper_first: ray.dir.is_negative_bitmask() as usize,
+        best: None,
+        t_hit: ray.t_max,
+    };
+    descend(tree, &mut group, (0, RaySpan::new(t0, t1)), &mut Stack::new(), counters);
+    group.best
 }

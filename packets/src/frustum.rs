@@ -46,9 +46,10 @@
 use std::ops::Range;
 
 use glam::Vec4;
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{Counters, KdTree};
+use kdtree::{Counters, KdNode, KdTree};
 
 use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
 use crate::packet::{mask_of, max_where, widen_down};
@@ -381,15 +382,92 @@ fn children(left: usize, axis: usize, split: f32, dist: f32, lo: [f32; 4], hi: [
     }
 }
 
-/// One deferred back voxel: its box and the frusta's intervals in it.
+/// The frusta's state in one voxel: their intervals, the voxel's box (for leaf culling), and
+/// whether it lies below an origin-on-the-plane node (no lane is finished early there).
 #[derive(Clone, Copy)]
-struct Entry<L> {
-    node: u32,
+struct Span<L> {
     unordered: bool,
     near: L,
     far: L,
     lo: [f32; 4],
     hi: [f32; 4],
+}
+
+/// The frusta of a loaded tile walking the tree ([`kdtree::descent`]): the frustum interval
+/// step (Listing 4.2 with the omni-directional modification), the culling leaf visitor, and
+/// the pop rule clamping each frustum to the furthest hit of its unfinished lanes.
+struct FrustaWalk<'a, L: Lanes, T: PacketTest> {
+    records: &'a [T],
+    refs: &'a [u32],
+    tracer: &'a mut TileTracer,
+    origin: [f32; 4],
+    f: &'a Bounds<L>,
+    // Per frustum, the furthest hit of its unfinished lanes (-inf once it is complete):
+    // deferred voxels starting beyond it are dropped.
+    limit: L,
+}
+
+impl<L: Lanes, T: PacketTest> Descent for FrustaWalk<'_, L, T> {
+    type Span = Span<L>;
+    type Deferred = Span<L>;
+    type Stack = Stack<Entry<Span<L>>>;
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut Span<L>, _: &Self::Stack) -> Visit<Span<L>> {
+        let axis = node.axis() & 3;
+        let split = node.split();
+        let dist = split - self.origin[axis];
+        let c = children(node.left_child(), axis, split, dist, span.lo, span.hi);
+        let (back_lo, back_hi) = c.back_box;
+        if dist == 0.0 || dist.is_nan() {
+            // Origin on the plane: both children over the whole intervals, lower first.
+            let deferred = Span { unordered: true, lo: back_lo, hi: back_hi, ..*span };
+            (span.lo, span.hi) = c.front_box;
+            span.unordered = true;
+            return Visit::Both { first: c.front, second: c.back, deferred };
+        }
+        let (dmin, dmax) = L::plane_interval(dist, self.f.k0[axis], self.f.k1[axis]);
+        let front_far = L::min(span.far, dmax);
+        let back_near = L::max(span.near, dmin);
+        if L::none_open(back_near, span.far) {
+            span.far = front_far;
+            (span.lo, span.hi) = c.front_box;
+            Visit::One(c.front)
+        } else if L::none_open(span.near, front_far) {
+            span.near = back_near;
+            (span.lo, span.hi) = c.back_box;
+            Visit::One(c.back)
+        } else {
+            let deferred = Span { near: back_near, lo: back_lo, hi: back_hi, ..*span };
+            span.far = front_far;
+            (span.lo, span.hi) = c.front_box;
+            Visit::Both { first: c.front, second: c.back, deferred }
+        }
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, span: &Span<L>, _: &Self::Stack, counters: &mut C) -> Flow {
+        counters.leaf();
+        let prims = &self.refs[node.prim_range()];
+        if !prims.is_empty() {
+            let Span { unordered, near, far, lo, hi } = *span;
+            let rect = self.tracer.screen_rect(lo, hi);
+            let (records, tracer) = (self.records, &mut *self.tracer);
+            self.limit = L::leaf(near, far, self.limit, |quadrants, previous| {
+                leaf(records, prims, tracer, quadrants, rect, lo, hi, unordered, previous, counters)
+            });
+            if L::all_complete(self.limit) {
+                return Flow::Stop;
+            }
+        }
+        Flow::Continue
+    }
+
+    #[inline(always)]
+    fn resume(&mut self, e: Span<L>) -> Option<Span<L>> {
+        let far = L::min(e.far, L::distance_up(self.limit, self.f.hit_scale));
+        L::any_open(e.near, far).then_some(Span { far, ..e })
+    }
 }
 
 /// Traces the loaded (and reset) tile with the frusta `f`: one over the whole tile, or four,
@@ -414,70 +492,18 @@ fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
     f: &Bounds<L>,
     counters: &mut C,
 ) {
-    let (mut near, mut far) = (f.near, f.far);
-    if !L::any_open(near, far) {
+    if !L::any_open(f.near, f.far) {
         return;
     }
-    let origin = tracer.origin;
     let b = tree.bounds();
-    let (mut lo, mut hi) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
-    let mut unordered = false;
-    // Per frustum, the furthest hit of its unfinished lanes (-inf once it is complete):
-    // deferred voxels starting beyond it are dropped.
-    let mut limit = L::INFINITY;
-    let nodes = tree.nodes();
-    let refs = tree.prim_refs();
-    let mut stack = Stack::<Entry<L>>::new();
-    let mut index = 0usize;
-    loop {
-        let node = nodes[index];
-        counters.node();
-        if !node.is_leaf() {
-            let axis = node.axis() & 3;
-            let split = node.split();
-            let dist = split - origin[axis];
-            let c = children(node.left_child(), axis, split, dist, lo, hi);
-            if dist == 0.0 || dist.is_nan() {
-                // Origin on the plane: both children over the whole intervals, lower first.
-                let (back_lo, back_hi) = c.back_box;
-                stack.push(Entry { node: c.back as u32, unordered: true, near, far, lo: back_lo, hi: back_hi });
-                (index, (lo, hi), unordered) = (c.front, c.front_box, true);
-                continue;
-            }
-            let (dmin, dmax) = L::plane_interval(dist, f.k0[axis], f.k1[axis]);
-            let front_far = L::min(far, dmax);
-            let back_near = L::max(near, dmin);
-            if L::none_open(back_near, far) {
-                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
-            } else if L::none_open(near, front_far) {
-                (index, near, (lo, hi)) = (c.back, back_near, c.back_box);
-            } else {
-                let (back_lo, back_hi) = c.back_box;
-                stack.push(Entry { node: c.back as u32, unordered, near: back_near, far, lo: back_lo, hi: back_hi });
-                (index, far, (lo, hi)) = (c.front, front_far, c.front_box);
-            }
-            continue;
-        }
-
-        counters.leaf();
-        let prims = &refs[node.prim_range()];
-        if !prims.is_empty() {
-            let rect = tracer.screen_rect(lo, hi);
-            limit = L::leaf(near, far, limit, |quadrants, previous| {
-                leaf(records, prims, tracer, quadrants, rect, lo, hi, unordered, previous, counters)
-            });
-            if L::all_complete(limit) {
-                return;
-            }
-        }
-        loop {
-            let Some(e) = stack.pop() else { return };
-            near = e.near;
-            far = L::min(e.far, L::distance_up(limit, f.hit_scale));
-            if L::any_open(near, far) {
-                (index, unordered, lo, hi) = (e.node as usize, e.unordered, e.lo, e.hi);
-                break;
-            }
-        }
-    }
+    let span = Span {
+        unordered: false,
+        near: f.near,
+        far: f.far,
+        lo: b.min.extend(0.0).to_array(),
+        hi: b.max.extend(0.0).to_array(),
+    };
+    let origin = tracer.origin;
+    let mut group = FrustaWalk { records, refs: tree.prim_refs(), tracer, origin, f, limit: L::INFINITY };
+    descend(tree, &mut group, (0, span), &mut Stack::new(), counters);
 }

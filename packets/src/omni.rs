@@ -24,21 +24,13 @@
 //! - Rays must start at the origin (`t_min >= 0`): [`OmniPacket::new`] checks it.
 
 use glam::{BVec4A, Vec4};
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
 use crate::triangle4::PacketTest;
-
-/// One deferred back voxel of a 2x2 packet (omni-directional or same-sign): node and the
-/// lanes' intervals in it.
-#[derive(Clone, Copy)]
-pub(crate) struct Entry {
-    pub(crate) node: u32,
-    pub(crate) near: Vec4,
-    pub(crate) far: Vec4,
-}
 
 /// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
 /// infinite components, see [`crate::RayPacket::new`]) get no hit.
@@ -133,6 +125,76 @@ pub(crate) fn traverse<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters,
     traverse_from::<O, T, C, ANY_HIT>(tree, records, rays, order, (0, root_interval(tree, rays)), counters)
 }
 
+/// A 2x2 packet walking the tree ([`kdtree::descent`]): the child order `O`'s step, a leaf
+/// visitor testing the active lanes against each triangle, and the per-lane pop rule.
+struct Packet<'a, O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> {
+    records: &'a [T],
+    refs: &'a [u32],
+    rays: &'a RayPacket,
+    order: &'a O,
+    data: T::PacketData,
+    hit: PacketHit,
+    // Ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
+    limit: Vec4,
+}
+
+impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent for Packet<'_, O, T, ANY_HIT> {
+    type Span = (Vec4, Vec4);
+    type Deferred = (Vec4, Vec4);
+    type Stack = Stack<Entry<(Vec4, Vec4)>>;
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut (Vec4, Vec4), _: &Self::Stack) -> Visit<(Vec4, Vec4)> {
+        match self.order.step(self.rays, node, span.0, span.1) {
+            Step::Both { first, second } => Visit::Both { first, second, deferred: *span },
+            Step::Split { front, back, front_far, back_near } => {
+                descend_split(span, (front, back), (front_far, back_near))
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(
+        &mut self,
+        node: KdNode,
+        &(near, far): &(Vec4, Vec4),
+        _: &Self::Stack,
+        counters: &mut C,
+    ) -> Flow {
+        counters.leaf();
+        let active = near.cmple(far);
+        let prims = &self.refs[node.prim_range()];
+        counters.tests(prims.len() as u64);
+        let rays = self.rays;
+        for &prim in prims {
+            let lanes = self.records[prim as usize].intersect4(
+                rays,
+                &self.data,
+                active & !self.hit.found.and_if(ANY_HIT),
+                &mut self.hit,
+                prim,
+            );
+            if ANY_HIT && lanes.any() {
+                self.limit = Vec4::select(self.hit.found, Vec4::NEG_INFINITY, self.limit);
+                if (self.hit.found | !rays.valid).all() {
+                    return Flow::Stop;
+                }
+            }
+        }
+        if !ANY_HIT {
+            self.limit = self.hit.t;
+        }
+        Flow::Continue
+    }
+
+    /// Each lane clamped to its closest hit; dropped where no lane is left active.
+    #[inline(always)]
+    fn resume(&mut self, (near, far): (Vec4, Vec4)) -> Option<(Vec4, Vec4)> {
+        let far = far.min(self.limit);
+        near.cmple(far).any().then_some((near, far))
+    }
+}
+
 /// [`traverse`] from the node `start` with the lanes' intervals `(near, far)` inside its box
 /// (those from the root box for the root), visiting only its subtree: a group of rays handed
 /// over from a wider traversal (`crate::shadow_frustum`).
@@ -142,98 +204,48 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
     records: &[T],
     rays: &RayPacket,
     order: &O,
-    (start, (mut near, mut far)): (usize, (Vec4, Vec4)),
+    (start, (near, far)): (usize, (Vec4, Vec4)),
     counters: &mut C,
 ) -> PacketHit {
-    let mut hit = PacketHit::new(rays);
-    // `limit` ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
-    let mut limit = rays.t_max;
-    let data = T::prepare4(rays);
-    let nodes = tree.nodes();
-    let refs = tree.prim_refs();
-    let mut stack = Stack::new();
-    let mut index = start;
-    if !near.cmple(far).any() {
-        return hit;
+    let mut group = Packet::<O, T, ANY_HIT> {
+        records,
+        refs: tree.prim_refs(),
+        rays,
+        order,
+        data: T::prepare4(rays),
+        hit: PacketHit::new(rays),
+        limit: rays.t_max,
+    };
+    if near.cmple(far).any() {
+        descend(tree, &mut group, (start, (near, far)), &mut Stack::new(), counters);
     }
-    loop {
-        let node = nodes[index];
-        counters.node();
-        if !node.is_leaf() {
-            match order.step(rays, node, near, far) {
-                Step::Both { first, second } => {
-                    stack.push(Entry { node: second as u32, near, far });
-                    index = first;
-                }
-                Step::Split { front, back, front_far, back_near } => {
-                    (index, near, far) = descend(&mut stack, (front, back), (near, far), (front_far, back_near));
-                }
-            }
-            continue;
-        }
-
-        counters.leaf();
-        let active = near.cmple(far);
-        let prims = &refs[node.prim_range()];
-        counters.tests(prims.len() as u64);
-        for &prim in prims {
-            let lanes =
-                records[prim as usize].intersect4(rays, &data, active & !hit.found.and_if(ANY_HIT), &mut hit, prim);
-            if ANY_HIT && lanes.any() {
-                limit = Vec4::select(hit.found, Vec4::NEG_INFINITY, limit);
-                if (hit.found | !rays.valid).all() {
-                    return hit;
-                }
-            }
-        }
-        if !ANY_HIT {
-            limit = hit.t;
-        }
-
-        // Next voxel: pop, with each lane clamped to its closest hit.
-        match pop(&mut stack, limit) {
-            Some((node, n, f)) => (index, near, far) = (node, n, f),
-            None => return hit,
-        }
-    }
+    group.hit
 }
 
 /// The step after an inner node's plane distances (Listing 4.1, and Listing 2.4's with the
 /// same-sign children): the lanes are active in the front child over `[near, front_far]`
-/// and in the back child over `[back_near, far]`. Returns the child to enter next with its
-/// intervals `(node, near, far)`: the front child, unless no lane is active in it; the back
-/// child is pushed when lanes are active in both.
+/// and in the back child over `[back_near, far]`. Enters the front child, unless no lane is
+/// active in it; the back child is deferred when lanes are active in both. `span` becomes
+/// the entered child's.
 #[inline(always)]
-pub(crate) fn descend(
-    stack: &mut Stack<Entry>,
+pub(crate) fn descend_split(
+    span: &mut (Vec4, Vec4),
     (front, back): (usize, usize),
-    (near, far): (Vec4, Vec4),
     (front_far, back_near): (Vec4, Vec4),
-) -> (usize, Vec4, Vec4) {
+) -> Visit<(Vec4, Vec4)> {
+    let (near, far) = *span;
     let in_front = near.cmple(front_far);
     let in_back = back_near.cmple(far);
     if !in_back.any() {
-        (front, near, front_far)
+        span.1 = front_far;
+        Visit::One(front)
     } else if !in_front.any() {
-        (back, back_near, far)
+        span.0 = back_near;
+        Visit::One(back)
     } else {
-        stack.push(Entry { node: back as u32, near: back_near, far });
-        (front, near, front_far)
+        span.1 = front_far;
+        Visit::Both { first: front, second: back, deferred: (back_near, far) }
     }
-}
-
-/// Pops the next deferred voxel in which some lane is active once each lane's interval is
-/// clamped to `limit` (its closest hit): `(node, near, far)`, or `None` when the stack runs
-/// out. Entries where no lane is left active are dropped.
-#[inline(always)]
-pub(crate) fn pop(stack: &mut Stack<Entry>, limit: Vec4) -> Option<(usize, Vec4, Vec4)> {
-    while let Some(entry) = stack.pop() {
-        let far = entry.far.min(limit);
-        if entry.near.cmple(far).any() {
-            return Some((entry.node as usize, entry.near, far));
-        }
-    }
-    None
 }
 
 /// `self` where `enabled`, else all false: a mask that only applies to one query kind.
