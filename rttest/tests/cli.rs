@@ -227,6 +227,48 @@ fn dynamic_reports_every_frame_with_identical_shadows() {
     }
 }
 
+/// Every run names its machine: text results start with the one machine line
+/// (`cpu: ..., simd: ..., N threads`), printed once, and every JSON object has `cpu`, `simd`
+/// and `threads` (the pool's where the report had none).
+#[test]
+fn every_result_names_the_machine() {
+    let dir = scratch("machine");
+    let simd_levels = ["scalar", "sse2", "sse4.1", "avx2", "avx512"];
+    let is_machine_line = |line: &str| {
+        line.starts_with("cpu: ")
+            && line.split_once(", simd: ").is_some_and(|(_, rest)| {
+                rest.split_once(", ").is_some_and(|(simd, threads)| {
+                    simd_levels.contains(&simd) && threads.trim_end_matches('s').ends_with(" thread")
+                })
+            })
+    };
+    // Text: the first line, once, also above a render's two reports (build, then render).
+    for args in [&["build", "--scene", "cube"][..], &["render", "--scene", "cube", "--size", "16x16", "--frames", "1"]]
+    {
+        let out = rttest(&dir, args);
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let first = stdout.lines().next().unwrap_or_default();
+        assert!(is_machine_line(first), "{args:?}: first line {first:?}");
+        assert_eq!(stdout.lines().filter(|l| l.starts_with("cpu: ")).count(), 1, "{args:?}: {stdout}");
+    }
+    // JSON: the machine's fields, the same as the text line says.
+    let out = rttest(&dir, &["build", "--scene", "cube"]);
+    let line = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or_default().to_string();
+    let v = json(&rttest(&dir, &["build", "--scene", "cube", "--json", "--threads", "2"]));
+    let (cpu, simd) = (v["cpu"].as_str().expect("cpu"), v["simd"].as_str().expect("simd"));
+    assert!(line.starts_with(&format!("cpu: {cpu}, simd: {simd}, ")), "{line} against {v}");
+    assert_eq!(v["threads"], 2);
+    // A report without its own `threads` gets the pool's, and stdout stays JSON lines.
+    let out =
+        rttest(&dir, &["dynamic", "--scene", "arena", "--frames", "1", "--size", "16x16", "--json", "--threads", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    let row: serde_json::Value = serde_json::from_str(&stdout).expect("one JSON object");
+    assert_eq!((row["cpu"].as_str(), row["simd"].as_str(), &row["threads"]), (Some(cpu), Some(simd), &2.into()));
+}
+
 #[test]
 fn bad_input_gives_one_line_and_non_zero_exit() {
     let dir = scratch("errors");
@@ -323,6 +365,7 @@ fn no_arguments_renders_the_atrium() {
     assert!(dir.join("atrium.png").is_file());
     let text = rttest(&dir, &["--threads", "2"]);
     let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.starts_with("cpu: "), "the machine line first: {text}");
     assert!(
         text.contains("| MFT 8x8 (mft-8) |") && text.contains("Wrote atrium.png") && text.contains("Next:"),
         "{text}"

@@ -35,7 +35,10 @@ fn rttest_leaks_prints_a_table_or_json_lines() {
     let dir = scratch("leaks", "cli");
     let out = rttest(&dir, &["leaks", "--rays", "4000", "--meshes", "cube,fan", "--threads", "2"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8_lossy(&out.stdout);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // The machine line first (`rttest::cli::header`), then the table.
+    let (machine, text) = stdout.split_once('\n').expect("the machine line, then the table");
+    assert!(machine.starts_with("cpu: "), "{stdout}");
     assert!(
         text.starts_with("| mesh | triangles | intersector | rays | Mrays/s | leaks | leaks per million |"),
         "{text}"

@@ -33,6 +33,7 @@ pub mod aov;
 pub mod conformance;
 pub mod error;
 pub mod frame;
+pub mod machine;
 pub mod method;
 pub mod multibvh;
 pub mod ours;
@@ -50,6 +51,7 @@ pub mod workload;
 
 pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
+pub use machine::{Machine, SimdLevel};
 pub use method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, Tracer};
 pub use registry::{Bound, Options, Registry, SoftGrouping, Structures};
 pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

@@ -4,7 +4,7 @@ use clap::Args;
 use experiments::compare::{self, CompareConfig};
 use trace::Error;
 
-use super::{GlobalArgs, emit, parse_size};
+use super::{GlobalArgs, emit, parse_size, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest compare` options.
@@ -75,7 +75,7 @@ pub fn run(global: &GlobalArgs, args: &CompareArgs) -> Result<(), Error> {
         }
         return Ok(());
     }
-    print!("{report}");
+    print_text(&report)?;
     Ok(())
 }
 

@@ -5,7 +5,7 @@ use clap::Args;
 use experiments::culling::{self, CullingConfig};
 use trace::Error;
 
-use super::{GlobalArgs, parse_size};
+use super::{GlobalArgs, parse_size, print_json, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest culling` options.
@@ -33,11 +33,11 @@ pub fn run(global: &GlobalArgs, args: &CullingArgs) -> Result<(), Error> {
     let report = culling::run(&args.into(), &Bars { enabled: progress::enabled(global.json) })?;
     if global.json {
         for row in &report.rows {
-            println!("{}", serde_json::to_string(row).map_err(std::io::Error::other)?);
+            print_json(row)?;
         }
         return Ok(());
     }
-    print!("{report}");
+    print_text(&report)?;
     if report.rows.iter().any(|r| !r.identical) {
         return Err(Error::Usage("culled shadow answers differ from unculled ones".into()));
     }

@@ -5,7 +5,7 @@ use clap::Args;
 use experiments::dynamic::{self, DynamicConfig};
 use trace::Error;
 
-use super::{GlobalArgs, parse_size};
+use super::{GlobalArgs, parse_size, print_json, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest dynamic` options.
@@ -38,10 +38,10 @@ pub fn run(global: &GlobalArgs, args: &DynamicArgs) -> Result<(), Error> {
     let report = dynamic::run(&args.into(), &Bars { enabled: progress::enabled(global.json) })?;
     if global.json {
         for row in &report.rows {
-            println!("{}", serde_json::to_string(row).map_err(std::io::Error::other)?);
+            print_json(row)?;
         }
     } else {
-        print!("{report}");
+        print_text(&report)?;
     }
     let differing = report.differing_frames();
     if !differing.is_empty() {

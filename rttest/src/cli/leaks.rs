@@ -5,7 +5,7 @@ use clap::Args;
 use experiments::leaks::{self, LeaksConfig};
 use trace::Error;
 
-use super::{GlobalArgs, emit};
+use super::{GlobalArgs, emit, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest leaks` options.
@@ -37,6 +37,6 @@ pub fn run(global: &GlobalArgs, args: &LeaksArgs) -> Result<(), Error> {
     for note in &report.notes {
         eprintln!("rttest: note: {note}");
     }
-    print!("{report}");
+    print_text(&report)?;
     Ok(())
 }

@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use trace::Error;
 use trace::report::RenderReport;
 
-use super::{GlobalArgs, SceneArgs, emit, load_and_build, render, render_args};
+use super::{GlobalArgs, SceneArgs, emit, load_and_build, print_text, render, render_args};
 
 /// The method the main job shows off.
 pub const BEST: &str = "mft-8";
@@ -28,8 +28,7 @@ pub fn run(global: &GlobalArgs) -> Result<(), Error> {
         emit(global, &mono)?;
         return emit(global, &best);
     }
-    print!("{}", summary(&built.report, &best_args.scene, &mono, &best));
-    Ok(())
+    print_text(&summary(&built.report, &best_args.scene, &mono, &best))
 }
 
 /// The side-by-side of single rays and the best method, and what to try next.

@@ -2,10 +2,13 @@
 //!
 //! Every command runs inside one rayon pool of `--threads` threads (all cores by default),
 //! so the build, the trace passes and the shading all use the same threads. With `--json`
-//! each result is one JSON object on its own line of stdout and nothing else goes to stdout.
+//! each result is one JSON object on its own line of stdout and nothing else goes to stdout;
+//! every object names the machine (`cpu`, `simd`). Text results start with the machine line
+//! ([`header`]).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -19,7 +22,7 @@ use trace::registry::{KDTREE, Selected, TILE_SIZE};
 use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, WorkloadReport};
 use trace::timing::mrays_per_s;
 use trace::workload::{self, Incoherent};
-use trace::{Error, FrameBuffers, FrameStats, Options, Registry, Renderer, Shadows, SoftGrouping, Structures};
+use trace::{Error, FrameBuffers, FrameStats, Machine, Options, Registry, Renderer, Shadows, SoftGrouping, Structures};
 
 use crate::progress::{self, Bar};
 
@@ -595,16 +598,66 @@ pub fn run(cli: Cli) -> Result<(), Error> {
     })
 }
 
-/// Prints a result: its JSON object on one line, or its text table.
+/// Prints a result: its JSON object on one line ([`json_line`]), or its text table under
+/// the machine line ([`header`]).
 pub fn emit<R: Serialize + std::fmt::Display>(global: &GlobalArgs, report: &R) -> Result<(), Error> {
     let mut out = std::io::stdout().lock();
     if global.json {
-        let line = serde_json::to_string(report).map_err(std::io::Error::other)?;
-        writeln!(out, "{line}")?;
+        writeln!(out, "{}", json_line(report)?)?;
     } else {
+        header(&mut out)?;
         writeln!(out, "{report}")?;
     }
     Ok(())
+}
+
+/// Prints a command's text results (a table, a summary) on stdout under the machine line.
+pub fn print_text(text: &dyn std::fmt::Display) -> Result<(), Error> {
+    let mut out = std::io::stdout().lock();
+    header(&mut out)?;
+    write!(out, "{text}")?;
+    Ok(())
+}
+
+/// Prints one JSON result ([`json_line`]) on its own line of stdout.
+pub fn print_json<R: Serialize>(report: &R) -> Result<(), Error> {
+    writeln!(std::io::stdout().lock(), "{}", json_line(report)?)?;
+    Ok(())
+}
+
+/// The first line of every command's text results: the machine the run measured on,
+/// `cpu: NAME (family F model M), simd: LEVEL, N threads` ([`trace::Machine`]), written to
+/// `out` once per process (later calls write nothing).
+pub fn header(out: &mut dyn Write) -> std::io::Result<()> {
+    static PRINTED: AtomicBool = AtomicBool::new(false);
+    if !PRINTED.swap(true, Ordering::Relaxed) {
+        writeln!(out, "{}", Machine::detect())?;
+    }
+    Ok(())
+}
+
+/// `report` as one line of JSON, with the machine added after its own fields: `cpu` (the
+/// model string with its family and model, as the machine line shows it), `simd` (the
+/// level's name) and, where the report has none, `threads` (the pool's threads).
+pub fn json_line<R: Serialize>(report: &R) -> Result<String, Error> {
+    #[derive(Serialize)]
+    struct WithMachine<'a, R> {
+        #[serde(flatten)]
+        report: &'a R,
+        cpu: String,
+        simd: &'static str,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        threads: Option<usize>,
+    }
+    let has_threads = serde_json::to_value(report).map_err(std::io::Error::other)?.get("threads").is_some();
+    let machine = Machine::detect();
+    let line = WithMachine {
+        report,
+        cpu: machine.cpu.to_string(),
+        simd: machine.simd.name(),
+        threads: (!has_threads).then(rayon::current_num_threads),
+    };
+    Ok(serde_json::to_string(&line).map_err(std::io::Error::other)?)
 }
 
 /// A loaded scene with its tree, as every command starts.

@@ -4,7 +4,7 @@ use clap::Args;
 use experiments::sah_sweep::{self, SweepConfig};
 use trace::Error;
 
-use super::GlobalArgs;
+use super::{GlobalArgs, print_json, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest sah-sweep` options.
@@ -50,10 +50,10 @@ pub fn run(global: &GlobalArgs, args: &SahSweepArgs) -> Result<(), Error> {
     let report = sah_sweep::run(&config, &Bars { enabled: progress::enabled(global.json) })?;
     if global.json {
         for row in &report.rows {
-            println!("{}", serde_json::to_string(row).map_err(std::io::Error::other)?);
+            print_json(row)?;
         }
         return Ok(());
     }
-    print!("{report}");
+    print_text(&report)?;
     Ok(())
 }

@@ -4,7 +4,7 @@ use clap::Args;
 use experiments::tables::{self, TablesConfig};
 use trace::Error;
 
-use super::{BuildStrategyArg, CostModelArg, GlobalArgs, IntersectorArg, parse_size};
+use super::{BuildStrategyArg, CostModelArg, GlobalArgs, IntersectorArg, header, parse_size, print_text};
 use crate::progress::{self, Bars};
 
 /// `rttest tables` options.
@@ -58,9 +58,14 @@ impl From<&TablesArgs> for TablesConfig {
     }
 }
 
-/// `rttest tables`: markdown (or CSV) on stdout.
+/// `rttest tables`: markdown (or CSV) on stdout, under the machine line (on stderr with
+/// `--csv`, so that stdout stays one CSV text).
 pub fn run(global: &GlobalArgs, args: &TablesArgs) -> Result<(), Error> {
     let report = tables::run(&args.into(), &Bars { enabled: progress::enabled(global.json) })?;
-    print!("{report}");
-    Ok(())
+    if args.csv {
+        header(&mut std::io::stderr().lock())?;
+        print!("{report}");
+        return Ok(());
+    }
+    print_text(&report)
 }
