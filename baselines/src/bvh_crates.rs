@@ -289,7 +289,7 @@ mod tests {
     fn zero_direction_components_in_a_box_face() {
         let wall = [glam::Vec3::new(1.0, -1.0, 0.0), glam::Vec3::new(1.0, 1.0, 0.0), glam::Vec3::new(1.0, 0.0, 1.0)];
         let floor = [glam::Vec3::new(2.0, -1.0, 0.0), glam::Vec3::new(3.0, -1.0, 0.0), glam::Vec3::new(2.0, 1.0, 0.0)];
-        let scene = trace::conformance::soup_scene("wall", &[wall, floor]);
+        let scene = conformance::soup_scene("wall", &[wall, floor]);
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let b = BvhCrate::build(&scene);
         for dir in [glam::Vec3::new(1.0, 0.0, 0.0), glam::Vec3::new(1.0, 0.0, -0.0), glam::Vec3::new(1.0, 0.25, 0.0)] {

@@ -1,5 +1,5 @@
 //! The baselines of `baselines::registry()` through the conformance harness
-//! (`trace::conformance`): each group method gives its own single-ray twin's answers exactly
+//! (crate `conformance`): each group method gives its own single-ray twin's answers exactly
 //! up to edge ties within 1e-4 of the distance (Embree's packets against `embree-1` of the
 //! same flag and BVH; the BVH crates are their own twins), and, loosely, ours (`mono` on our
 //! tree): the same triangle, a tie within 1e-4 of the distance, a grazing ray (a hit on an
@@ -9,8 +9,8 @@
 //! single-ray twins are checked loosely against the Wald oracle on soups and hard cases.
 #![cfg(any(feature = "embree", feature = "bvh-crates"))]
 
+use conformance::{Check, OracleCheck, OracleTest, Plan, Rule};
 use kdtree::Intersector;
-use trace::conformance::{self, Check, OracleCheck, OracleTest, Plan, Rule};
 use trace::{Options, Registry};
 
 /// The single-ray twin of a baseline: `embree-16-medium` -> `embree-1-medium`; a single-ray

@@ -1,5 +1,5 @@
 //! Cone and MFT-cone traversal against single rays where the conformance harness
-//! (`trace/tests/conformance.rs`, every registered method on the built-in and shared scenes,
+//! (`conformance/tests/ours.rs`, every registered method on the built-in and shared scenes,
 //! random soups, cameras and lights, and the hard cases) does not reach: packets loaded from
 //! elsewhere in narrow and wide bundles, non-finite lanes and cameras, and cone soft shadows
 //! on two light sizes against the pyramid and single rays.

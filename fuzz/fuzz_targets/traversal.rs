@@ -62,7 +62,7 @@ fuzz_target!(|input: Input| {
     let registry = Registry::ours();
     let mut structures = Structures::new(&tree);
     // The registry's other structures (the 4-wide BVH) over the same soup, same numbering.
-    let scene = trace::conformance::soup_scene("fuzz", &tris);
+    let scene = conformance::soup_scene("fuzz", &tris);
     registry.build_structures(&scene, &mut structures).expect("a finite soup builds");
     for rays in [&accepted, &shared] {
         let want: Vec<Option<Hit>> = rays.iter().map(|r| tree.intersect(r)).collect();

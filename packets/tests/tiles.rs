@@ -1,5 +1,5 @@
 //! Packet methods against single rays where the conformance harness
-//! (`trace/tests/conformance.rs`, every registered method on the built-in and shared scenes
+//! (`conformance/tests/ours.rs`, every registered method on the built-in and shared scenes
 //! and the hard cases) does not reach: random soups and cameras (proptest) at every tile
 //! size, MFT never doing more work than the single frustum of the same tile, omni packets in
 //! every direction, non-finite cameras and lanes, NaN frustum bounds.
@@ -56,7 +56,7 @@ proptest! {
 
     /// Random soups (many sharing vertices and axis planes), random cameras inside and
     /// outside them: MFT never does more work than the single frustum (their hits are the
-    /// conformance harness's, `trace/tests/conformance.rs`).
+    /// conformance harness's, `conformance/tests/ours.rs`).
     #[test]
     fn mft_work_on_random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
                                             eye in vertex(), target in vertex(), wide in any::<bool>(),

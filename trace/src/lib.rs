@@ -24,13 +24,11 @@
 //!   from a frame's primary hits and traced by every method's stream queries.
 //!
 //! Adding a method: implement [`Method`] in its own module and add one [`registry::Entry`]
-//! line to [`Registry::ours`]; the conformance test (`tests/conformance.rs`) then checks it
-//! against the brute-force oracle and single rays, and every command takes it by name.
+//! line to [`Registry::ours`]; the conformance test (crate `conformance`, `tests/ours.rs`)
+//! then checks it against the brute-force oracle and single rays, and every command takes it
+//! by name.
 
 pub mod aov;
-/// The conformance harness: every registered method against its single-ray twin and the
-/// brute-force oracle, on every scene, view and hard case (`tests/conformance.rs`).
-pub mod conformance;
 pub mod error;
 pub mod frame;
 pub mod machine;

@@ -83,7 +83,7 @@ impl Tracer for KdTree {
 /// soft-shadow point and per chunk of a ray stream.
 ///
 /// Every answer equals the single-ray answer of the method's structure under the oracle's
-/// equivalence rules (`kdtree::BruteForce::equivalent_hits`); `trace/tests/conformance.rs`
+/// equivalence rules (`kdtree::BruteForce::equivalent_hits`); `conformance/tests/ours.rs`
 /// checks it for every registered method.
 pub trait Method: Sync {
     /// Per-thread scratch space (packets, frusta), made once per rayon task.

@@ -3,8 +3,8 @@
 //! Two tracers (or two kernels of one) may name different triangles for one ray and both be
 //! right where the ray meets both at one distance: at an edge or vertex the triangles share,
 //! or on coincident (coplanar, overlapping) faces. `experiments::compare` classifies its
-//! mismatches with these tests and the conformance harness ([`crate::conformance`]) accepts
-//! such ties.
+//! mismatches with these tests and the conformance harness (the test-support crate
+//! `conformance`) accepts such ties.
 
 use glam::Vec3;
 

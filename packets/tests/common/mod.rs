@@ -1,6 +1,6 @@
 //! Test support shared by the packet tests and, through `#[path]`, the cone tests
 //! (`cones/tests/tiles.rs`) and the conformance harness's random soups
-//! (`trace/tests/conformance.rs`): the oracle's rule for "the same hit", trees of built-in
+//! (`conformance/tests/ours.rs`): the oracle's rule for "the same hit", trees of built-in
 //! scenes, a seeded generator and random soup vertices.
 #![allow(dead_code)]
 

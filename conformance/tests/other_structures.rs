@@ -1,6 +1,6 @@
 //! Our methods on structures other than the kd-tree (the 4- and 8-wide BVHs `mbvh-4` and
 //! `mbvh-8`; on a CPU with AVX2 `mbvh-8` runs its AVX2 node test) through the
-//! conformance harness (`trace::conformance`): every query (primary tiles at tiles 4, 8 and
+//! conformance harness (this crate): every query (primary tiles at tiles 4, 8 and
 //! 16, hard and soft shadows, streams closest and any hit) against `mono` on the kd-tree
 //! built with the same triangle test, under `Rule::Equivalent` (the hit `mono` reports, a tie
 //! at the same distance, or a difference the oracle accepts: a rounding artefact on a
@@ -10,8 +10,8 @@
 //! view, soups, the hard cases, the shared scenes when present. `Plan::ours` covers the
 //! kd-tree methods only; a new method of ours on another structure is picked up here.
 
+use conformance::{Check, OracleCheck, OracleTest, Plan, Rule};
 use trace::Registry;
-use trace::conformance::{self, Check, OracleCheck, OracleTest, Plan, Rule};
 use trace::registry::{KDTREE, Options};
 
 fn plan(registry: &Registry) -> Plan {

@@ -3,10 +3,10 @@
 //! soups and the hard cases, with both triangle tests and at tiles 4, 8 and 16: primary
 //! tiles, hard and soft shadows, ray streams closest and any hit; and `mono` agrees with the
 //! brute-force oracle on the soups and hard cases. A newly registered method is picked up
-//! without editing this file (see `trace::conformance`).
+//! without editing this file (see the crate's documentation).
 
+use conformance::Plan;
 use trace::Registry;
-use trace::conformance::{self, Plan};
 
 /// The built-in scenes at every view (grove, 60k triangles, at the default view only).
 #[test]
@@ -39,11 +39,11 @@ mod common;
 
 mod random {
     use super::common::vertex;
+    use conformance::{Case, Plan};
     use glam::Vec3;
     use proptest::prelude::*;
     use scenes::Camera;
     use trace::Registry;
-    use trace::conformance::{self, Case, Plan};
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
