@@ -1,10 +1,11 @@
-//! A scene: a mesh with named camera views and default lights, loaded by name or path.
+//! A scene: a mesh with named camera views and default lights (loaded by name or path in
+//! [`crate::load`]).
 
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use crate::{Camera, Mesh, PointLight, RectLight, SceneError, builtin, obj};
+use crate::{Camera, Mesh, PointLight, RectLight, SceneError};
 
 /// A named camera view: eye, target and vertical field of view (see [`Camera`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -114,22 +115,6 @@ fn known_view(name: &str) -> Option<View> {
     Some(View { name: "default".into(), eye: Vec3::from(eye), target: Vec3::from(target), fovy_deg })
 }
 
-/// Loads a scene given as a built-in name (see [`builtin::NAMES`]) or a path to an
-/// `.obj` / `.obj.gz` file.
-pub fn load_scene(spec: &str) -> Result<Scene, SceneError> {
-    if let Some(scene) = builtin::by_name(spec) {
-        return Ok(scene);
-    }
-    let path = Path::new(spec);
-    if !path.exists() {
-        return Err(SceneError::UnknownScene(spec.to_string(), builtin::NAMES.join(", ")));
-    }
-    let (mesh, _report) = obj::load_obj(path)?;
-    let stem = path.file_name().and_then(|s| s.to_str()).unwrap_or("scene");
-    let stem = stem.trim_end_matches(".gz").trim_end_matches(".obj");
-    Ok(Scene::from_mesh(stem, mesh))
-}
-
 /// The folder of shared benchmark scenes (Sponza and others), if present: `$RTTEST_SCENES`,
 /// else `../shared/scenes` from the workspace root, else `../shared/scenes` from the current
 /// directory. Tests and benches that use it skip cleanly when it is `None`.
@@ -163,17 +148,7 @@ pub fn shared_scene_files() -> Vec<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn built_in_names_load_and_unknown_names_fail_clearly() {
-        let scene = load_scene("cube").unwrap();
-        assert_eq!(scene.mesh.triangle_count(), 12);
-        assert!(scene.view("default").is_ok());
-        let err = scene.view("nope").unwrap_err().to_string();
-        assert!(err.contains("nope") && err.contains("default"), "{err}");
-        let err = load_scene("/no/such/scene.obj").unwrap_err().to_string();
-        assert!(err.contains("/no/such/scene.obj") && err.contains("atrium"), "{err}");
-    }
+    use crate::load_scene;
 
     #[test]
     fn files_get_bounds_views_and_known_viewpoints() {
@@ -217,11 +192,5 @@ mod tests {
         ] {
             assert!(bad.camera(8, 8).is_none(), "{bad:?}");
         }
-    }
-
-    #[test]
-    fn subdivided_atrium_loads_by_name() {
-        let scene = load_scene("atrium-x2").unwrap();
-        assert_eq!(scene.mesh.triangle_count(), 2 * load_scene("atrium").unwrap().mesh.triangle_count());
     }
 }

@@ -8,7 +8,7 @@
 use glam::{Affine3A, Quat, Vec3};
 
 use super::shapes::{MeshBuilder, Part, Rng, wall_boxes};
-use super::{lights_above, view};
+use super::stage::{lights_above, view};
 use crate::Scene;
 
 /// Half the width of the central hall.

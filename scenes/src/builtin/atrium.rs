@@ -11,7 +11,7 @@
 use glam::{Affine3A, EulerRot, Quat, Vec2, Vec3};
 
 use super::shapes::{Frame, MeshBuilder, Part, wall_boxes};
-use super::{lights_above, view};
+use super::stage::{lights_above, view};
 use crate::Scene;
 
 /// Column centres along X (both arcades, both storeys).

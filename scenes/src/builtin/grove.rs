@@ -9,7 +9,7 @@
 use glam::{Vec2, Vec3};
 
 use super::shapes::{Frame, MeshBuilder, Part, Rng};
-use super::{lights_above, view};
+use super::stage::{lights_above, view};
 use crate::Scene;
 
 /// Half the side of the ground square.

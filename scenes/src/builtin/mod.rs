@@ -7,9 +7,7 @@
 //! (174k, many small details). The small scenes exercise special cases. Y is up everywhere
 //! and `prim_ids[i] = i`.
 
-use glam::{Vec2, Vec3};
-
-use crate::{PointLight, RectLight, Scene, View};
+use crate::Scene;
 
 mod animated;
 mod arena;
@@ -17,6 +15,7 @@ mod atrium;
 mod grove;
 pub mod shapes;
 mod small;
+mod stage;
 
 pub use animated::animated;
 pub use atrium::{atrium, atrium_at_detail, atrium_rotated};
@@ -71,29 +70,10 @@ pub fn by_name(name: &str) -> Option<Scene> {
     }
 }
 
-/// A named view.
-fn view(name: &str, eye: Vec3, target: Vec3, fovy_deg: f32) -> View {
-    View { name: name.to_string(), eye, target, fovy_deg }
-}
-
-/// A point light at `position` and a downward-facing square area light of side `size`
-/// centred on it, both with `intensity` (inverse-square, so about `intensity / d^2` at
-/// distance `d`).
-fn lights_above(position: Vec3, size: f32, intensity: f32) -> (PointLight, RectLight) {
-    let half = Vec2::splat(0.5 * size);
-    let point = PointLight { position, intensity: Vec3::splat(intensity) };
-    let area = RectLight {
-        corner: position - Vec3::new(half.x, 0.0, half.y),
-        // edge_u x edge_v points down (-Y).
-        edge_u: Vec3::new(size, 0.0, 0.0),
-        edge_v: Vec3::new(0.0, 0.0, size),
-        intensity: Vec3::splat(intensity),
-    };
-    (point, area)
-}
-
 #[cfg(test)]
 mod tests {
+    use glam::Vec3;
+
     use super::shapes::checks::{degenerate, inconsistent_edge, open_edge};
     use super::*;
 

@@ -4,7 +4,7 @@
 use glam::Vec3;
 
 use super::shapes::{MeshBuilder, Part};
-use super::{lights_above, view};
+use super::stage::{lights_above, view};
 use crate::{Mesh, Scene};
 
 /// A scene of `mesh` seen from `eye`, lit from above its bounds.
