@@ -1,4 +1,4 @@
-//! The build: a binary BVH by binned SAH, collapsed top-down into 4- or 8-wide multi-nodes (Wald,
+//! The build: a binary BVH by binned SAH, collapsed top-down into multi-nodes of any width (Wald,
 //! Benthin & Boulos 2008, section 4: "build a binary BVH \[with\] SAH-based binning, ... copy
 //! \[it\] into our multi-node layout ..., which we can then collapse").
 //!
@@ -15,13 +15,13 @@
 //!   (`rayon::join`); the result does not depend on the thread count.
 //! - **Depth.** Beyond binary depth [`MEDIAN_DEPTH`] nodes are split at the object median,
 //!   so the binary depth stays below `MEDIAN_DEPTH + 33` and the multi-node tree's (each
-//!   multi-node takes at least one binary level) below [`crate::MAX_DEPTH`]: the traversal's
-//!   fixed stack ([`crate::STACK_SIZE`]) cannot overflow.
+//!   multi-node takes at least one binary level) within [`MAX_DEPTH`]: the traversal's
+//!   fixed stacks ([`crate::node::stack_capacity`]) cannot overflow.
 //! - **Collapse** (section 4.2, "merging a child node into its parent", top-down): starting
 //!   at the root, the inner child of largest surface area is replaced by its two children
-//!   while the node has fewer than its width (`MultiNode::WIDTH`: 4 or 8); then each inner
-//!   child is collapsed the same way. The 4- and 8-wide trees are collapsed from the same
-//!   binary BVH (the build is deterministic) and have the same leaves. The paper's other two
+//!   while the node has fewer than its width (`MultiNode::WIDTH`: 4, 8 or 16); then each
+//!   inner child is collapsed the same way. The trees of every width are collapsed from the
+//!   same binary BVH (the build is deterministic) and have the same leaves. The paper's other two
 //!   moves (merging two leaves, two inner nodes) serve 16-wide leaves; with leaves of one
 //!   4-wide block they do not apply.
 
@@ -29,7 +29,7 @@ use glam::Vec3;
 use kdtree::Aabb;
 use kdtree::triangle::is_degenerate;
 
-use crate::node::{LEAF, MultiNode};
+use crate::node::{LEAF, MAX_DEPTH, MultiNode};
 
 /// Bins per axis of the binned SAH.
 pub const BINS: usize = 32;
@@ -37,8 +37,9 @@ pub const BINS: usize = 32;
 /// The most triangles in a leaf: one 4-wide block.
 pub const LEAF_SIZE: usize = 4;
 
-/// Binary depth beyond which nodes are split at the object median.
-pub const MEDIAN_DEPTH: u32 = 48;
+/// Binary depth beyond which nodes are split at the object median (48): the binary depth
+/// then stays below `MEDIAN_DEPTH + 33` and the multi-node tree's within [`MAX_DEPTH`].
+pub const MEDIAN_DEPTH: u32 = MAX_DEPTH - 37;
 
 /// Binary nodes with more triangles than this are split in parallel.
 const PARALLEL: usize = 4096;

@@ -3,22 +3,36 @@
 //! (`../shared/seeds/wald-benthin-boulos-2008-getting-rid-of-packets.txt`).
 //!
 //! Instead of tracing four rays through a binary structure (the thesis's packets), one ray is
-//! traced through a BVH whose nodes have four children, and the four SIMD lanes test the four
-//! child boxes of a node ([`node`]) or the four triangles of a leaf ([`leaf`]) at once. It
-//! needs no coherence between rays, so it is the structure for incoherent rays (ambient
+//! traced through a BVH whose nodes have `W` children, and the SIMD lanes test the child
+//! boxes of a node ([`boxtest`]) or the four triangles of a leaf ([`leaf`]) at once. It needs
+//! no coherence between rays, so it is the structure for incoherent rays (ambient
 //! occlusion, diffuse bounces), where packets and frusta fall apart.
 //!
-//! - [`build`]: binned SAH binary BVH collapsed top-down into 4- or 8-wide multi-nodes
+//! The width is a parameter, written once: the node [`Node<W>`], the scalar node test
+//! [`Scalar<W>`], the collapse and the traversal serve every width with a [`NodeWidth`]
+//! (4, 8 and 16); only the SIMD node tests are per width and instruction set.
+//!
+//! - [`node`]: [`Node<W>`], the SoA multi-node (per axis `[min, max]`, each `W` lanes
+//!   aligned for one register; [`Node4`], [`Node8`]), what each width fixes ([`NodeWidth`]:
+//!   lane alignment, stack capacity) and [`MultiNode`], the node as the build and the
+//!   traversal see it.
+//! - [`boxtest`]: the conservative slab test (section 5.2): [`BoxTest`] (a node test as a
+//!   value, with its scalar twin and the traversal's entry points) and the portable scalar
+//!   test of every width, [`Scalar<W>`], the twin of every SIMD test.
+//! - [`simd4`]: [`Simd4`], the 4-wide test in SSE (glam's `Vec4`).
+//! - [`simd8`]: [`Avx2`], the 8-wide test in AVX2, a token chosen at run time. The 16-wide
+//!   AVX-512 test is to be its sibling (`simd16`); until then 16-wide trees use
+//!   [`Scalar<16>`].
+//! - [`build`]: binned SAH binary BVH collapsed top-down into `W`-wide multi-nodes
 //!   (section 4).
-//! - [`node`]: [`Node4`], the SoA multi-node (one `Vec4` per box coordinate of the four
-//!   children) and its conservative slab test, SIMD ([`node::hit4`]) and scalar; the traits
-//!   every width implements ([`MultiNode`], [`BoxTest`]).
-//! - [`node8`]: [`Node8`], eight children (one 256-bit register per coordinate), its test
-//!   in AVX2 ([`Avx2`], chosen at run time) and scalar ([`Scalar8`]).
 //! - [`leaf`]: leaf blocks of up to four triangles SoA for both of `kdtree`'s intersectors,
 //!   each lane bit-identical to the scalar test.
-//! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), with a
-//!   scalar twin.
+//! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), one loop
+//!   for every width and node test, with a scalar twin.
+//!
+//! Modules import only downwards: `node` imports nothing of the crate; `boxtest` and
+//! `build` import `node`; `simd4` and `simd8` import `node` and `boxtest`; `traverse`
+//! imports `node`, `boxtest` and `leaf`; this root imports them all.
 //!
 //! **Where this CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
 //! and builds 16-wide nodes and leaves. This machine (AMD Zen 1) has SSE4.2 and AVX2, no
@@ -26,43 +40,37 @@
 //! test costs about two 4-wide ones, so 8 wide buys no arithmetic throughput, only fewer,
 //! fatter nodes (fewer traversal steps and stack operations). We build both widths over the
 //! same binary BVH: [`Mbvh`], 4 wide (one SSE register per coordinate, glam's `Vec4`), and
-//! [`Mbvh8`], 8 wide (AVX2 where the CPU has it, checked once when the traversal is made).
+//! [`Mbvh8`], 8 wide (AVX2 where the CPU has it, checked once when the traversal is made);
+//! `MultiBvh<Node<16>>` builds and traces too, with the scalar test only.
 //! Measured here (`docs/results/incoherent-mbvh.md`), 8 wide is the faster, 1.1-1.6x on
 //! primary, shadow, AO and diffuse rays: a ray visits about a third fewer nodes, and a single
 //! ray's node step costs its latency more than its arithmetic. Leaves stay one 4-wide
-//! block of triangles in both. With at most eight children the paper's unsorted active list
+//! block of triangles in every width. With at most 16 children the paper's unsorted active list
 //! (section 5.3) is replaced by an insertion sort of the entered children onto the stack.
 //!
 //! The tree is independent of the triangle test; its leaves are stored once per intersector
 //! ([`MultiBvh::wald`], [`MultiBvh::watertight`]) so that a method can answer with the test of the
 //! kd-tree it is compared with. Kernels never allocate, lock or dispatch dynamically.
 
+pub mod boxtest;
 pub mod build;
 pub mod leaf;
 pub mod node;
-pub mod node8;
+pub mod simd4;
+pub mod simd8;
 pub mod traverse;
 
 use glam::Vec3;
 use kdtree::Aabb;
 use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
 
+pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8};
 pub use build::BuildError;
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
-pub use node::{BoxTest, MultiNode, Node4, Scalar4, Simd4, WIDTH};
-pub use node8::{Avx2, Node8, Scalar8, WIDTH8};
+pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, NodeWidth, Width};
+pub use simd4::Simd4;
+pub use simd8::Avx2;
 pub use traverse::Traversal;
-
-/// The deepest multi-node tree the build makes, of any width (the binary build's median
-/// fallback keeps the binary depth, which bounds it, below, see [`build`]).
-pub const MAX_DEPTH: u32 = build::MEDIAN_DEPTH + 37;
-
-/// The widest node ([`Node8`]).
-pub const MAX_WIDTH: usize = WIDTH8;
-
-/// Entries of the traversal's fixed stack: a node pushes at most `MAX_WIDTH - 1` entries more
-/// than it pops, so `(MAX_WIDTH - 1) * MAX_DEPTH + 1` suffice for every width.
-pub const STACK_SIZE: usize = (MAX_WIDTH - 1) * MAX_DEPTH as usize + 1;
 
 /// The 4-wide BVH ([`Node4`]).
 pub type Mbvh = MultiBvh<Node4>;
@@ -70,7 +78,44 @@ pub type Mbvh = MultiBvh<Node4>;
 /// The 8-wide BVH ([`Node8`]), collapsed from the same binary BVH as [`Mbvh`].
 pub type Mbvh8 = MultiBvh<Node8>;
 
-/// A multi-branching BVH over a triangle mesh, nodes of type `N` (4 or 8 children), with leaf
+/// A node width's default test: the one [`MultiBvh::wald`] and [`MultiBvh::watertight`]
+/// traverse with, portable (it runs on every CPU of the architecture); a faster one that
+/// needs a CPU feature is asked for with `Traversal::with_test`.
+pub trait DefaultTest: MultiNode {
+    /// The test.
+    type Test: BoxTest<Node = Self> + Default;
+}
+
+/// SSE on x86-64 (glam's `Vec4`; NEON or scalar elsewhere).
+impl DefaultTest for Node4 {
+    type Test = Simd4;
+}
+
+/// Scalar; [`Avx2`] where [`Avx2::detect`] finds it.
+impl DefaultTest for Node8 {
+    type Test = Scalar8;
+}
+
+/// Scalar: the 16-wide AVX-512 test (a token like [`Avx2`], asked for with
+/// `Traversal::with_test`) is still to come.
+impl DefaultTest for Node<16> {
+    type Test = Scalar<16>;
+}
+
+/// Width 16 instantiates with the scalar test: its node, tree and both traversal queries
+/// type-check here (and are exercised by the tests), before its SIMD test exists.
+mod width_16 {
+    use kdtree::{Hit, NoCounters, Ray};
+
+    use super::*;
+
+    type Build = fn(&[Vec3], &[[u32; 3]]) -> Result<MultiBvh<Node<16>>, BuildError>;
+    type Closest = fn(&Traversal<'static, WaldBlock, Scalar<16>>, &Ray, &mut NoCounters) -> Option<Hit>;
+    type Any = fn(&Traversal<'static, WatertightBlock, Scalar<16>>, &Ray, &mut NoCounters) -> bool;
+    const _: (Build, Closest, Any) = (MultiBvh::build, Traversal::intersect_counted, Traversal::occluded_counted);
+}
+
+/// A multi-branching BVH over a triangle mesh, nodes of type `N` ([`Node<W>`]), with leaf
 /// blocks for both intersectors.
 #[derive(Clone, Debug)]
 pub struct MultiBvh<N: MultiNode> {
@@ -131,18 +176,6 @@ impl<N: MultiNode> MultiBvh<N> {
             depth: collapsed.depth,
             triangles: triangles.len(),
         })
-    }
-
-    /// The tree with Wald's test in the leaves (thesis 4.2) and the width's portable node
-    /// test (`Traversal::with_test` picks another, e.g. [`Avx2`]).
-    pub fn wald(&self) -> Traversal<'_, WaldBlock, N::Test> {
-        Traversal::new(self, &self.wald, N::Test::default())
-    }
-
-    /// The tree with the watertight test in the leaves (Woop et al. 2013) and the width's
-    /// portable node test.
-    pub fn watertight(&self) -> Traversal<'_, WatertightBlock, N::Test> {
-        Traversal::new(self, &self.watertight, N::Test::default())
     }
 
     /// The multi-nodes; the root is the first.
@@ -261,6 +294,20 @@ impl<N: MultiNode> MultiBvh<N> {
     }
 }
 
+impl<N: DefaultTest> MultiBvh<N> {
+    /// The tree with Wald's test in the leaves (thesis 4.2) and the width's default node
+    /// test ([`DefaultTest`]; `Traversal::with_test` picks another, e.g. [`Avx2`]).
+    pub fn wald(&self) -> Traversal<'_, WaldBlock, N::Test> {
+        Traversal::new(&self.nodes, &self.wald, N::Test::default())
+    }
+
+    /// The tree with the watertight test in the leaves (Woop et al. 2013) and the width's
+    /// default node test.
+    pub fn watertight(&self) -> Traversal<'_, WatertightBlock, N::Test> {
+        Traversal::new(&self.nodes, &self.watertight, N::Test::default())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,6 +367,50 @@ mod tests {
         }
     }
 
+    /// Width 16 with the scalar test (its SIMD test is still to come): the tree collapsed
+    /// from the same binary BVH, traced against `BruteForce` and its scalar twin.
+    #[test]
+    fn a_16_wide_tree_traces_like_brute_force() {
+        use kdtree::{BruteForce, Intersector};
+        use scenes::builtin::shapes::Rng;
+
+        let mut rng = Rng::new(16);
+        let mut point = |s: f32| Vec3::new(rng.range(-s, s), rng.range(-s, s), rng.range(-s, s));
+        let mut positions = Vec::new();
+        for _ in 0..400 {
+            let c = point(4.0);
+            positions.extend([c + point(0.6), c + point(0.6), c + point(0.6)]);
+        }
+        let triangles: Vec<[u32; 3]> = (0..400).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let bvh = MultiBvh::<Node<16>>::build(&positions, &triangles).unwrap();
+        bvh.validate(&positions, &triangles).unwrap();
+        let (s, s8) = (bvh.stats(), Mbvh8::build(&positions, &triangles).unwrap().stats());
+        assert_eq!((s.leaves, s.leaf_triangles), (s8.leaves, s8.leaf_triangles));
+        assert!(s.nodes < s8.nodes && s.depth <= s8.depth && s.branching > s8.branching, "{s:?} {s8:?}");
+        let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
+        let (w, wt) = (BruteForce::new(&tris, Intersector::Wald), BruteForce::new(&tris, Intersector::Watertight));
+        let bits = |h: Option<kdtree::Hit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+        let mut hits = 0;
+        for i in 0..600 {
+            let (o, to) = (point(6.0), point(3.0));
+            // Every third ray axis-parallel: zero direction components.
+            let d = if i % 3 == 0 { Vec3::new(0.0, 0.0, (to - o).z) } else { to - o };
+            if d == Vec3::ZERO {
+                continue;
+            }
+            let ray = Ray::new(o, d, 0.0, if i % 2 == 0 { f32::INFINITY } else { 1.0 });
+            let (tw, twt) = (bvh.wald(), bvh.watertight());
+            let got = tw.intersect_counted(&ray, &mut NoCounters);
+            w.check(&ray, got, tw.occluded_counted(&ray, &mut NoCounters)).unwrap();
+            let got_wt = twt.intersect_counted(&ray, &mut NoCounters);
+            wt.check(&ray, got_wt, twt.occluded_counted(&ray, &mut NoCounters)).unwrap();
+            assert_eq!(bits(got), bits(tw.intersect_scalar(&ray, &mut NoCounters)));
+            assert_eq!(bits(got_wt), bits(twt.intersect_scalar(&ray, &mut NoCounters)));
+            hits += usize::from(got.is_some());
+        }
+        assert!(hits > 50, "{hits} hits");
+    }
+
     #[test]
     fn degenerate_triangles_are_left_out_and_never_hit() {
         let (mut p, mut t) = quad_mesh(3);
@@ -347,7 +438,7 @@ mod tests {
         let (p, t) = quad_mesh(40);
         let bvh = Mbvh::build(&p, &t).unwrap();
         let mut shrunk = bvh.clone();
-        shrunk.nodes[0].bounds[0][1] = Vec4Ext::lane_set(shrunk.nodes[0].bounds[0][1], 0, -100.0);
+        shrunk.nodes[0].bounds[0][1][0] = -100.0;
         assert!(shrunk.validate(&p, &t).is_err());
         let mut lost = bvh.clone();
         let slot = lost.nodes[0].child.iter().position(|&c| c != node::EMPTY).unwrap();
@@ -357,24 +448,12 @@ mod tests {
         let bvh8 = Mbvh8::build(&p, &t).unwrap();
         bvh8.validate(&p, &t).unwrap();
         let mut shrunk = bvh8.clone();
-        shrunk.nodes[0].bounds[1][1].0[0] = -100.0;
+        shrunk.nodes[0].bounds[1][1][0] = -100.0;
         assert!(shrunk.validate(&p, &t).unwrap_err().contains("outside"));
         let mut twice = bvh8.clone();
-        let used: Vec<usize> = (0..WIDTH8).filter(|&i| twice.nodes[0].child[i] != node::EMPTY).collect();
+        let used: Vec<usize> = (0..Node8::WIDTH).filter(|&i| twice.nodes[0].child[i] != node::EMPTY).collect();
         twice.nodes[0].child[used[0]] = twice.nodes[0].child[used[1]];
         assert!(twice.validate(&p, &t).is_err());
-    }
-
-    /// Sets one lane of a `Vec4` (for damaging trees in tests).
-    trait Vec4Ext {
-        fn lane_set(self, lane: usize, value: f32) -> Self;
-    }
-
-    impl Vec4Ext for glam::Vec4 {
-        fn lane_set(mut self, lane: usize, value: f32) -> Self {
-            self[lane] = value;
-            self
-        }
     }
 
     #[test]

@@ -1,36 +1,36 @@
 //! Single-ray traversal of the multi-branching BVH (Wald, Benthin & Boulos 2008, section 5):
-//! one ray, the SIMD lanes spent on the children of a node (4 or 8, [`BoxTest`]) and the four
-//! triangles of a leaf.
+//! one ray, the SIMD lanes spent on the `W` children of a node ([`BoxTest`]) and the four
+//! triangles of a leaf. One loop per query, written once for every width and node test.
 //!
 //! - **Closest hit** ([`Traversal::intersect_counted`]): depth-first with a fixed stack of
 //!   `(node, entry distance)`; the children a ray enters are visited nearest first (the
 //!   others pushed farthest first), and an entry whose distance is beyond the closest hit so
 //!   far is dropped when popped. The paper keeps an unsorted active list scanned 16 wide for
-//!   the nearest entry (section 5.3); with at most eight children per node the entries are
-//!   insertion-sorted straight onto the stack (two to eight of them), which is cheaper on
+//!   the nearest entry (section 5.3); with the 4 or 8 children of our SIMD nodes the entries
+//!   are insertion-sorted straight onto the stack (two to `W` of them), which is cheaper on
 //!   this CPU than a scan and gives the same front-to-back order within a node.
 //! - **Any hit** ([`Traversal::occluded_counted`]): the same descent without ordering, and
 //!   the first hit ends it.
 //!
 //! Both are generic over the leaf block (the intersector), the node test ([`BoxTest`]: 4-wide
-//! SSE or scalar, 8-wide AVX2 or scalar) and over `SIMD` leaves. The scalar twin
-//! ([`Traversal::intersect_scalar`]) runs the test's scalar twin and the scalar triangle
-//! records one by one, and must give the same answers bit for bit (tested in
-//! `tests/oracle.rs`). No allocation (the stack is a fixed array, left uninitialised: only
-//! entries below the stack pointer are read), no locking, no dynamic dispatch; counting
-//! compiles away with `kdtree::NoCounters`.
-
-use std::mem::MaybeUninit;
+//! SSE, 8-wide AVX2, or the scalar test of any width) and over `SIMD` leaves; the stacks are
+//! sized for the node's width (`node::stack_capacity`). A test enters the loops through its
+//! [`BoxTest::closest`] / [`BoxTest::any`] ([`TraversalLoop`]), so that a test with target
+//! features runs them compiled with those. The scalar twin ([`Traversal::intersect_scalar`])
+//! runs the test's scalar twin and the scalar triangle records one by one, and must give the
+//! same answers bit for bit (tested in `tests/oracle.rs`). No allocation (the stack is a fixed
+//! array, left uninitialised: only entries below the stack pointer are read), no locking, no
+//! dynamic dispatch; counting compiles away with `kdtree::NoCounters`.
 
 use kdtree::{Counters, Hit, Ray};
 
+use crate::boxtest::{BoxTest, TraversalLoop};
 use crate::leaf::{LANES, LeafBlock};
-use crate::node::{BoxTest, LEAF, MultiNode, Simd4};
-use crate::{MultiBvh, STACK_SIZE};
+use crate::node::{LEAF, MultiNode, StackArray};
 
 /// The tree bound to one intersector's leaf blocks and one node test: what a method traces.
 #[derive(Debug)]
-pub struct Traversal<'a, B, K: BoxTest = Simd4> {
+pub struct Traversal<'a, B, K: BoxTest> {
     pub(crate) nodes: &'a [K::Node],
     pub(crate) blocks: &'a [B],
     pub(crate) test: K,
@@ -52,9 +52,10 @@ fn traceable(ray: &Ray) -> bool {
 }
 
 impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
-    /// The tree `bvh` with the blocks `blocks` (one of its intersectors) and the test `test`.
-    pub(crate) fn new(bvh: &'a MultiBvh<K::Node>, blocks: &'a [B], test: K) -> Self {
-        Traversal { nodes: &bvh.nodes, blocks, test }
+    /// The tree of `nodes` (the root first) with the blocks `blocks` (one of its
+    /// intersectors) and the test `test`.
+    pub(crate) fn new(nodes: &'a [K::Node], blocks: &'a [B], test: K) -> Self {
+        Traversal { nodes, blocks, test }
     }
 
     /// The same tree and blocks traversed with another node test of the same width (e.g.
@@ -71,13 +72,13 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
     /// The closest hit of `ray` in `[t_min, t_max]` (SIMD node and leaf tests).
     #[inline]
     pub fn intersect_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
-        K::closest(self, ray, counters)
+        self.test.closest(self, ray, counters)
     }
 
     /// Whether anything is hit in `[t_min, t_max]` (SIMD node and leaf tests).
     #[inline]
     pub fn occluded_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
-        K::any(self, ray, counters)
+        self.test.any(self, ray, counters)
     }
 
     /// The scalar twin of [`Traversal::intersect_counted`]: the node test's scalar twin and
@@ -94,14 +95,15 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
     /// The closest-hit loop; `SIMD`: the leaves' SIMD test, else the scalar records. Called
     /// through [`BoxTest::closest`] (in the test's target features).
     #[inline(always)]
-    pub(crate) fn closest_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+    fn closest_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
         if !traceable(ray) {
             return None;
         }
         let rb = K::prepare(ray);
         let data = B::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
-        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK_SIZE];
+        let mut storage = <K::Node as MultiNode>::Stack::<(u32, f32)>::uninit();
+        let stack = storage.entries();
         let mut sp = 1;
         stack[0].write((0, ray.t_min));
         let mut best: Option<Hit> = None;
@@ -165,14 +167,15 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
 
     /// The any-hit loop (see [`Traversal::closest_loop`]).
     #[inline(always)]
-    pub(crate) fn any_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
+    fn any_loop<const SIMD: bool, C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
         if !traceable(ray) {
             return false;
         }
         let rb = K::prepare(ray);
         let data = B::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
-        let mut stack = [const { MaybeUninit::<u32>::uninit() }; STACK_SIZE];
+        let mut storage = <K::Node as MultiNode>::Stack::<u32>::uninit();
+        let stack = storage.entries();
         let mut sp = 1;
         stack[0].write(0);
         while sp > 0 {
@@ -206,6 +209,18 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
             }
         }
         false
+    }
+}
+
+impl<B: LeafBlock, K: BoxTest> TraversalLoop for Traversal<'_, B, K> {
+    #[inline(always)]
+    fn closest<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        self.closest_loop::<true, C>(ray, counters)
+    }
+
+    #[inline(always)]
+    fn any<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        self.any_loop::<true, C>(ray, counters)
     }
 }
 

@@ -1,13 +1,13 @@
-//! The 4- and 8-wide BVHs against the brute-force oracle (`kdtree::oracle::BruteForce`, same
+//! The 4-, 8- and 16-wide BVHs against the brute-force oracle (`kdtree::oracle::BruteForce`, same
 //! triangle test) and against their scalar twins, with both intersectors: on the small
 //! built-in scenes (every view, primary rays and random rays from and to surfaces,
 //! axis-parallel rays) and on random soups. Every closest hit must pass `BruteForce::check`,
-//! and every traversal (4-wide SSE, 8-wide scalar, 8-wide AVX2 where the CPU has it) must give
-//! its scalar twin's answers bit for bit.
+//! and every traversal (4-wide SSE, 8-wide scalar, 8-wide AVX2 where the CPU has it, 16-wide
+//! scalar) must give its scalar twin's answers bit for bit.
 
 use glam::Vec3;
 use kdtree::{BruteForce, Hit, Intersector, NoCounters, Ray};
-use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
+use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, MultiBvh, Node, Traversal};
 use proptest::prelude::*;
 use scenes::builtin::shapes::Rng;
 
@@ -37,12 +37,16 @@ fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) ->
     bvh.validate(positions, triangles).unwrap();
     let bvh8 = Mbvh8::build(positions, triangles).unwrap();
     bvh8.validate(positions, triangles).unwrap();
+    let bvh16 = MultiBvh::<Node<16>>::build(positions, triangles).unwrap();
+    bvh16.validate(positions, triangles).unwrap();
     let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
     let (w, wt) = (BruteForce::new(&tris, Intersector::Wald), BruteForce::new(&tris, Intersector::Watertight));
     let hits = check(&format!("{what} wald"), bvh.wald(), &w, rays);
     check(&format!("{what} watertight"), bvh.watertight(), &wt, rays);
     check(&format!("{what} 8-wide wald"), bvh8.wald(), &w, rays);
     check(&format!("{what} 8-wide watertight"), bvh8.watertight(), &wt, rays);
+    check(&format!("{what} 16-wide wald"), bvh16.wald(), &w, rays);
+    check(&format!("{what} 16-wide watertight"), bvh16.watertight(), &wt, rays);
     if let Some(avx) = Avx2::detect() {
         check(&format!("{what} 8-wide avx2 wald"), bvh8.wald().with_test(avx), &w, rays);
         check(&format!("{what} 8-wide avx2 watertight"), bvh8.watertight().with_test(avx), &wt, rays);

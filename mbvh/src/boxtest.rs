@@ -1,0 +1,349 @@
+//! The ray-box test of a multi-node (Wald, Benthin & Boulos 2008, section 5.2): one ray
+//! against the `W` child boxes of a [`Node<W>`] at once. This module holds what every
+//! implementation shares: the [`BoxTest`] trait, the conservative arithmetic ([`WIDEN`],
+//! [`TINY`]) and the portable scalar test written once for every width ([`Scalar<W>`],
+//! [`hit_scalar`]), which is also the scalar twin of each SIMD test ([`crate::simd4`]:
+//! SSE, 4 wide; [`crate::simd8`]: AVX2, 8 wide; the 16-wide AVX-512 test is still to come,
+//! and 16-wide trees are traversed with [`Scalar<16>`] until then).
+//!
+//! The boxes are SoA (one lane array per box coordinate), so one slab test of a ray against
+//! `W` boxes is six subtractions, six multiplications and the min/max reductions, `W` lanes
+//! at a time. Unused slots hold the empty box (`min = +inf`, `max = -inf`), which no ray
+//! enters.
+//!
+//! The slab test is conservative in exact arithmetic: a box the exact ray segment meets is
+//! never culled. Each plane distance `(p - o) * (1 / d)` carries at most three roundings
+//! (the subtraction, the reciprocal, the product), a relative error below `gamma_3 = 3 eps /
+//! (1 - 3 eps)`; the entry distance is lowered and the exit distance raised by twice that
+//! (Ize 2013, "Robust BVH ray traversal", uses the same bound on the exit distance), plus
+//! the smallest normal float for products that underflow ([`TINY`]), so a grazing ray keeps
+//! the box. Planes are picked by the direction's sign bit (near plane `min` for `+d`, `max`
+//! for `-d`, `-0.0` counting as negative), which also makes the empty box a miss for every
+//! ray.
+//!
+//! The one undefined product is `0 * inf`: a direction component is zero (`1 / d = ±inf`)
+//! and the origin lies exactly on the box's plane, so the ray runs inside that face's plane
+//! and the axis bounds nothing. The product is NaN; it is dropped in the reductions: each
+//! SIMD step is `max(candidate, accumulator)` (SSE `maxps` and AVX `vmaxps` return their
+//! second operand when either is NaN, and the accumulator, starting at the ray's non-NaN
+//! `t_min` / `t_max`, never is), and the scalar test says the same with an explicit test.
+//! Every SIMD test does the same operations in the same order without fused multiply-add,
+//! so it gives the scalar test's masks and entry distances bit for bit (`tests/twins.rs`).
+
+use std::fmt::Debug;
+use std::ops::Index;
+
+use kdtree::{Counters, Hit, Ray};
+
+use crate::node::{MultiNode, Node, NodeWidth, Width};
+
+/// Twice `gamma_3` (`3 eps / (1 - 3 eps)`, eps = 2^-24): the relative widening of the entry
+/// and exit distances that keeps the box test conservative (module docs).
+pub const WIDEN: f32 = 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// The absolute part of the widening: a product that underflows to a subnormal or zero has
+/// an absolute, not a relative, error (below `2^-149`); the smallest normal float covers it.
+pub const TINY: f32 = f32::MIN_POSITIVE;
+
+/// The traversal loops of one tree, leaf test and node test, as a node test's entry points
+/// ([`BoxTest::closest`], [`BoxTest::any`]) run them: `crate::Traversal` implements it.
+pub trait TraversalLoop {
+    /// The closest hit of `ray` (SIMD node and leaf tests).
+    fn closest<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit>;
+    /// Whether `ray` hits anything (SIMD node and leaf tests).
+    fn any<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool;
+}
+
+/// One ray against every child box of a node (section 5.2): the mask of the slots whose box
+/// the ray's interval enters (bit `i` for slot `i`) and their widened entry distances, every
+/// implementation for one node type giving the same bits (the module docs' conservative
+/// test).
+///
+/// A test is a value: [`crate::Avx2`] can only be made after the CPU was found to have
+/// AVX2, so holding one proves its instructions may run. [`BoxTest::closest`] and
+/// [`BoxTest::any`] are the traversal's entry points, so that a test can run the whole loop
+/// under its target features (one check when the traversal is made, none per ray).
+pub trait BoxTest: Copy + Debug + Send + Sync + 'static {
+    /// The node it tests.
+    type Node: MultiNode;
+    /// What it precomputes once per ray.
+    type RayData: Copy;
+    /// Entry distances, one per slot.
+    type Nears: Copy + Index<usize, Output = f32>;
+    /// The scalar twin: the same arithmetic lane by lane (bit-identical masks and distances).
+    type Twin: BoxTest<Node = Self::Node>;
+    /// This test's scalar twin.
+    fn twin(self) -> Self::Twin;
+    /// The per-ray precomputation.
+    fn prepare(ray: &Ray) -> Self::RayData;
+    /// The slots of `node` whose box `[t_min, t_max]` enters, and the entry distances.
+    fn hit(self, node: &Self::Node, r: &Self::RayData, t_min: f32, t_max: f32) -> (u32, Self::Nears);
+    /// The closest hit of `ray` through `l` (`Traversal::intersect_counted`); a test with
+    /// target features runs `l` in a function compiled with them.
+    #[inline(always)]
+    fn closest<L: TraversalLoop, C: Counters>(self, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        l.closest(ray, counters)
+    }
+    /// Whether `ray` hits anything through `l` (`Traversal::occluded_counted`).
+    #[inline(always)]
+    fn any<L: TraversalLoop, C: Counters>(self, l: &L, ray: &Ray, counters: &mut C) -> bool {
+        l.any(ray, counters)
+    }
+}
+
+/// What the box test needs of a ray, computed once per ray: origin, `1 / d` and per axis the
+/// near plane (`0`: `min` for a positive direction, `1`: `max` for a negative one, `-0.0`
+/// included; the far plane is the other). Kept scalar; a SIMD test broadcasts them (hoisted
+/// out of the traversal loop).
+#[derive(Clone, Copy, Debug)]
+pub struct RayBoxes {
+    /// The origin.
+    pub o: [f32; 3],
+    /// `1 / d`.
+    pub inv: [f32; 3],
+    /// Per axis, the near plane's index in `Node::bounds[axis]`.
+    pub near: [usize; 3],
+}
+
+impl RayBoxes {
+    /// The box-test data of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> RayBoxes {
+        RayBoxes {
+            o: ray.origin.to_array(),
+            inv: ray.inv_dir.to_array(),
+            near: [0, 1, 2].map(|axis| usize::from(ray.dir[axis].is_sign_negative())),
+        }
+    }
+}
+
+/// The `W` children's box test, scalar: lane by lane the arithmetic of every SIMD test,
+/// NaN dropped by an explicit test (module docs).
+#[inline(always)]
+pub fn hit_scalar<const W: usize>(node: &Node<W>, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; W])
+where
+    Width<W>: NodeWidth,
+{
+    let mut mask = 0;
+    let mut nears = [0.0; W];
+    for (i, slot) in nears.iter_mut().enumerate() {
+        let (mut near, mut far) = (t_min, t_max);
+        for axis in 0..3 {
+            // `& 1`: the index is 0 or 1 by construction; the mask spares the bounds check.
+            let planes = &node.bounds[axis];
+            let n = (planes[r.near[axis] & 1][i] - r.o[axis]) * r.inv[axis];
+            let f = (planes[(r.near[axis] ^ 1) & 1][i] - r.o[axis]) * r.inv[axis];
+            if !n.is_nan() {
+                near = if n > near { n } else { near };
+            }
+            if !f.is_nan() {
+                far = if f < far { f } else { far };
+            }
+        }
+        let near = near - (near.abs() * WIDEN + TINY);
+        let far = far + (far.abs() * WIDEN + TINY);
+        if near <= far {
+            mask |= 1 << i;
+        }
+        *slot = near;
+    }
+    (mask, nears)
+}
+
+/// [`hit_scalar`] as a [`BoxTest`]: the portable test of every width (on every CPU) and the
+/// scalar twin of each SIMD test.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Scalar<const W: usize>;
+
+/// The scalar twin of [`crate::Simd4`].
+pub type Scalar4 = Scalar<4>;
+
+/// The 8-wide tree's portable test and the scalar twin of [`crate::Avx2`].
+pub type Scalar8 = Scalar<8>;
+
+impl<const W: usize> BoxTest for Scalar<W>
+where
+    Width<W>: NodeWidth,
+{
+    type Node = Node<W>;
+    type RayData = RayBoxes;
+    type Nears = [f32; W];
+    type Twin = Scalar<W>;
+
+    fn twin(self) -> Scalar<W> {
+        self
+    }
+
+    #[inline(always)]
+    fn prepare(ray: &Ray) -> RayBoxes {
+        RayBoxes::new(ray)
+    }
+
+    #[inline(always)]
+    fn hit(self, node: &Node<W>, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; W]) {
+        hit_scalar(node, r, t_min, t_max)
+    }
+}
+
+/// Named hard cases for a node test of any width, shared by the SIMD modules' tests.
+#[cfg(test)]
+pub(crate) mod cases {
+    use glam::Vec3;
+    use kdtree::{Aabb, Ray};
+
+    use super::*;
+
+    /// A node with `boxes` in its first slots.
+    pub(crate) fn node<const W: usize>(boxes: &[Aabb]) -> Node<W>
+    where
+        Width<W>: NodeWidth,
+    {
+        let mut n = Node::empty();
+        for (i, b) in boxes.iter().enumerate() {
+            n.set(i, i as u32, b);
+        }
+        n
+    }
+
+    /// The unit box at `offset`.
+    pub(crate) fn unit(offset: Vec3) -> Aabb {
+        Aabb { min: offset, max: offset + Vec3::ONE }
+    }
+
+    /// `test`'s mask, after checking it against its scalar twin bit for bit: the mask and
+    /// every lane's entry distance (used or not).
+    pub(crate) fn check<K: BoxTest>(test: K, n: &K::Node, ray: &Ray) -> u32 {
+        let (m, near) = test.hit(n, &K::prepare(ray), ray.t_min, ray.t_max);
+        let twin = test.twin();
+        let (ms, nears) = twin.hit(n, &K::Twin::prepare(ray), ray.t_min, ray.t_max);
+        assert_eq!(m, ms, "{ray:?}: mask differs from the scalar twin's");
+        for i in 0..K::Node::WIDTH {
+            assert_eq!(near[i].to_bits(), nears[i].to_bits(), "{ray:?} lane {i}: entry differs from the twin's");
+        }
+        m
+    }
+
+    /// The named cases through `hit` (a node's mask for a ray), with their expected masks:
+    /// plain rays, empty slots, rays in face planes (`0 * inf`) in every slot, a grazing ray.
+    pub(crate) fn hard_cases<const W: usize>(mut hit: impl FnMut(&Node<W>, &Ray) -> u32)
+    where
+        Width<W>: NodeWidth,
+    {
+        let all = |n: usize| if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+        let row: Vec<Aabb> = (0..W).map(|i| unit(Vec3::new(2.0 * i as f32, 0.0, 0.0))).collect();
+        let n = node::<W>(&row);
+        let inf = f32::INFINITY;
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 0.0, inf)), all(W));
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 0.0, 6.5)), 0b111);
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(9.5, 0.5, 0.5), -Vec3::X, 0.0, inf)), all(W.min(5)));
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 5.0, 0.5), Vec3::X, 0.0, inf)), 0);
+        // Three boxes and empty slots.
+        let n = node::<W>(&[unit(Vec3::ZERO), unit(Vec3::new(2.0, 0.0, 0.0)), unit(Vec3::new(0.0, 5.0, 0.0))]);
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 0.0, inf)), 0b011);
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(9.0, 0.5, 0.5), -Vec3::X, 0.0, inf)), 0b011);
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 0.0, 1.5)), 0b001);
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(9.0, 0.5, 0.5), Vec3::X, 0.0, inf)), 0);
+        // Empty slots are never entered.
+        let empty = Node::<W>::empty();
+        for d in [Vec3::X, -Vec3::X, Vec3::new(0.0, 0.0, 1.0), Vec3::new(-0.0, 1.0, -0.0), Vec3::ONE] {
+            for o in [Vec3::ZERO, Vec3::splat(1e30), Vec3::splat(-1e30)] {
+                assert_eq!(hit(&empty, &Ray::new(o, d, f32::NEG_INFINITY, inf)), 0);
+            }
+        }
+        // Zero direction components with the origin exactly on a face plane (0 * inf), the
+        // box in every slot: entered; beside the box in that plane: missed.
+        for slot in 0..W {
+            let mut boxes = vec![unit(Vec3::splat(50.0)); W];
+            boxes[slot] = unit(Vec3::ZERO);
+            let n = node::<W>(&boxes);
+            for (o, d) in [
+                (Vec3::new(-1.0, 0.0, 0.5), Vec3::X),
+                (Vec3::new(-1.0, 1.0, 0.5), Vec3::X),
+                (Vec3::new(-1.0, 1.0, 1.0), Vec3::X),
+                (Vec3::new(2.0, 0.0, 0.0), -Vec3::X),
+                (Vec3::new(0.5, 0.0, -3.0), Vec3::new(-0.0, -0.0, 1.0)),
+                (Vec3::new(0.0, 0.5, 3.0), Vec3::new(0.0, 0.0, -1.0)),
+            ] {
+                assert_eq!(hit(&n, &Ray::new(o, d, 0.0, inf)), 1 << slot, "{o} {d} slot {slot}");
+            }
+            assert_eq!(hit(&n, &Ray::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X, 0.0, inf)), 0);
+        }
+        // Grazing: the exact segment touches the box at one corner point.
+        let n = node::<W>(&[unit(Vec3::ZERO)]);
+        let d = Vec3::new(1.0, 1.0, 1.0) / 3.0f32.sqrt();
+        assert_eq!(hit(&n, &Ray::new(Vec3::new(1.0, 1.0, 1.0) + d * 0.3, d, -1.0, inf)), 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use kdtree::Aabb;
+    use proptest::prelude::*;
+
+    use super::cases::{check, hard_cases, node};
+    use super::*;
+
+    #[test]
+    fn every_width_passes_the_hard_cases() {
+        hard_cases::<4>(|n, ray| check(Scalar::<4>, n, ray));
+        hard_cases::<8>(|n, ray| check(Scalar::<8>, n, ray));
+        hard_cases::<16>(|n, ray| check(Scalar::<16>, n, ray));
+    }
+
+    /// The mask of `boxes` at width `W`, after checking it (at every width) against an
+    /// exact-enough reference: a box the segment enters, sampled densely in f64, is never
+    /// culled.
+    fn conservative<const W: usize>(boxes: &[Aabb], ray: &Ray) -> Result<u32, TestCaseError>
+    where
+        Width<W>: NodeWidth,
+    {
+        let m = check(Scalar::<W>, &node::<W>(boxes), ray);
+        let (o, d) = (ray.origin, ray.dir);
+        for (i, b) in boxes.iter().enumerate() {
+            let inside =
+                (0..=4000).map(|k| ray.t_min as f64 + k as f64 * 0.005).filter(|&t| t <= ray.t_max as f64).any(|t| {
+                    (0..3).all(|a| (b.min[a] as f64..=b.max[a] as f64).contains(&(o[a] as f64 + t * d[a] as f64)))
+                });
+            if inside {
+                prop_assert!(m & (1 << i) != 0, "box {i} {b:?} missed by {ray:?}");
+            }
+        }
+        Ok(m)
+    }
+
+    proptest! {
+        /// Every width is conservative, and a box gives the same bit and entry distance in
+        /// every slot of every width: the lanes are independent and the test is one.
+        #[test]
+        fn the_scalar_test_is_conservative_at_every_width(
+            boxes in prop::collection::vec((prop::array::uniform3(-4i32..4), prop::array::uniform3(0i32..4)), 1..17),
+            o in prop::array::uniform3(-6i32..6), d in prop::array::uniform3(-2i32..3), t_min in -2.0f32..1.0,
+            t_max in prop_oneof![Just(f32::INFINITY), 0.0f32..8.0],
+        ) {
+            let boxes: Vec<Aabb> = boxes.iter().map(|(lo, ext)| {
+                let lo = Vec3::new(lo[0] as f32, lo[1] as f32, lo[2] as f32);
+                Aabb { min: lo, max: lo + Vec3::new(ext[0] as f32, ext[1] as f32, ext[2] as f32) }
+            }).collect();
+            let d = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+            prop_assume!(d != Vec3::ZERO);
+            let o = Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32) * 0.5;
+            let ray = Ray::new(o, d, t_min, t_max);
+            let m16 = conservative::<16>(&boxes, &ray)?;
+            let r = RayBoxes::new(&ray);
+            let (_, n16) = hit_scalar(&node::<16>(&boxes), &r, t_min, t_max);
+            for chunk in 0..boxes.len().div_ceil(8) {
+                let part = &boxes[8 * chunk..boxes.len().min(8 * chunk + 8)];
+                let m8 = conservative::<8>(part, &ray)?;
+                let (_, n8) = hit_scalar(&node::<8>(part), &r, t_min, t_max);
+                prop_assert_eq!(m8, (m16 >> (8 * chunk)) & ((1 << part.len()) - 1));
+                for (i, near) in n8.iter().enumerate().take(part.len()) {
+                    prop_assert_eq!(near.to_bits(), n16[8 * chunk + i].to_bits());
+                }
+                let part = &part[..part.len().min(4)];
+                let m4 = conservative::<4>(part, &ray)?;
+                prop_assert_eq!(m4, m8 & ((1 << part.len()) - 1));
+            }
+        }
+    }
+}
