@@ -1,21 +1,23 @@
 //! The edge-width traversal for four shadow rays at once (Tsakok 2008, chapter 5: "the
 //! algorithm can be efficiently implemented using SSE for shadowing packets at a time").
 //!
-//! The four rays sit in a [`RayPacket`] (SoA, one `Vec4` per coordinate) and descend the tree
-//! together, each lane with its own interval, as the same-sign packets of thesis 2.3.1: the
-//! valid lanes must share their direction signs, so that one child is the front voxel of all
-//! of them (shadow rays from neighbouring pixels to one light almost always do); a packet
-//! whose lanes differ is traced lane by lane with [`crate::edge_width`]. Leaves test each
-//! triangle against the four rays with the 4-wide tests of `packets::triangle4`, which
-//! compute bit for bit what the single-ray tests compute; each lane keeps its own pending
-//! list and pairing, with the single-ray rules (see [`crate::traverse`]): every hit a leaf
-//! reports joins the lane's list, and hits are paired up to the smallest start on the stack
-//! less the slack. The answer of a lane depends only on the set of hits along its segment,
-//! which both traversals find whole, so it equals the single-ray answer (tested).
+//! The four rays sit in a [`RayPacket`] (SoA, one `Vec4` per coordinate) and walk the tree
+//! together with `kdtree::descent`, each lane with its own interval, as the same-sign packets
+//! of thesis 2.3.1: the valid lanes must share their direction signs, so that one child is
+//! the front voxel of all of them (shadow rays from neighbouring pixels to one light almost
+//! always do); a packet whose lanes differ is traced lane by lane with [`crate::edge_width`].
+//! Leaves test each triangle against the four rays with the 4-wide tests of
+//! `packets::triangle4`, which compute bit for bit what the single-ray tests compute; each
+//! lane keeps its own pending list and pairing, with the single-ray rules (see
+//! [`crate::traverse`]): every hit a leaf reports joins the lane's list, and hits are paired
+//! up to the smallest start on the stack (kept per entry, as there) less the slack. The
+//! answer of a lane depends only on the set of hits along its segment, which both traversals
+//! find whole, so it equals the single-ray answer (tested).
 
 use glam::{BVec4A, Vec3, Vec4};
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
-use kdtree::{Intersector, KdTree};
+use kdtree::{Counters, Intersector, KdNode, KdTree, NoCounters};
 use packets::packet::{widen_down, widen_up};
 use packets::triangle4::PacketTest;
 use packets::{PacketHit, RayPacket};
@@ -45,14 +47,104 @@ pub fn edge_width4(
     }
 }
 
-/// One deferred back voxel: the node, each lane's interval, and the lanes that visit it
-/// (`t0 = +inf` in the others, so the minimum start over the stack ignores them).
-#[derive(Clone, Copy)]
-struct StackEntry4 {
-    node: u32,
-    t0: Vec4,
-    t1: Vec4,
-    mask: BVec4A,
+/// The four rays walking the tree ([`kdtree::descent`]): the same-sign packet step of
+/// thesis 2.3.1 with the single-ray kernel's widened comparisons, a leaf visitor adding each
+/// lane's hits to its pending list and pairing those no later voxel can precede, and a pop
+/// rule that drops only the voxels no live lane visits.
+struct EdgePacket<'a, T: PacketTest> {
+    tree: &'a KdTree,
+    records: &'a [T],
+    rays: &'a RayPacket,
+    prepared: T::PacketData,
+    upper_first: usize,
+    dirs: [Vec3; 4],
+    slacks: [f32; 4],
+    r: [f32; 4],
+    remedies: &'a LeakRemedies<'a>,
+    scratch: &'a mut EdgeScratch4,
+    pairing: [Pairing; 4],
+    out: [f32; 4],
+    /// Lanes still tracing (not ended early).
+    live: BVec4A,
+}
+
+/// The lanes' state in a voxel: each lane's interval `(t0, t1)` and the lanes that visit it
+/// (`t0 = +inf`, `t1 = -inf` in the others).
+type Span = (Vec4, Vec4, BVec4A);
+
+/// A deferred back voxel: its span and, per lane, `min_t0`, the smallest start of this entry
+/// and every entry below it (what bounds the lane's hits still to be found while this entry
+/// is the top of the stack; `+inf` in lanes that visit none of them).
+type Deferred = (Span, Vec4);
+
+impl<T: PacketTest> Descent for EdgePacket<'_, T> {
+    type Span = Span;
+    type Deferred = Deferred;
+    type Stack = Stack<Entry<Deferred>>;
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, (t0, t1, active): &mut Span, stack: &Self::Stack) -> Visit<Deferred> {
+        let rays = self.rays;
+        let axis = node.axis() & 3;
+        let t_plane = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
+        let upper = (self.upper_first >> axis) & 1;
+        let front = node.left_child() + upper;
+        let back = node.left_child() + 1 - upper;
+        let (t0_wide, t1_wide) = (widen_down(*t0), widen_up(*t1));
+        // As the single-ray kernel, per lane: front only when the plane lies beyond the
+        // interval, back only when before it, else both (NaN: a ray in the plane, both).
+        let wants_front = *active & !t_plane.cmplt(t0_wide);
+        let wants_back = *active & !t_plane.cmpgt(t1_wide);
+        if !wants_back.any() {
+            Visit::One(front)
+        } else if !wants_front.any() {
+            Visit::One(back)
+        } else {
+            let nan = t_plane.cmpne(t_plane);
+            let both = wants_front & wants_back;
+            let back_t0 = Vec4::select(wants_back, Vec4::select(both & !nan, t_plane, *t0), Vec4::INFINITY);
+            let back_t1 = Vec4::select(wants_back, *t1, Vec4::NEG_INFINITY);
+            let below = stack.top().map_or(Vec4::INFINITY, |e| e.value.1);
+            let deferred = ((back_t0, back_t1, wants_back), below.min(back_t0));
+            *t1 = Vec4::select(both & !nan, t_plane, *t1);
+            *active = wants_front;
+            Visit::Both { first: front, second: back, deferred }
+        }
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, &(_, _, active): &Span, stack: &Self::Stack, _: &mut C) -> Flow {
+        // Each lane's pending list takes every hit, and counts each triangle once.
+        let (tree, rays) = (self.tree, self.rays);
+        let leaf_lanes = active & self.live;
+        if leaf_lanes.any() {
+            for &prim in tree.leaf_prims(node) {
+                let mut hit = PacketHit::new(rays);
+                let found = self.records[prim as usize].intersect4(rays, &self.prepared, leaf_lanes, &mut hit, prim);
+                for lane in lanes(found) {
+                    self.scratch.lanes[lane].pending.insert(hit.t[lane], prim, tree, self.dirs[lane]);
+                }
+            }
+        }
+        // Pair what no later leaf can precede, lane by lane (as the single-ray kernel: the
+        // smallest start on the stack, less the slack).
+        let next_start = stack.top().map_or(Vec4::INFINITY, |e| e.value.1);
+        for lane in lanes(self.live) {
+            let s = &mut self.scratch.lanes[lane];
+            let bound = next_start[lane] - self.slacks[lane];
+            if s.pending.flush_below(bound, self.r[lane], &mut self.pairing[lane], tree, self.remedies) {
+                self.out[lane] = f32::INFINITY;
+                self.live &= !BVec4A::from_array(std::array::from_fn(|i| i == lane));
+            }
+        }
+        if self.live.any() { Flow::Continue } else { Flow::Stop }
+    }
+
+    /// The next voxel that a live lane visits.
+    #[inline(always)]
+    fn resume(&mut self, ((t0, t1, mask), _): Deferred) -> Option<Span> {
+        (mask & self.live).any().then_some((t0, t1, mask & self.live))
+    }
 }
 
 #[inline(always)]
@@ -72,8 +164,8 @@ fn kernel4<T: PacketTest>(
 ) -> [f32; 4] {
     let mut out = [0.0f32; 4];
     let bounds = tree.bounds();
-    let (mut t0, mut t1) = rays.clip(bounds.min.extend(0.0).to_array(), bounds.max.extend(0.0).to_array());
-    let mut active = rays.valid & t0.cmple(t1);
+    let (t0, t1) = rays.clip(bounds.min.extend(0.0).to_array(), bounds.max.extend(0.0).to_array());
+    let active = rays.valid & t0.cmple(t1);
     if !active.any() {
         return out;
     }
@@ -90,94 +182,28 @@ fn kernel4<T: PacketTest>(
         }
         upper_first |= usize::from(neg != 0) << axis;
     }
-    let dirs: [Vec3; 4] = [0, 1, 2, 3].map(|lane| rays.ray(lane).dir);
-    let slacks: [f32; 4] = [0, 1, 2, 3].map(|lane| slack(&rays.ray(lane), &bounds));
-    let mut pairing = [Pairing::new(); 4];
     for s in &mut scratch.lanes {
         s.pending.clear();
     }
-    let prepared = T::prepare4(rays);
-    let nodes = tree.nodes();
-    let mut stack = Stack::<StackEntry4>::new();
-    let mut index = 0usize;
-    // Lanes still tracing (not ended early).
-    let mut live = active;
-    'trace: loop {
-        let node = nodes[index];
-        if !node.is_leaf() {
-            let axis = node.axis() & 3;
-            let t_plane = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
-            let upper = (upper_first >> axis) & 1;
-            let front = node.left_child() + upper;
-            let back = node.left_child() + 1 - upper;
-            let (t0_wide, t1_wide) = (widen_down(t0), widen_up(t1));
-            // As the single-ray kernel, per lane: front only when the plane lies beyond the
-            // interval, back only when before it, else both (NaN: a ray in the plane, both).
-            let wants_front = active & !t_plane.cmplt(t0_wide);
-            let wants_back = active & !t_plane.cmpgt(t1_wide);
-            if !wants_back.any() {
-                index = front;
-            } else if !wants_front.any() {
-                index = back;
-            } else {
-                let nan = t_plane.cmpne(t_plane);
-                let both = wants_front & wants_back;
-                let back_t0 = Vec4::select(both & !nan, t_plane, t0);
-                stack.push(StackEntry4 {
-                    node: back as u32,
-                    t0: Vec4::select(wants_back, back_t0, Vec4::INFINITY),
-                    t1: Vec4::select(wants_back, t1, Vec4::NEG_INFINITY),
-                    mask: wants_back,
-                });
-                t1 = Vec4::select(both & !nan, t_plane, t1);
-                active = wants_front;
-                index = front;
-            }
-            continue;
-        }
-
-        // Leaf: each lane's pending list takes every hit, and counts each triangle once.
-        let leaf_lanes = active & live;
-        if leaf_lanes.any() {
-            for &prim in tree.leaf_prims(node) {
-                let mut hit = PacketHit::new(rays);
-                let found = records[prim as usize].intersect4(rays, &prepared, leaf_lanes, &mut hit, prim);
-                for lane in lanes(found) {
-                    scratch.lanes[lane].pending.insert(hit.t[lane], prim, tree, dirs[lane]);
-                }
-            }
-        }
-
-        // Pair what no later leaf can precede, lane by lane (as the single-ray kernel: the
-        // smallest start on the stack, less the slack).
-        let mut next_start = Vec4::INFINITY;
-        for e in stack.entries() {
-            next_start = next_start.min(e.t0);
-        }
-        for lane in lanes(live) {
-            let s = &mut scratch.lanes[lane];
-            let bound = next_start[lane] - slacks[lane];
-            if s.pending.flush_below(bound, r[lane], &mut pairing[lane], tree, remedies) {
-                out[lane] = f32::INFINITY;
-                live &= !BVec4A::from_array(std::array::from_fn(|i| i == lane));
-            }
-        }
-        // Next voxel that a live lane visits.
-        loop {
-            if !live.any() {
-                break 'trace;
-            }
-            let Some(entry) = stack.pop() else { break 'trace };
-            if (entry.mask & live).any() {
-                index = entry.node as usize;
-                (t0, t1, active) = (entry.t0, entry.t1, entry.mask & live);
-                break;
-            }
-        }
+    let mut group = EdgePacket {
+        tree,
+        records,
+        rays,
+        prepared: T::prepare4(rays),
+        upper_first,
+        dirs: [0, 1, 2, 3].map(|lane| rays.ray(lane).dir),
+        slacks: [0, 1, 2, 3].map(|lane| slack(&rays.ray(lane), &bounds)),
+        r,
+        remedies,
+        scratch,
+        pairing: [Pairing::new(); 4],
+        out,
+        live: active,
+    };
+    descend(tree, &mut group, (0, (t0, t1, active)), &mut Stack::new(), &mut NoCounters);
+    for lane in lanes(group.live) {
+        let width = group.pairing[lane].finish();
+        group.out[lane] = if width > r[lane] { f32::INFINITY } else { width };
     }
-    for lane in lanes(live) {
-        let width = pairing[lane].finish();
-        out[lane] = if width > r[lane] { f32::INFINITY } else { width };
-    }
-    out
+    group.out
 }

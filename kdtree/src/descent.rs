@@ -123,9 +123,17 @@ pub trait Descent {
 
     /// Before node `index` is read, with the group's span in it: `false` skips the node (the
     /// walk pops the next deferred voxel). The hook of groups that split themselves or drop
-    /// lanes on the way down; the default enters every node.
+    /// lanes on the way down; the default enters every node. `counters` counts what the hook
+    /// traces itself (a part of the group handed to another kernel); a skipped node is not
+    /// counted.
     #[inline(always)]
-    fn enter(&mut self, _index: usize, _span: &mut Self::Span, _stack: &mut Self::Stack) -> bool {
+    fn enter<C: Counters>(
+        &mut self,
+        _index: usize,
+        _span: &mut Self::Span,
+        _stack: &mut Self::Stack,
+        _counters: &mut C,
+    ) -> bool {
         true
     }
 
@@ -156,7 +164,7 @@ pub fn descend<D: Descent, C: Counters>(
     let nodes = tree.nodes();
     let mut index = start;
     loop {
-        let entered = group.enter(index, &mut span, stack);
+        let entered = group.enter(index, &mut span, stack, counters);
         let next = if !entered {
             None
         } else {

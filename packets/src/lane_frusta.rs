@@ -12,7 +12,9 @@
 //! and carries its own interval `[s0, s1]` of that sweep. At a split plane every lane's
 //! interval is cut for both children, lane by lane without branches; the group goes
 //! to a child if any lane's share is not empty, nearer child first, the other on the stack
-//! with every lane's share.
+//! with every lane's share. The walk is `kdtree::descent`'s; on entering a voxel, lanes with
+//! an empty share or no unblocked ray drop out (its `enter` hook), and a voxel no lane is
+//! left in is skipped.
 //!
 //! **Leaves** (4.2, triangle culling before any ray). For each triangle and every lane at
 //! once, two exact tests decide whether no segment of the frustum can meet the triangle:
@@ -47,8 +49,9 @@
 //! and up to 1.8x the scalar twin (`docs/results/coherent-shadows.md`).
 
 use glam::{BVec4A, Vec3};
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::triangle::Intersector;
-use kdtree::{Aabb, Counters, KdTree, Ray};
+use kdtree::{Aabb, Counters, KdNode, KdTree, Ray};
 
 use crate::packet::{PacketHit, RayPacket};
 use crate::shadow_frustum::{SweptAxis, nearer_first, pad, swept_axes};
@@ -138,14 +141,14 @@ struct Segments {
 pub struct LaneFrusta {
     frusta: Vec<Segments>,
     blocked: Vec<u16>,
-    stack: Vec<Deferred>,
+    stack: Vec<Entry<Span>>,
     stats: LaneStats,
 }
 
-/// A deferred child: node, voxel and every lane's interval (the first `L` of 8 used).
+/// The frusta's state in a voxel: every lane's interval (the first `L` of 8 used; empty,
+/// `s0 > s1`, in lanes that take no part) and the voxel's box.
 #[derive(Clone, Copy, Debug)]
-struct Deferred {
-    node: u32,
+struct Span {
     s0: [f32; 8],
     s1: [f32; 8],
     lo: Vec3,
@@ -287,12 +290,6 @@ impl LaneFrusta {
         let bounds = tree.bounds();
         let pad = lanes.pad.iter().fold(0.0f32, |m, &p| m.max(p));
         self.stats.frusta += which.len() as u64;
-        // Per lane, its rays as 2x2 packets, made on demand.
-        let unmade = RayPacket::new(&[]);
-        let mut packets = [[Packet { data: T::prepare4(&unmade), rays: unmade }; FRUSTUM_RAYS / 4]; L];
-        // Per lane, its 2x2 packets made so far (bit q: packet q, rays 4q..4q+4).
-        let mut made = [0u8; L];
-        let mut blocked = [0u16; L];
         // Every lane's interval inside the tree's box.
         let (mut s0, mut s1) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
         for i in 0..which.len() {
@@ -300,141 +297,184 @@ impl LaneFrusta {
         }
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
-        let nodes = tree.nodes();
-        let prim_refs = tree.prim_refs();
-        let mut current = Deferred { node: 0, s0, s1, lo: bounds.min, hi: bounds.max };
-        'walk: loop {
-            // Lanes whose interval is empty or whose rays are all blocked take no part.
-            let mut live = false;
-            for i in 0..L {
-                let on = lanes.open[i] != 0 && current.s0[i] <= current.s1[i];
-                live |= on;
-                if !on {
-                    current.s0[i] = f32::INFINITY;
-                    current.s1[i] = f32::NEG_INFINITY;
-                }
-            }
-            if live {
-                let node = nodes[current.node as usize];
-                counters.node();
-                if C::ENABLED {
-                    self.stats.steps += 1;
-                }
-                if !node.is_leaf() {
-                    let k = node.axis();
-                    let p = node.split();
-                    let left = node.left_child() as u32;
-                    let (mut lower, mut upper) =
-                        (Deferred { node: left, ..current }, Deferred { node: left + 1, ..current });
-                    lower.hi[k] = p;
-                    upper.lo[k] = p;
-                    lanes.split(k, p, &current, &mut lower, &mut upper);
-                    let (mut lower_any, mut upper_any) = (false, false);
-                    let (mut lower_first, mut upper_first) = (f32::INFINITY, f32::INFINITY);
-                    for i in 0..L {
-                        let (l, u) = (lower.s0[i] <= lower.s1[i], upper.s0[i] <= upper.s1[i]);
-                        lower_any |= l;
-                        upper_any |= u;
-                        lower_first = lower_first.min(if l { lower.s0[i] } else { f32::INFINITY });
-                        upper_first = upper_first.min(if u { upper.s0[i] } else { f32::INFINITY });
-                    }
-                    let (lower, upper) = (lower_any.then_some(lower), upper_any.then_some(upper));
-                    if let Some(next) = nearer_first(lower, upper, lower_first <= upper_first, &mut stack) {
-                        current = next;
-                        continue;
-                    }
-                } else if node.prim_count() > 0 {
-                    counters.leaf();
-                    if C::ENABLED {
-                        self.stats.leaves += 1;
-                    }
-                    let mut on: [bool; L] = std::array::from_fn(|i| current.s0[i] <= current.s1[i]);
-                    // The voxel, padded as the swept boxes are, for the packets' slab test.
-                    let (lo, hi) = (current.lo - Vec3::splat(pad), current.hi + Vec3::splat(pad));
-                    let (lo, hi) = (lo.extend(0.0).to_array(), hi.extend(0.0).to_array());
-                    // Per lane, its unfinished rays inside the voxel (made on first need).
-                    let mut inside = [0u16; L];
-                    let mut looked = [false; L];
-                    for &prim in &prim_refs[node.prim_range()] {
-                        let tri = Triangle::new(tree.triangle(prim));
-                        let kept = lanes.keeps(&tri, &on);
-                        if C::ENABLED {
-                            let (mut pairs, mut culled) = (0, 0);
-                            for i in 0..L {
-                                if on[i] {
-                                    pairs += 1;
-                                    culled += u64::from(kept[i] != Cull::Kept);
-                                    self.stats.plane_culled += u64::from(kept[i] == Cull::Plane);
-                                    self.stats.edge_culled += u64::from(kept[i] == Cull::Edge);
-                                }
-                            }
-                            self.stats.pairs += pairs;
-                            counters.leaf_packets(pairs, culled);
-                        }
-                        let record = &records[prim as usize];
-                        for i in 0..which.len() {
-                            if !on[i] || kept[i] != Cull::Kept {
-                                continue;
-                            }
-                            if !looked[i] {
-                                looked[i] = true;
-                                let f = which[i];
-                                for (q, packet) in packets[i].iter_mut().enumerate() {
-                                    let open = lanes.open[i] >> (4 * q) & 15;
-                                    if open == 0 {
-                                        continue;
-                                    }
-                                    if made[i] >> q & 1 == 0 {
-                                        let s = &self.frusta[f];
-                                        let rays =
-                                            RayPacket::segments(&s.starts[4 * q..s.count], &s.ends[4 * q..s.count]);
-                                        *packet = Packet { data: T::prepare4(&rays), rays };
-                                        made[i] |= 1 << q;
-                                        self.stats.rays_made += u64::from(open.count_ones());
-                                    }
-                                    let (near, far) = packet.rays.clip(lo, hi);
-                                    inside[i] |= (near.cmple(far).bitmask() as u16 & open) << (4 * q);
-                                }
-                            }
-                            let mut quads = inside[i] & lanes.open[i];
-                            while quads != 0 {
-                                let q = quads.trailing_zeros() as usize / 4;
-                                let active = quads >> (4 * q) & 15;
-                                quads &= !(15 << (4 * q));
-                                let packet = &packets[i][q];
-                                let mut hit = PacketHit::new(&packet.rays);
-                                counters.tests(1);
-                                if C::ENABLED {
-                                    self.stats.ray_tests += 1;
-                                }
-                                let found =
-                                    record.intersect4(&packet.rays, &packet.data, lane_mask(active), &mut hit, prim);
-                                let found = (found.bitmask() as u16 & active) << (4 * q);
-                                blocked[i] |= found;
-                                lanes.open[i] &= !found;
-                            }
-                            if lanes.open[i] == 0 {
-                                on[i] = false;
-                            }
-                        }
-                        if on.iter().all(|&o| !o) {
-                            break;
-                        }
-                    }
-                    if lanes.open.iter().all(|&o| o == 0) {
-                        break 'walk;
-                    }
-                }
-            }
-            match stack.pop() {
-                Some(next) => current = next,
-                None => break,
-            }
-        }
+        let unmade = RayPacket::new(&[]);
+        let mut walk = LaneWalk {
+            tree,
+            records,
+            frusta: &self.frusta,
+            stats: &mut self.stats,
+            lanes,
+            which,
+            pad,
+            packets: [[Packet { data: T::prepare4(&unmade), rays: unmade }; FRUSTUM_RAYS / 4]; L],
+            made: [0; L],
+            blocked: [0; L],
+        };
+        let span = Span { s0, s1, lo: bounds.min, hi: bounds.max };
+        descend(tree, &mut walk, (0, span), &mut stack, counters);
+        let blocked = walk.blocked;
         self.stack = stack;
         for (i, &f) in which.iter().enumerate() {
             self.blocked[f] = blocked[i];
         }
+    }
+}
+
+/// `L` frusta walking the tree together ([`kdtree::descent`]): lanes whose interval is empty
+/// or whose rays are all blocked drop out on entering a voxel (none left: the voxel is
+/// skipped), the swept-box interval step lane by lane, and the culling leaf visitor, which
+/// stops the walk once every ray is blocked. No deferred voxel is dropped on popping: the
+/// lanes drop out on entering it.
+struct LaneWalk<'a, T: PacketTest, const L: usize> {
+    tree: &'a KdTree,
+    records: &'a [T],
+    frusta: &'a [Segments],
+    stats: &'a mut LaneStats,
+    lanes: &'a mut Lanes<L>,
+    which: &'a [usize],
+    /// The largest padding of the lanes' swept boxes, the voxels' at leaves.
+    pad: f32,
+    /// Per lane, its rays as 2x2 packets, made on demand.
+    packets: [[Packet<T::PacketData>; FRUSTUM_RAYS / 4]; L],
+    /// Per lane, its 2x2 packets made so far (bit q: packet q, rays 4q..4q+4).
+    made: [u8; L],
+    /// Per lane, its rays found blocked (bit `k`: ray `k`).
+    blocked: [u16; L],
+}
+
+impl<T: PacketTest, const L: usize> Descent for LaneWalk<'_, T, L> {
+    type Span = Span;
+    type Deferred = Span;
+    type Stack = Vec<Entry<Span>>;
+
+    /// Lanes whose interval is empty or whose rays are all blocked take no part.
+    #[inline(always)]
+    fn enter<C: Counters>(&mut self, _: usize, span: &mut Span, _: &mut Self::Stack, _: &mut C) -> bool {
+        let mut live = false;
+        for i in 0..L {
+            let on = self.lanes.open[i] != 0 && span.s0[i] <= span.s1[i];
+            live |= on;
+            if !on {
+                span.s0[i] = f32::INFINITY;
+                span.s1[i] = f32::NEG_INFINITY;
+            }
+        }
+        if live && C::ENABLED {
+            self.stats.steps += 1;
+        }
+        live
+    }
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut Span, _: &Self::Stack) -> Visit<Span> {
+        let k = node.axis();
+        let p = node.split();
+        let left = node.left_child() as u32;
+        let (mut lower, mut upper) = (*span, *span);
+        lower.hi[k] = p;
+        upper.lo[k] = p;
+        self.lanes.split(k, p, span, &mut lower, &mut upper);
+        let (mut lower_any, mut upper_any) = (false, false);
+        let (mut lower_first, mut upper_first) = (f32::INFINITY, f32::INFINITY);
+        for i in 0..L {
+            let (l, u) = (lower.s0[i] <= lower.s1[i], upper.s0[i] <= upper.s1[i]);
+            lower_any |= l;
+            upper_any |= u;
+            lower_first = lower_first.min(if l { lower.s0[i] } else { f32::INFINITY });
+            upper_first = upper_first.min(if u { upper.s0[i] } else { f32::INFINITY });
+        }
+        let lower = lower_any.then_some(Entry { node: left, value: lower });
+        let upper = upper_any.then_some(Entry { node: left + 1, value: upper });
+        nearer_first(lower, upper, lower_first <= upper_first, span)
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, span: &Span, _: &Self::Stack, counters: &mut C) -> Flow {
+        if node.prim_count() == 0 {
+            return Flow::Continue;
+        }
+        counters.leaf();
+        if C::ENABLED {
+            self.stats.leaves += 1;
+        }
+        let (tree, lanes, which) = (self.tree, &mut *self.lanes, self.which);
+        let mut on: [bool; L] = std::array::from_fn(|i| span.s0[i] <= span.s1[i]);
+        // The voxel, padded as the swept boxes are, for the packets' slab test.
+        let (lo, hi) = (span.lo - Vec3::splat(self.pad), span.hi + Vec3::splat(self.pad));
+        let (lo, hi) = (lo.extend(0.0).to_array(), hi.extend(0.0).to_array());
+        // Per lane, its unfinished rays inside the voxel (made on first need).
+        let mut inside = [0u16; L];
+        let mut looked = [false; L];
+        for &prim in &tree.prim_refs()[node.prim_range()] {
+            let tri = Triangle::new(tree.triangle(prim));
+            let kept = lanes.keeps(&tri, &on);
+            if C::ENABLED {
+                let (mut pairs, mut culled) = (0, 0);
+                for i in 0..L {
+                    if on[i] {
+                        pairs += 1;
+                        culled += u64::from(kept[i] != Cull::Kept);
+                        self.stats.plane_culled += u64::from(kept[i] == Cull::Plane);
+                        self.stats.edge_culled += u64::from(kept[i] == Cull::Edge);
+                    }
+                }
+                self.stats.pairs += pairs;
+                counters.leaf_packets(pairs, culled);
+            }
+            let record = &self.records[prim as usize];
+            for i in 0..which.len() {
+                if !on[i] || kept[i] != Cull::Kept {
+                    continue;
+                }
+                if !looked[i] {
+                    looked[i] = true;
+                    let f = which[i];
+                    for (q, packet) in self.packets[i].iter_mut().enumerate() {
+                        let open = lanes.open[i] >> (4 * q) & 15;
+                        if open == 0 {
+                            continue;
+                        }
+                        if self.made[i] >> q & 1 == 0 {
+                            let s = &self.frusta[f];
+                            let rays = RayPacket::segments(&s.starts[4 * q..s.count], &s.ends[4 * q..s.count]);
+                            *packet = Packet { data: T::prepare4(&rays), rays };
+                            self.made[i] |= 1 << q;
+                            self.stats.rays_made += u64::from(open.count_ones());
+                        }
+                        let (near, far) = packet.rays.clip(lo, hi);
+                        inside[i] |= (near.cmple(far).bitmask() as u16 & open) << (4 * q);
+                    }
+                }
+                let mut quads = inside[i] & lanes.open[i];
+                while quads != 0 {
+                    let q = quads.trailing_zeros() as usize / 4;
+                    let active = quads >> (4 * q) & 15;
+                    quads &= !(15 << (4 * q));
+                    let packet = &self.packets[i][q];
+                    let mut hit = PacketHit::new(&packet.rays);
+                    counters.tests(1);
+                    if C::ENABLED {
+                        self.stats.ray_tests += 1;
+                    }
+                    let found = record.intersect4(&packet.rays, &packet.data, lane_mask(active), &mut hit, prim);
+                    let found = (found.bitmask() as u16 & active) << (4 * q);
+                    self.blocked[i] |= found;
+                    lanes.open[i] &= !found;
+                }
+                if lanes.open[i] == 0 {
+                    on[i] = false;
+                }
+            }
+            if on.iter().all(|&o| !o) {
+                break;
+            }
+        }
+        if lanes.open.iter().all(|&o| o == 0) { Flow::Stop } else { Flow::Continue }
+    }
+
+    #[inline(always)]
+    fn resume(&mut self, span: Span) -> Option<Span> {
+        Some(span)
     }
 }
 
@@ -607,7 +647,7 @@ impl<const L: usize> Lanes<L> {
     /// the sweep's low side is below `p`) into `lower`, the upper child's into `upper`
     /// (`SweptAxis::below` and `above`, lane by lane; an empty share has `s0 > s1`).
     #[inline(always)]
-    fn split(&self, k: usize, p: f32, at: &Deferred, lower: &mut Deferred, upper: &mut Deferred) {
+    fn split(&self, k: usize, p: f32, at: &Span, lower: &mut Span, upper: &mut Span) {
         let [lo0, lo_slope, lo_inv, hi0, hi_slope, hi_inv] = &self.axes[k % 3];
         for i in 0..L {
             let (s0, s1) = (at.s0[i], at.s1[i]);

@@ -20,7 +20,10 @@
 //! smaller `s` (nearer the shading points) goes first, the other on the stack with the
 //! voxel's box. The padding keeps it conservative: every segment point is at least `pad`
 //! inside the swept box, far more than the rounding of `(p - lo) / slope`, so a voxel a
-//! segment enters is never skipped.
+//! segment enters is never skipped. The group is a tree of blocks (chunks of four rays, then
+//! blocks of four blocks); a block much wider than the voxel it enters goes on as its
+//! children, and a chunk as a 2x2 same-sign packet through the voxel's subtree. The walk is
+//! `kdtree::descent`'s, those two hand-overs its `enter` hook.
 //!
 //! **Leaves** (4.1.4, Benthin & Wald's per-ray culling). Each unfinished ray of the group is
 //! first culled against the voxel's box (padded, slab test, four rays per `Vec4`); the rays
@@ -38,9 +41,10 @@
 //! segments (NaN input, an infinite `t_max`) go as single rays.
 
 use glam::{BVec4A, Vec3};
+use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::leaf::{LANES, LeafGroup};
 use kdtree::triangle::Intersector;
-use kdtree::{Aabb, Counters, KdTree, Ray};
+use kdtree::{Aabb, Counters, KdNode, KdTree, Ray};
 
 use crate::packet::RayPacket;
 use crate::samesign;
@@ -114,10 +118,10 @@ struct Block {
     open: u32,
 }
 
-/// A deferred voxel: node, block of rays, interval, box.
+/// The group's state in a voxel: the block of rays in it, their interval and the voxel's
+/// box (what is carried down, and pushed with a deferred voxel).
 #[derive(Clone, Copy, Debug)]
-struct Deferred {
-    node: u32,
+struct Span {
     block: u32,
     s0: f32,
     s1: f32,
@@ -160,7 +164,7 @@ pub struct ShadowFrustum {
     watertight: Vec<<kdtree::leaf::Watertight4 as LeafGroup>::RayData>,
     blocks: Vec<Block>,
     boxes: Vec<(Aabb, Aabb)>,
-    stack: Vec<Deferred>,
+    stack: Vec<Entry<Span>>,
     stats: FrustumStats,
 }
 
@@ -316,119 +320,18 @@ impl ShadowFrustum {
         let bounds = tree.bounds();
         let (root_a, root_b) = self.boxes[self.boxes.len() - 1];
         let pad = pad(&bounds, &root_a, &root_b);
-        let root = (self.blocks.len() - 1) as u32;
-        let (s0, s1) = clip(&self.blocks[root as usize].axes, (0.0, 1.0), bounds.min, bounds.max);
+        let root = self.blocks.len() - 1;
+        let (s0, s1) = clip(&self.blocks[root].axes, (0.0, 1.0), bounds.min, bounds.max);
         // Also true for a NaN interval.
         if s0.partial_cmp(&s1).is_none_or(|o| o.is_gt()) {
             return;
         }
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
-        let mut current = Deferred { node: 0, block: root, s0, s1, lo: bounds.min, hi: bounds.max };
-        let nodes = tree.nodes();
-        let mut few = false;
-        'walk: loop {
-            let block = self.blocks[current.block as usize];
-            if block.children == 0 {
-                // Four rays or fewer: a 2x2 packet through this voxel's subtree, each lane
-                // in its own interval (thesis 2.3.1), exact per lane.
-                let c = block.first_chunk as usize;
-                let open = self.open[c];
-                let mut packet = self.packets[c];
-                packet.valid &= lane_mask(open);
-                let (lo, hi) = (current.lo - Vec3::splat(pad), current.hi + Vec3::splat(pad));
-                let from = (current.node as usize, packet.clip(lo.extend(0.0).to_array(), hi.extend(0.0).to_array()));
-                let found = open & samesign::occluded_in(tree, &packet, from, counters).found.bitmask() as u8;
-                self.finish(c, found);
-            } else if wider_than(&block.axes, &current, SPLIT_RATIO * (current.hi - current.lo).max_element()) {
-                // A block much wider than the voxel: its children, each clipped to the voxel
-                // (a child's swept box lies inside its parent's at every `s`).
-                for child in block.first_child..block.first_child + block.children {
-                    let b = &self.blocks[child as usize];
-                    if b.open == 0 {
-                        continue;
-                    }
-                    let (c0, c1) = clip(&b.axes, (current.s0, current.s1), current.lo, current.hi);
-                    if c0 <= c1 {
-                        stack.push(Deferred { block: child, s0: c0, s1: c1, ..current });
-                    }
-                }
-            } else {
-                let node = nodes[current.node as usize];
-                counters.node();
-                if C::ENABLED {
-                    self.stats.nodes += 1;
-                }
-                if !node.is_leaf() {
-                    let k = node.axis();
-                    let p = node.split();
-                    let axis = &block.axes[k];
-                    let (l0, l1) = axis.below(current.s0, current.s1, p);
-                    let (r0, r1) = axis.above(current.s0, current.s1, p);
-                    let left = node.left_child() as u32;
-                    let mut lower = Deferred { node: left, s0: l0, s1: l1, ..current };
-                    lower.hi[k] = p;
-                    let mut upper = Deferred { node: left + 1, s0: r0, s1: r1, ..current };
-                    upper.lo[k] = p;
-                    if let Some(next) =
-                        nearer_first((l0 <= l1).then_some(lower), (r0 <= r1).then_some(upper), l0 <= r0, &mut stack)
-                    {
-                        current = next;
-                        continue;
-                    }
-                } else if node.prim_count() > 0 {
-                    counters.leaf();
-                    let first = node.first_ref() / LANES;
-                    let leaf_groups = &groups[first..first + node.prim_count().div_ceil(LANES)];
-                    let (lo, hi) = (current.lo - Vec3::splat(pad), current.hi + Vec3::splat(pad));
-                    let (mut considered, mut culled, mut tested) = (0u64, 0u64, 0u64);
-                    for c in block.first_chunk as usize..block.end_chunk as usize {
-                        let open = self.open[c];
-                        if open == 0 {
-                            continue;
-                        }
-                        let inside = open & inside(&self.packets[c], lo, hi);
-                        if C::ENABLED {
-                            // `count_ones` is no single instruction in the x86-64 baseline (no
-                            // POPCNT): only when counting.
-                            considered += u64::from(open.count_ones());
-                            culled += u64::from((open & !inside).count_ones());
-                        }
-                        let mut lanes = inside;
-                        while lanes != 0 {
-                            let lane = lanes.trailing_zeros() as usize;
-                            lanes &= lanes - 1;
-                            let i = c * LANES + lane;
-                            let ray = &self.rays[i];
-                            tested += 1;
-                            if leaf_groups.iter().any(|g| g.intersect(ray, &data[i], ray.t_max).mask.any()) {
-                                self.finish(c, 1 << lane);
-                            }
-                        }
-                    }
-                    counters.tests(tested * node.prim_count() as u64);
-                    counters.leaf_packets(considered, culled);
-                    if C::ENABLED {
-                        self.stats.ray_leaves += considered;
-                        self.stats.culled += culled;
-                        self.stats.leaves += 1;
-                    }
-                    let left = self.blocks[root as usize].open as usize;
-                    if left <= Self::FEW {
-                        few = left > 0;
-                        break 'walk;
-                    }
-                }
-            }
-            // Next deferred voxel whose block still has rays.
-            loop {
-                let Some(next) = stack.pop() else { break 'walk };
-                if self.blocks[next.block as usize].open > 0 {
-                    current = next;
-                    break;
-                }
-            }
-        }
+        let span = Span { block: root as u32, s0, s1, lo: bounds.min, hi: bounds.max };
+        let mut walk = BlockWalk { frustum: self, tree, groups, data, pad, root, few: false };
+        descend(tree, &mut walk, (0, span), &mut stack, counters);
+        let few = walk.few;
         self.stack = stack;
         if !few {
             return;
@@ -445,6 +348,140 @@ impl ShadowFrustum {
             }
             self.open[c] = 0;
         }
+    }
+}
+
+/// The blocks of a group walking the tree ([`kdtree::descent`]): on entering a voxel a block
+/// of four rays goes on as a 2x2 packet and a block much wider than the voxel splits into its
+/// children; otherwise the swept-box interval step, the culling leaf visitor (which stops
+/// the walk when few rays are left), and a pop rule that drops the voxels of finished blocks.
+struct BlockWalk<'a, G: LeafGroup> {
+    frustum: &'a mut ShadowFrustum,
+    tree: &'a KdTree,
+    groups: &'a [G],
+    data: &'a [G::RayData],
+    pad: f32,
+    /// The block of the whole group.
+    root: usize,
+    /// Whether the walk stopped with at most [`ShadowFrustum::FEW`] rays (and some) left.
+    few: bool,
+}
+
+impl<G: LeafGroup> Descent for BlockWalk<'_, G> {
+    type Span = Span;
+    type Deferred = Span;
+    type Stack = Vec<Entry<Span>>;
+
+    #[inline(always)]
+    fn enter<C: Counters>(&mut self, index: usize, span: &mut Span, stack: &mut Self::Stack, counters: &mut C) -> bool {
+        let f = &mut *self.frustum;
+        let block = &f.blocks[span.block as usize];
+        if block.children == 0 {
+            // Four rays or fewer: a 2x2 packet through this voxel's subtree, each lane in
+            // its own interval (thesis 2.3.1), exact per lane.
+            let c = block.first_chunk as usize;
+            let open = f.open[c];
+            let mut packet = f.packets[c];
+            packet.valid &= lane_mask(open);
+            let (lo, hi) = (span.lo - Vec3::splat(self.pad), span.hi + Vec3::splat(self.pad));
+            let from = (index, packet.clip(lo.extend(0.0).to_array(), hi.extend(0.0).to_array()));
+            let found = open & samesign::occluded_in(self.tree, &packet, from, counters).found.bitmask() as u8;
+            f.finish(c, found);
+            false
+        } else if wider_than(&block.axes, span, SPLIT_RATIO * (span.hi - span.lo).max_element()) {
+            // A block much wider than the voxel: its children, each clipped to the voxel
+            // (a child's swept box lies inside its parent's at every `s`).
+            for child in block.first_child..block.first_child + block.children {
+                let b = &f.blocks[child as usize];
+                if b.open == 0 {
+                    continue;
+                }
+                let (c0, c1) = clip(&b.axes, (span.s0, span.s1), span.lo, span.hi);
+                if c0 <= c1 {
+                    stack.push(Entry { node: index as u32, value: Span { block: child, s0: c0, s1: c1, ..*span } });
+                }
+            }
+            false
+        } else {
+            if C::ENABLED {
+                f.stats.nodes += 1;
+            }
+            true
+        }
+    }
+
+    #[inline(always)]
+    fn inner(&mut self, node: KdNode, span: &mut Span, _: &Self::Stack) -> Visit<Span> {
+        let k = node.axis();
+        let p = node.split();
+        let axis = &self.frustum.blocks[span.block as usize].axes[k];
+        let (l0, l1) = axis.below(span.s0, span.s1, p);
+        let (r0, r1) = axis.above(span.s0, span.s1, p);
+        let left = node.left_child() as u32;
+        let mut lower = Span { s0: l0, s1: l1, ..*span };
+        lower.hi[k] = p;
+        let mut upper = Span { s0: r0, s1: r1, ..*span };
+        upper.lo[k] = p;
+        let lower = (l0 <= l1).then_some(Entry { node: left, value: lower });
+        let upper = (r0 <= r1).then_some(Entry { node: left + 1, value: upper });
+        nearer_first(lower, upper, l0 <= r0, span)
+    }
+
+    #[inline(always)]
+    fn leaf<C: Counters>(&mut self, node: KdNode, span: &Span, _: &Self::Stack, counters: &mut C) -> Flow {
+        if node.prim_count() == 0 {
+            return Flow::Continue;
+        }
+        counters.leaf();
+        let f = &mut *self.frustum;
+        let block = &f.blocks[span.block as usize];
+        let first = node.first_ref() / LANES;
+        let leaf_groups = &self.groups[first..first + node.prim_count().div_ceil(LANES)];
+        let (lo, hi) = (span.lo - Vec3::splat(self.pad), span.hi + Vec3::splat(self.pad));
+        let (mut considered, mut culled, mut tested) = (0u64, 0u64, 0u64);
+        for c in block.first_chunk as usize..block.end_chunk as usize {
+            let open = f.open[c];
+            if open == 0 {
+                continue;
+            }
+            let inside = open & inside(&f.packets[c], lo, hi);
+            if C::ENABLED {
+                // `count_ones` is no single instruction in the x86-64 baseline (no POPCNT):
+                // only when counting.
+                considered += u64::from(open.count_ones());
+                culled += u64::from((open & !inside).count_ones());
+            }
+            let mut lanes = inside;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let i = c * LANES + lane;
+                let ray = &f.rays[i];
+                tested += 1;
+                if leaf_groups.iter().any(|g| g.intersect(ray, &self.data[i], ray.t_max).mask.any()) {
+                    f.finish(c, 1 << lane);
+                }
+            }
+        }
+        counters.tests(tested * node.prim_count() as u64);
+        counters.leaf_packets(considered, culled);
+        if C::ENABLED {
+            f.stats.ray_leaves += considered;
+            f.stats.culled += culled;
+            f.stats.leaves += 1;
+        }
+        let left = f.blocks[self.root].open as usize;
+        if left <= ShadowFrustum::FEW {
+            self.few = left > 0;
+            return Flow::Stop;
+        }
+        Flow::Continue
+    }
+
+    /// A deferred voxel goes on while its block still has rays.
+    #[inline(always)]
+    fn resume(&mut self, span: Span) -> Option<Span> {
+        (self.frustum.blocks[span.block as usize].open > 0).then_some(span)
     }
 }
 
@@ -470,16 +507,26 @@ impl ShadowFrustum {
 }
 
 /// The child a frustum goes on with: of two, the one entered first (`lower_first`: the lower
-/// one), the other deferred on `stack`; else the one it enters; `None` for neither.
+/// one), the other deferred; else the one it enters; neither when it enters none. `span`
+/// becomes the entered child's.
 #[inline(always)]
-pub(crate) fn nearer_first<T>(lower: Option<T>, upper: Option<T>, lower_first: bool, stack: &mut Vec<T>) -> Option<T> {
+pub(crate) fn nearer_first<T: Copy>(
+    lower: Option<Entry<T>>,
+    upper: Option<Entry<T>>,
+    lower_first: bool,
+    span: &mut T,
+) -> Visit<T> {
     match (lower, upper) {
         (Some(lower), Some(upper)) => {
             let (first, second) = if lower_first { (lower, upper) } else { (upper, lower) };
-            stack.push(second);
-            Some(first)
+            *span = first.value;
+            Visit::Both { first: first.node as usize, second: second.node as usize, deferred: second.value }
         }
-        (one, None) | (None, one) => one,
+        (Some(one), None) | (None, Some(one)) => {
+            *span = one.value;
+            Visit::One(one.node as usize)
+        }
+        (None, None) => Visit::Neither,
     }
 }
 
@@ -512,7 +559,7 @@ fn clip(axes: &[SweptAxis; 3], (mut s0, mut s1): (f32, f32), lo: Vec3, hi: Vec3)
 /// Whether the swept box `axes` is wider than `width` on some axis at either end of the
 /// voxel's interval.
 #[inline(always)]
-fn wider_than(axes: &[SweptAxis; 3], at: &Deferred, width: f32) -> bool {
+fn wider_than(axes: &[SweptAxis; 3], at: &Span, width: f32) -> bool {
     axes.iter().any(|a| {
         let w = |s: f32| (a.hi0 + s * a.hi_slope) - (a.lo0 + s * a.lo_slope);
         w(at.s0).max(w(at.s1)) > width
