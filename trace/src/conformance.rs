@@ -393,7 +393,7 @@ impl Plan {
                 let method = if e.tiled { format!("{}-{tile}", e.name) } else { e.name.to_string() };
                 let options = Options { tile, ..Options::default() };
                 checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
-                if e.per_point_soft_kernel.is_some() && tile == 8 {
+                if e.per_point.is_some() && tile == 8 {
                     let options = Options { soft: SoftGrouping::PerPoint, ..options };
                     checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
                 }
@@ -843,11 +843,11 @@ fn check_case(
         (hits, occluded)
     };
     // Most soft-shadow kernels take no tile: one check per method, kernel (with its tile
-    // where it takes one, `Entry::soft_kernel_for`) and rule.
+    // where it takes one, `Bound::kernels`) and rule.
     let mut soft_done: BTreeSet<(&'static str, String, String, Rule)> = BTreeSet::new();
     for check in &plan.checks {
         let m = bind(registry, &check.method, check.options, structures);
-        let kernel = m.entry.soft_kernel_for(&m.options);
+        let kernel = m.kernels.soft.clone();
         let soft = soft_done.insert((m.entry.name, kernel, check.reference.clone(), check.rule));
         let tile = m.options.tile;
         let reference = bind(registry, &check.reference, Options { tile, ..Options::default() }, structures);
@@ -979,8 +979,8 @@ mod tests {
     use scenes::Tile;
 
     use super::*;
-    use crate::frame::Driven;
     use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
+    use crate::registry::Binding;
     use crate::registry::Entry;
 
     /// Single rays with one query deliberately wrong on some rays: `K` = 0 primary, 1 hard
@@ -1033,27 +1033,16 @@ mod tests {
     }
 
     fn faulty(name: &'static str, bind: crate::registry::Bind) -> Entry {
-        Entry {
-            name,
-            family: "test",
-            summary: "wrong on purpose",
-            tiled: false,
-            packets: false,
-            structure: KDTREE,
-            shadow_kernel: name,
-            soft_kernel: name,
-            per_point_soft_kernel: None,
-            bind,
-        }
+        Entry::whole(name, "test", "wrong on purpose", KDTREE, bind)
     }
 
     fn registry() -> Registry {
         let mut r = Registry::ours();
-        r.add(faulty("faulty-primary", |s, _| Ok(Box::new(Driven(Faulty::<0>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-shadow", |s, _| Ok(Box::new(Driven(Faulty::<1>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-soft", |s, _| Ok(Box::new(Driven(Faulty::<2>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-stream", |s, _| Ok(Box::new(Driven(Faulty::<3>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-occluded", |s, _| Ok(Box::new(Driven(Faulty::<4>(SingleRays(s.kdtree())))))));
+        r.add(faulty("faulty-primary", |s, _| Ok(Binding::method(Faulty::<0>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-shadow", |s, _| Ok(Binding::method(Faulty::<1>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-soft", |s, _| Ok(Binding::method(Faulty::<2>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-stream", |s, _| Ok(Binding::method(Faulty::<3>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-occluded", |s, _| Ok(Binding::method(Faulty::<4>(SingleRays(s.kdtree()))))));
         r
     }
 
