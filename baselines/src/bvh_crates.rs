@@ -71,8 +71,7 @@ use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::ploc::PlocBuilder;
 use obvhs::triangle::Triangle;
 use scenes::Scene;
-use trace::frame::Driven;
-use trace::registry::{Entry, StructureEntry};
+use trace::registry::{Binding, Entry, StructureEntry};
 use trace::{Registry, SingleRays, TileCounters, Tracer};
 
 /// Registers the two crates' structures and their single-ray methods `bvh` and `obvhs`.
@@ -80,27 +79,17 @@ pub fn register(r: &mut Registry) {
     r.add_structure(StructureEntry { name: "bvh", build: |scene| Ok(Box::new(BvhCrate::build(scene))) });
     r.add_structure(StructureEntry { name: "obvhs", build: |scene| Ok(Box::new(Obvhs::build(scene))) });
     r.add(entry("bvh", "the bvh crate (0.13): binary SAH BVH, single rays", |s, _| {
-        Ok(Box::new(Driven(SingleRays(s.get::<BvhCrate>("bvh")?))))
+        Ok(Binding::method(SingleRays(s.get::<BvhCrate>("bvh")?)))
     }));
     r.add(entry("obvhs", "the obvhs crate (0.4): CWBVH, single rays", |s, _| {
-        Ok(Box::new(Driven(SingleRays(s.get::<Obvhs>("obvhs")?))))
+        Ok(Binding::method(SingleRays(s.get::<Obvhs>("obvhs")?)))
     }));
 }
 
-/// A crate's entry, on its own structure of the same name.
+/// A crate's entry, on its own structure of the same name: one kernel for every pass, named
+/// by the entry.
 fn entry(name: &'static str, summary: &'static str, bind: trace::registry::Bind) -> Entry {
-    Entry {
-        name,
-        family: name,
-        summary,
-        tiled: false,
-        packets: false,
-        structure: name,
-        shadow_kernel: name,
-        soft_kernel: name,
-        per_point_soft_kernel: None,
-        bind,
-    }
+    Entry::whole(name, name, summary, name, bind)
 }
 
 /// One triangle as a `bvh` shape: its box, our index and its node in the hierarchy.

@@ -13,9 +13,8 @@ use cones::Cone;
 use cones::shadows::SAMPLES;
 use kdtree::{Hit, Ray};
 use scenes::{Camera, Scene, Tile};
-use trace::frame::{Driven, FrameTracer};
 use trace::method::{ShadowJob, primary_ray};
-use trace::registry::{Entry, Options, StructureEntry, Structures};
+use trace::registry::{Binding, Entry, Options, StructureEntry, Structures};
 use trace::{Error, Method, Registry, SingleRays, TileCounters, Tracer};
 
 use crate::embree::{BuildQuality, Coherence, Device, DeviceInfo, EmbreeScene, Packet, Packet4, Packet8, Packet16};
@@ -52,30 +51,19 @@ fn bind<'s, const W: usize>(
     s: &'s Structures<'_>,
     structure: &str,
     coherence: Coherence,
-) -> Result<Box<dyn FrameTracer + 's>, Error> {
+) -> Result<Binding<'s>, Error> {
     let scene = s.get::<EmbreeScene>(structure)?;
     Ok(match W {
-        4 => Box::new(Driven(EmbreeBlocks::<Packet4>::new(scene, coherence))),
-        8 => Box::new(Driven(EmbreeBlocks::<Packet8>::new(scene, coherence))),
-        16 => Box::new(Driven(EmbreeBlocks::<Packet16>::new(scene, coherence))),
-        _ => Box::new(Driven(SingleRays(EmbreeSingle { scene, coherence }))),
+        4 => Binding::method(EmbreeBlocks::<Packet4>::new(scene, coherence)),
+        8 => Binding::method(EmbreeBlocks::<Packet8>::new(scene, coherence)),
+        16 => Binding::method(EmbreeBlocks::<Packet16>::new(scene, coherence)),
+        _ => Binding::method(SingleRays(EmbreeSingle { scene, coherence })),
     })
 }
 
-/// An Embree entry: each traces its own hard and soft shadows with its own kernel.
+/// An Embree entry: each traces every pass with its own kernel, named by the entry.
 fn entry(name: &'static str, summary: &'static str, structure: &'static str, bind: trace::registry::Bind) -> Entry {
-    Entry {
-        name,
-        family: "embree",
-        summary,
-        tiled: false,
-        packets: false,
-        structure,
-        shadow_kernel: name,
-        soft_kernel: name,
-        per_point_soft_kernel: None,
-        bind,
-    }
+    Entry::whole(name, "embree", summary, structure, bind)
 }
 
 /// Registers Embree's structures and its single-ray and packet methods, with the coherent

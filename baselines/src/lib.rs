@@ -2,7 +2,8 @@
 //! ([`trace::Registry`]): Intel Embree 3 (feature `embree`) and the pure-Rust BVH crates
 //! `bvh` and `obvhs` (feature `bvh-crates`).
 //!
-//! Each is a [`trace::Method`], so the frame driver runs it over a frame exactly as it runs
+//! Each is a [`trace::Method`] registered whole (one kernel for every pass, named by its
+//! entry, `trace::registry::Entry::whole`), so the frame driver runs it over a frame exactly as it runs
 //! ours (rayon over the same tiles, per-pixel buffers in tile order, ray generation inside
 //! the timed pass), and with exactly our rays: primary rays from `scenes::Camera::pixel_ray`,
 //! hard shadow rays from `trace::method::hard_shadow_segment` on *our* single-ray hits,
@@ -31,7 +32,9 @@ pub fn register(registry: &mut Registry) {
     let _ = registry;
 }
 
-/// Our methods and the baselines this build has: the registry every command uses.
+/// Our methods and the baselines this build has: the one catalogue, assembled here, that every
+/// command, the viewer, the benches and the tables use. Only tests that check our methods
+/// alone (those of `trace`, the `traversal` fuzz target) take [`Registry::ours`] instead.
 pub fn registry() -> Registry {
     let mut registry = Registry::ours();
     register(&mut registry);

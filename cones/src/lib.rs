@@ -19,4 +19,3 @@ pub mod traverse;
 
 pub use cone::{Cone, ConeError};
 pub use shadows::{ShadowMethod, SoftShadowTracer};
-pub use traverse::ConeMethod;

@@ -14,7 +14,7 @@
 
 use glam::{DVec3, Vec3};
 use kdtree::{Counters, KdTree, Ray};
-use packets::{Frusta, OmniPacket, RayPacket, TileMethod, TileTracer};
+use packets::{Frusta, OmniPacket, RayPacket, TileTracer};
 use scenes::SphereLight;
 
 use crate::cone::Cone;
@@ -203,7 +203,7 @@ impl SoftShadowTracer {
             return self.occluded(tree, rays, cone, ShadowMethod::Single, counters);
         }
         match method {
-            ShadowMethod::Pyramid => self.tracer.trace(tree, TileMethod::Frustum, counters),
+            ShadowMethod::Pyramid => self.tracer.trace_frustum(tree, counters),
             _ => {
                 let intervals = self.tracer.prepare_intervals(tree);
                 let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);

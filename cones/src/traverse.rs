@@ -42,25 +42,6 @@ pub const CORNER_MARGIN: f64 = 2e-6;
 /// How far from 1 a normalised camera ray's length may be, for the distance conversions.
 const UNIT_SLACK: f64 = 1e-5;
 
-/// The cone methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ConeMethod {
-    /// One cone for the whole tile (4.1.8).
-    Cone,
-    /// The tile's four quadrants, one cone each, in the four lanes of a `Vec4` (4.1.9).
-    MftCone,
-}
-
-impl ConeMethod {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            ConeMethod::Cone => "cone",
-            ConeMethod::MftCone => "mft-cone",
-        }
-    }
-}
-
 /// The cone of a primary tile: the narrowest cone from the camera's eye holding the rays of
 /// the tile's four corner pixels, opened by [`CORNER_MARGIN`]. A camera with a NaN or
 /// infinite field (made by hand; `Camera::look_at` refuses them) is
@@ -151,40 +132,53 @@ fn tile_cone(tracer: &TileTracer, q: Option<usize>) -> Result<(Cone, (f64, f64))
     loaded_cone(tracer.origin(), packets)
 }
 
-/// The frusta of `method` for the loaded tile, given its quadrants' root box intervals (from
-/// [`TileTracer::prepare_intervals`]): a cone, or four, each falling back to the quadrant's
-/// pyramid where no cone holds its rays.
-pub fn cone_frusta(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, intervals: &[(f32, f32); 4]) -> Frusta {
-    let bound_of = |(near, far): (f32, f32)| FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near, far, hit_scale: 1.0 };
-    match method {
-        ConeMethod::Cone => {
-            let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
-            let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
-            match tile_cone(tracer, None) {
-                Ok((cone, len)) => Frusta::One(cone_bound(&cone, &bound_of((near, far)), len)),
-                Err(_) => Frusta::Four(std::array::from_fn(|q| tracer.pyramid(tree, q))),
-            }
-        }
-        ConeMethod::MftCone => Frusta::Four(std::array::from_fn(|q| {
-            let interval = bound_of(intervals[q]);
-            if is_empty(&interval) {
-                return interval;
-            }
-            match tile_cone(tracer, Some(q)) {
-                Ok((cone, len)) => cone_bound(&cone, &interval, len),
-                Err(_) => tracer.pyramid(tree, q),
-            }
-        })),
+/// The frustum of one cone for the whole loaded tile (4.1.8), given its quadrants' root box
+/// intervals (from [`TileTracer::prepare_intervals`]), falling back to the quadrants'
+/// pyramids where no cone holds its rays.
+pub fn tile_cone_frusta(tree: &KdTree, tracer: &mut TileTracer, intervals: &[(f32, f32); 4]) -> Frusta {
+    let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
+    let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
+    match tile_cone(tracer, None) {
+        Ok((cone, len)) => Frusta::One(cone_bound(&cone, &interval_bound((near, far)), len)),
+        Err(_) => Frusta::Four(std::array::from_fn(|q| tracer.pyramid(tree, q))),
     }
 }
 
+/// The frusta of the loaded tile's four quadrant cones (4.1.9), given their root box
+/// intervals, each falling back to the quadrant's pyramid where no cone holds its rays.
+pub fn quadrant_cone_frusta(tree: &KdTree, tracer: &mut TileTracer, intervals: &[(f32, f32); 4]) -> Frusta {
+    Frusta::Four(std::array::from_fn(|q| {
+        let interval = interval_bound(intervals[q]);
+        if is_empty(&interval) {
+            return interval;
+        }
+        match tile_cone(tracer, Some(q)) {
+            Ok((cone, len)) => cone_bound(&cone, &interval, len),
+            Err(_) => tracer.pyramid(tree, q),
+        }
+    }))
+}
+
+/// A bound with the root box interval `(near, far)` and no factors yet.
+fn interval_bound((near, far): (f32, f32)) -> FrustumBound {
+    FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near, far, hit_scale: 1.0 }
+}
+
 /// Traces the tile loaded in `tracer` (a primary tile or packets sharing one origin) with
-/// a cone or MFT cones: the closest hits (any hits in the tracer's any-hit mode), exactly
-/// those of single rays. Invalid lanes (rays with NaN or infinite components, see
+/// one cone (4.1.8): the closest hits (any hits in the tracer's any-hit mode), exactly those
+/// of single rays. Invalid lanes (rays with NaN or infinite components, see
 /// `packets::RayPacket::new`) get no hit and do not shape the cone.
-pub fn trace<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, method: ConeMethod, counters: &mut C) {
+pub fn trace_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
     let intervals = tracer.prepare_intervals(tree);
-    let frusta = cone_frusta(tree, tracer, method, &intervals);
+    let frusta = tile_cone_frusta(tree, tracer, &intervals);
+    tracer.trace_frusta(tree, &frusta, counters);
+}
+
+/// [`trace_cone`] with the tile's four quadrant cones in the lanes of a `Vec4` (MFT cones,
+/// 4.1.9).
+pub fn trace_mft_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    let intervals = tracer.prepare_intervals(tree);
+    let frusta = quadrant_cone_frusta(tree, tracer, &intervals);
     tracer.trace_frusta(tree, &frusta, counters);
 }
 

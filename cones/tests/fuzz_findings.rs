@@ -2,10 +2,15 @@
 //! methods (the others are in `kdtree/tests/fuzz_findings.rs`): each is the finding's input,
 //! decoded with `cargo fuzz fmt`, and the property the target checks.
 
-use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, NoCounters, Ray};
-use packets::{OmniPacket, PacketHit, RayPacket, TileMethod, TileTracer};
+use packets::{OmniPacket, PacketHit, RayPacket, TileTracer};
+
+/// A pyramid frustum kernel's entry point (`packets`).
+type PyramidKernel = fn(&mut TileTracer, &KdTree, &mut NoCounters);
+
+/// A cone kernel's entry point.
+type ConeKernel = fn(&KdTree, &mut TileTracer, &mut NoCounters);
 
 /// A ray along -x whose interval is the single point `t = 0` (its origin, x = 1.5e-39),
 /// beside triangle 1, whose x range ends at 1.076e-42. The single-ray kernel's plane distance
@@ -45,31 +50,34 @@ fn cone_culls_exactly_where_the_single_ray_underflows_into_an_artefact() {
         let got = hits.get(0);
         if any_hit {
             let found = hits.found.bitmask() & 1 != 0;
-            assert!(oracle.equivalent_occlusion(&ray, found, tree.occluded(&ray)), "{method:?} any hit");
+            assert!(oracle.equivalent_occlusion(&ray, found, tree.occluded(&ray)), "{method} any hit");
         } else {
-            assert!(oracle.equivalent_hits(&ray, got, single), "{method:?}: {got:?}, single ray {single:?}");
+            assert!(oracle.equivalent_hits(&ray, got, single), "{method}: {got:?}, single ray {single:?}");
         }
     }
     // The pyramid methods agree as well.
     let mut tracer = TileTracer::new(4).unwrap();
     tracer.load_packets(&[OmniPacket::new(RayPacket::new(&[ray])).unwrap()]).unwrap();
-    for method in [TileMethod::Frustum, TileMethod::Mft] {
-        tracer.trace(&tree, method, &mut NoCounters);
+    let pyramids: [(&str, PyramidKernel); 2] = [("frustum", TileTracer::trace_frustum), ("mft", TileTracer::trace_mft)];
+    for (method, trace) in pyramids {
+        trace(&mut tracer, &tree, &mut NoCounters);
         let got = tracer.packet_hits()[0].get(0);
-        assert!(oracle.equivalent_hits(&ray, got, single), "{method:?}: {got:?}, single ray {single:?}");
+        assert!(oracle.equivalent_hits(&ray, got, single), "{method}: {got:?}, single ray {single:?}");
     }
 }
 
 /// The answers of both cone methods, closest hit and any hit, for `rays` (one packet with a
 /// shared origin): `(method, any_hit, the packet's hits)`.
-fn cone_answers(tree: &KdTree, rays: &[Ray]) -> Vec<(ConeMethod, bool, PacketHit)> {
+fn cone_answers(tree: &KdTree, rays: &[Ray]) -> Vec<(&'static str, bool, PacketHit)> {
     let mut tracer = TileTracer::new(4).unwrap();
     tracer.load_packets(&[OmniPacket::new(RayPacket::new(rays)).unwrap()]).unwrap();
     let mut answers = Vec::new();
     for any_hit in [false, true] {
         tracer.set_any_hit(any_hit);
-        for method in [ConeMethod::Cone, ConeMethod::MftCone] {
-            cones::traverse::trace(tree, &mut tracer, method, &mut NoCounters);
+        let kernels: [(&str, ConeKernel); 2] =
+            [("cone", cones::traverse::trace_cone), ("mft-cone", cones::traverse::trace_mft_cone)];
+        for (method, trace) in kernels {
+            trace(tree, &mut tracer, &mut NoCounters);
             answers.push((method, any_hit, tracer.packet_hits()[0]));
         }
     }
@@ -115,9 +123,9 @@ fn cone_far_end_covers_an_exit_parameter_that_underflowed() {
             let (got, want) = (hits.get(lane), tree.intersect(ray));
             if any_hit {
                 let found = hits.found.bitmask() >> lane & 1 != 0;
-                assert_eq!(found, tree.occluded(ray), "{method:?} any hit, lane {lane}");
+                assert_eq!(found, tree.occluded(ray), "{method} any hit, lane {lane}");
             } else {
-                assert!(oracle.equivalent_hits(ray, got, want), "{method:?} lane {lane}: {got:?}, single {want:?}");
+                assert!(oracle.equivalent_hits(ray, got, want), "{method} lane {lane}: {got:?}, single {want:?}");
             }
         }
     }

@@ -9,13 +9,17 @@ mod common;
 
 use common::{arena_and_eye, build, same_hit, signed_rng};
 use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
-use cones::{ConeMethod, ShadowMethod, SoftShadowTracer, traverse};
+use cones::{ShadowMethod, SoftShadowTracer, traverse};
 use glam::Vec3;
 use kdtree::{Intersector, KdTree, NoCounters, Ray};
 use packets::{OmniPacket, RayPacket, TileTracer};
 use scenes::{Camera, SphereLight, tiles};
 
-const METHODS: [ConeMethod; 2] = [ConeMethod::Cone, ConeMethod::MftCone];
+/// A cone kernel's entry point.
+type Kernel = fn(&KdTree, &mut TileTracer, &mut NoCounters);
+
+/// The two cone kernels by name: one cone per tile, four quadrant cones.
+const METHODS: [(&str, Kernel); 2] = [("cone", traverse::trace_cone), ("mft-cone", traverse::trace_mft_cone)];
 
 /// Soft shadows of the primary hits of `camera` to a spherical light at `centre`: the cone,
 /// the pyramid and single rays agree on every shadow ray. Returns how many points were
@@ -79,15 +83,15 @@ fn loaded_packets_in_narrow_and_wide_bundles() {
                 .collect();
             let packets: Vec<OmniPacket> =
                 rays.chunks(4).map(|r| OmniPacket::new(RayPacket::new(r)).unwrap()).collect();
-            for method in METHODS {
+            for (method, trace) in METHODS {
                 tracer.load_packets(&packets).unwrap();
-                traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
+                trace(&tree, &mut tracer, &mut NoCounters);
                 for (i, ray) in rays.iter().enumerate() {
                     let got = tracer.packet_hits()[i / 4].get(i % 4);
                     let want = tree.intersect(ray);
                     assert!(
                         same_hit(&tree, ray, got, want),
-                        "spread {spread} round {round} ray {i} {method:?}: {got:?} vs {want:?}"
+                        "spread {spread} round {round} ray {i} {method}: {got:?} vs {want:?}"
                     );
                 }
             }
@@ -122,15 +126,15 @@ fn loaded_packets_with_non_finite_lanes() {
     let mut tracer = TileTracer::new(8).unwrap();
     for intersector in [Intersector::Wald, Intersector::Watertight] {
         let tree = build(&scene, intersector);
-        for method in METHODS {
+        for (method, trace) in METHODS {
             tracer.load_packets(&packets).expect("the valid lanes share one origin");
-            traverse::trace(&tree, &mut tracer, method, &mut NoCounters);
+            trace(&tree, &mut tracer, &mut NoCounters);
             for (i, ray) in rays.iter().enumerate() {
                 let got = tracer.packet_hits()[i / 4].get(i % 4);
                 if is_bad(i) {
-                    assert_eq!(got, None, "ray {i} {method:?}");
+                    assert_eq!(got, None, "ray {i} {method}");
                 } else {
-                    assert!(same_hit(&tree, ray, got, tree.intersect(ray)), "ray {i} {method:?}: {got:?}");
+                    assert!(same_hit(&tree, ray, got, tree.intersect(ray)), "ray {i} {method}: {got:?}");
                 }
             }
         }

@@ -103,7 +103,7 @@ impl Plan {
                 let method = if e.tiled { format!("{}-{tile}", e.name) } else { e.name.to_string() };
                 let options = Options { tile, ..Options::default() };
                 checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
-                if e.per_point_soft_kernel.is_some() && tile == 8 {
+                if e.per_point.is_some() && tile == 8 {
                     let options = Options { soft: SoftGrouping::PerPoint, ..options };
                     checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
                 }

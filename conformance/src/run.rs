@@ -162,11 +162,11 @@ fn check_case(
         (hits, occluded)
     };
     // Most soft-shadow kernels take no tile: one check per method, kernel (with its tile
-    // where it takes one, `Entry::soft_kernel_for`) and rule.
+    // where it takes one, `Bound::kernels`) and rule.
     let mut soft_done: BTreeSet<(&'static str, String, String, Rule)> = BTreeSet::new();
     for check in &plan.checks {
         let m = bind(registry, &check.method, check.options, structures);
-        let kernel = m.entry.soft_kernel_for(&m.options);
+        let kernel = m.kernels.soft.clone();
         let soft = soft_done.insert((m.entry.name, kernel, check.reference.clone(), check.rule));
         let tile = m.options.tile;
         let reference = bind(registry, &check.reference, Options { tile, ..Options::default() }, structures);
@@ -296,9 +296,8 @@ mod tests {
     use cones::Cone;
     use kdtree::Intersector;
     use scenes::{Camera, Tile};
-    use trace::frame::Driven;
     use trace::method::{Method, ShadowJob, SingleRays, TileCounters};
-    use trace::registry::Entry;
+    use trace::registry::{Binding, Entry};
 
     use super::*;
     use crate::cases::{builtin_cases, soup_cases};
@@ -354,27 +353,16 @@ mod tests {
     }
 
     fn faulty(name: &'static str, bind: trace::registry::Bind) -> Entry {
-        Entry {
-            name,
-            family: "test",
-            summary: "wrong on purpose",
-            tiled: false,
-            packets: false,
-            structure: KDTREE,
-            shadow_kernel: name,
-            soft_kernel: name,
-            per_point_soft_kernel: None,
-            bind,
-        }
+        Entry::whole(name, "test", "wrong on purpose", KDTREE, bind)
     }
 
     fn registry() -> Registry {
         let mut r = Registry::ours();
-        r.add(faulty("faulty-primary", |s, _| Ok(Box::new(Driven(Faulty::<0>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-shadow", |s, _| Ok(Box::new(Driven(Faulty::<1>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-soft", |s, _| Ok(Box::new(Driven(Faulty::<2>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-stream", |s, _| Ok(Box::new(Driven(Faulty::<3>(SingleRays(s.kdtree())))))));
-        r.add(faulty("faulty-occluded", |s, _| Ok(Box::new(Driven(Faulty::<4>(SingleRays(s.kdtree())))))));
+        r.add(faulty("faulty-primary", |s, _| Ok(Binding::method(Faulty::<0>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-shadow", |s, _| Ok(Binding::method(Faulty::<1>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-soft", |s, _| Ok(Binding::method(Faulty::<2>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-stream", |s, _| Ok(Binding::method(Faulty::<3>(SingleRays(s.kdtree()))))));
+        r.add(faulty("faulty-occluded", |s, _| Ok(Binding::method(Faulty::<4>(SingleRays(s.kdtree()))))));
         r
     }
 

@@ -21,10 +21,11 @@
 //! times; then one untimed warm-up frame per method (its hits give the mismatch column), then
 //! `--rounds` rounds, each timing every method's primary pass in turn, then every distinct
 //! shadow kernel, then every distinct soft-shadow kernel (A, B, C, A, B, C, ...), so that a
-//! slow phase of a noisy machine hits every method alike; medians are reported. Our renderer
-//! traces shadow rays one by one whatever the primary method, so every row of ours shows the
-//! one single-ray shadow kernel; our soft shadows are single rays (`mono`), the pyramid of the
-//! 16 rays (`packet`, `samesign`, `frustum-N`, `mft-N`) or their cone (`cone-N`, `mft-cone-N`).
+//! slow phase of a noisy machine hits every method alike; medians are reported. A kernel is
+//! known by its identity, read from the bound method (`trace::Bound::kernels`: `kd-single`,
+//! `kd-packets`, `kd-frusta-16`, `kd-stratum-packets`, `embree-8`, ...), so methods sharing
+//! a shadow or soft-shadow kernel (every packet and cone method of ours shares `kd-packets`
+//! and `kd-stratum-packets`) are timed once and show the same column.
 //!
 //! The incoherent columns (`ao`, `diffuse`; Wald, Benthin & Boulos 2008): from our single-ray
 //! primary hits, `--ao-rays` ambient-occlusion rays per hit and one diffuse bounce per hit
@@ -371,8 +372,8 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         let build = build_ms.iter().find(|b| b.0 == entry.structure).map_or(0.0, |b| b.1);
         let layout = TileLayout::new(w, h, method.options.tile);
         let hits = vec![None; layout.pixel_count()];
-        let shadow = shadows.get(&entry.shadow_kernel_for(&method.options), index);
-        let soft = (!config.no_soft).then(|| softs.get(&entry.soft_kernel_for(&method.options), index));
+        let shadow = shadows.get(&method.kernels.shadow, index);
+        let soft = (!config.no_soft).then(|| softs.get(&method.kernels.soft, index));
         contenders.push(Contender { method, build_ms: build, layout, hits, shadow, soft });
     }
 

@@ -31,7 +31,7 @@ use scenes::Scene;
 use serde::Serialize;
 use trace::frame::{TileLayout, View};
 use trace::progress::Progress;
-use trace::registry::{Options, Registry, Structures};
+use trace::registry::{Options, Structures};
 use trace::report::TreeSummary;
 use trace::setup::view_camera;
 use trace::timing::{median, mrays_per_s, timed};
@@ -210,7 +210,7 @@ pub fn run(config: &SweepConfig, progress: &dyn Progress) -> Result<SweepReport,
 fn sweep_scene(scene: &Scene, config: &SweepConfig, progress: &dyn Progress) -> Result<Vec<SweepRow>, Error> {
     let (camera, _) = view_camera(scene, None, config.size, config.size)?;
     let n = scene.mesh.triangles.len();
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     let mono = registry.select("mono", Options::default())?;
     let mft = registry.select("mft-16", Options::default())?;
     let layout = TileLayout::new(camera.width, camera.height, Options::default().tile);

@@ -17,13 +17,12 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use cones::ShadowMethod;
 use kdtree::{BuildConfig, BuildStrategy, CostModel, Intersector, KdTree};
 use scenes::Scene;
 use trace::progress::Progress;
 use trace::setup::view_camera;
 use trace::timing::mrays_per_s;
-use trace::{Error, FrameTracer, Options, Registry, Renderer, Shadows, SoftGrouping, Structures, TileLayout, soft};
+use trace::{Error, FrameTracer, Options, Renderer, Shadows, SoftGrouping, Structures, TileLayout, soft};
 
 /// What `tables` measures.
 #[derive(Clone, Debug, PartialEq)]
@@ -74,8 +73,9 @@ struct SoftRow {
     /// The row's name (`single`, `pyramid`, `cone`, `stratum packets`, `multi-frusta`,
     /// `lane frusta`).
     label: &'static str,
-    /// The thesis's method, for the thesis's rows.
-    thesis: Option<ShadowMethod>,
+    /// The soft-shadow kernel that traced it (`kd-single`, `kd-pyramid`, `kd-cone`, ...): the
+    /// thesis's rows are found by it.
+    kernel: String,
     /// Best shadow-pass time.
     ms: f64,
     mrays: f64,
@@ -125,12 +125,18 @@ const THESIS_SPONZA: &[(&str, u32, f64, f64, f64)] = &[
     ("mft-cone", 32, 15.50, 1.62, 106.08),
 ];
 
-/// The thesis's Table 4.6 (Sponza, 16-sample soft shadows): (radius, method, fps, N, I).
-const THESIS_SOFT: &[(f32, ShadowMethod, f64, f64, f64)] = &[
-    (1.0, ShadowMethod::Cone, 2.72, 118.28, 116.10),
-    (1.0, ShadowMethod::Pyramid, 2.00, 120.72, 129.31),
-    (2.0, ShadowMethod::Cone, 1.97, 164.30, 378.91),
-    (2.0, ShadowMethod::Pyramid, 1.36, 174.23, 449.69),
+/// The kernels of the thesis's per-point soft shadows under one cone and one pyramid.
+const CONE: &str = "kd-cone";
+/// See [`CONE`].
+const PYRAMID: &str = "kd-pyramid";
+
+/// The thesis's Table 4.6 (Sponza, 16-sample soft shadows): (radius, soft-shadow kernel, fps,
+/// N, I).
+const THESIS_SOFT: &[(f32, &str, f64, f64, f64)] = &[
+    (1.0, CONE, 2.72, 118.28, 116.10),
+    (1.0, PYRAMID, 2.00, 120.72, 129.31),
+    (2.0, CONE, 1.97, 164.30, 378.91),
+    (2.0, PYRAMID, 1.36, 174.23, 449.69),
 ];
 
 /// The configurations of every scene: (method, tile, culling).
@@ -168,7 +174,7 @@ fn measure(
     config: &TablesConfig,
     progress: &dyn Progress,
 ) -> Result<Vec<Row>, Error> {
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     let (w, h) = config.size;
     let (camera, _) = view_camera(scene, None, w, h)?;
     let bar = progress.task(&format!("tables: {}", scene.name), Some(CONFIGS.len() as u64));
@@ -214,18 +220,18 @@ fn measure(
 }
 
 /// The rows of Table 4.6: (name, the registered method and soft-shadow grouping whose kernel
-/// it is, the thesis's method). The thesis's three per point (single rays, the pyramid of the
+/// it is). The thesis's three per point (single rays, the pyramid of the
 /// 16 rays, their cone), then each tile's rays to each light stratum as 2x2 packets (`mft`,
 /// the default of every packet and cone method), as Benthin & Wald's shadow frusta
 /// (`multi-frusta`), and each point's 16 rays as one of their multi-frusta in SIMD lanes
 /// (`lane-frusta`).
-const SOFT_ROWS: [(&str, &str, SoftGrouping, Option<ShadowMethod>); 6] = [
-    ("single", "mono", SoftGrouping::Strata, Some(ShadowMethod::Single)),
-    ("pyramid", "packet", SoftGrouping::PerPoint, Some(ShadowMethod::Pyramid)),
-    ("cone", "cone", SoftGrouping::PerPoint, Some(ShadowMethod::Cone)),
-    ("stratum packets", "mft", SoftGrouping::Strata, None),
-    ("multi-frusta", "multi-frusta", SoftGrouping::Strata, None),
-    ("lane frusta", "lane-frusta", SoftGrouping::Strata, None),
+const SOFT_ROWS: [(&str, &str, SoftGrouping); 6] = [
+    ("single", "mono", SoftGrouping::Strata),
+    ("pyramid", "packet", SoftGrouping::PerPoint),
+    ("cone", "cone", SoftGrouping::PerPoint),
+    ("stratum packets", "mft", SoftGrouping::Strata),
+    ("multi-frusta", "multi-frusta", SoftGrouping::Strata),
+    ("lane frusta", "lane-frusta", SoftGrouping::Strata),
 ];
 
 /// Times the 16-sample soft shadows of every hit of the default view to a spherical light at
@@ -237,7 +243,7 @@ fn measure_soft(
     config: &TablesConfig,
     progress: &dyn Progress,
 ) -> Result<Vec<SoftRow>, Error> {
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     let (w, h) = config.size;
     let (camera, _) = view_camera(scene, None, w, h)?;
     let layout = TileLayout::new(w, h, trace::registry::TILE_SIZE);
@@ -253,7 +259,7 @@ fn measure_soft(
     for radius in [1.0f32, 2.0] {
         let light = soft::scene_light(scene, structures.kdtree(), radius);
         let mut reference: Option<Vec<f32>> = None;
-        for (label, method, soft, thesis) in SOFT_ROWS {
+        for (label, method, soft) in SOFT_ROWS {
             let bound = registry.bind(&registry.select(method, Options { soft, ..Options::default() })?, structures)?;
             let tracer: &dyn FrameTracer = &*bound.tracer;
             let mut best = f64::INFINITY;
@@ -281,7 +287,7 @@ fn measure_soft(
                 scene: scene.name.clone(),
                 radius,
                 label,
-                thesis,
+                kernel: bound.kernels.soft.clone(),
                 ms: best * 1e3,
                 mrays: mrays_per_s(stats.rays, best),
                 n: counts.nodes as f64 / points,
@@ -309,7 +315,7 @@ pub struct TablesReport {
 /// Measures Tables 4.1-4.6, 6.2 and 5.1 (see the module documentation) on the current rayon
 /// pool.
 pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesReport, Error> {
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
     let mut scaling_rows = Vec::new();
@@ -591,15 +597,14 @@ fn soft_markdown(rows: &[SoftRow], config: &TablesConfig, threads: usize) -> Str
     );
     let _ = writeln!(out, "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in rows {
-        let pyramid =
-            rows.iter().find(|p| p.scene == r.scene && p.radius == r.radius && p.thesis == Some(ShadowMethod::Pyramid));
-        let ratio = match (r.thesis, pyramid) {
-            (Some(ShadowMethod::Cone), Some(p)) => format!("{:.2}", r.ms / p.ms),
+        let pyramid = rows.iter().find(|p| p.scene == r.scene && p.radius == r.radius && p.kernel == PYRAMID);
+        let ratio = match pyramid {
+            Some(p) if r.kernel == CONE => format!("{:.2}", r.ms / p.ms),
             _ => String::new(),
         };
         let th = THESIS_SOFT
             .iter()
-            .find(|t| r.scene.to_lowercase().starts_with("sponza") && t.0 == r.radius && Some(t.1) == r.thesis)
+            .find(|t| r.scene.to_lowercase().starts_with("sponza") && t.0 == r.radius && t.1 == r.kernel)
             .map_or(" | | ".to_string(), |t| format!("{:.2} | {:.2} | {:.2}", t.2, t.3, t.4));
         let _ = writeln!(
             out,

@@ -9,11 +9,10 @@
 #![no_main]
 
 use arbitrary::Arbitrary;
-use cones::ConeMethod;
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use libfuzzer_sys::fuzz_target;
-use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, TileMethod, TileTracer};
+use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, TileTracer};
 use trace::{Options, Registry, Structures};
 
 #[derive(Arbitrary, Debug)]
@@ -158,10 +157,10 @@ fuzz_target!(|input: Input| {
     tracer.set_any_hit(true);
     for method in 0..4 {
         match method {
-            0 => tracer.trace(&tree, TileMethod::Frustum, &mut NoCounters),
-            1 => tracer.trace(&tree, TileMethod::Mft, &mut NoCounters),
-            2 => cones::traverse::trace(&tree, &mut tracer, ConeMethod::Cone, &mut NoCounters),
-            _ => cones::traverse::trace(&tree, &mut tracer, ConeMethod::MftCone, &mut NoCounters),
+            0 => tracer.trace_frustum(&tree, &mut NoCounters),
+            1 => tracer.trace_mft(&tree, &mut NoCounters),
+            2 => cones::traverse::trace_cone(&tree, &mut tracer, &mut NoCounters),
+            _ => cones::traverse::trace_mft_cone(&tree, &mut tracer, &mut NoCounters),
         }
         for (hits, rays) in tracer.packet_hits().iter().zip(shared.chunks(4)) {
             for (lane, ray) in rays.iter().enumerate() {

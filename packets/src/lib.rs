@@ -25,8 +25,9 @@
 //! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
 //! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant: the
 //!   scratch state of a trace.
-//! - [`method`]: [`TileMethod`] and [`TileTracer::trace`], the per-tile entry point the
-//!   renderer calls.
+//! - [`method`]: the per-tile entry points the renderer's kernels call:
+//!   [`TileTracer::trace_packets`], [`TileTracer::trace_samesign`],
+//!   [`TileTracer::trace_frustum`], [`TileTracer::trace_mft`].
 //!
 //! The kernels count the thesis's N (steps per 2x2 packet), I (packet-triangle tests per
 //! 2x2 packet) and the share of packets culled at leaves through [`kdtree::Counters`], which
@@ -54,7 +55,6 @@ pub mod triangle4;
 pub use bound::FrustumBound;
 pub use frustum::Frusta;
 pub use lane_frusta::{LaneFrusta, LaneWidth};
-pub use method::TileMethod;
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use shadow_frustum::ShadowFrustum;
 pub use tile::TileTracer;

@@ -5,7 +5,18 @@
 
 use glam::Vec3;
 use kdtree::{BruteForce, BuildConfig, Intersector, KdTree, NoCounters, Ray};
-use packets::{OmniPacket, RayPacket, TileMethod, TileTracer, omni};
+use packets::{OmniPacket, RayPacket, TileTracer, omni};
+
+/// A tile kernel's entry point.
+type Kernel = fn(&mut TileTracer, &KdTree, &mut NoCounters);
+
+/// The four tile kernels by name: 2x2 packets (omni-directional, same-sign), one frustum, MFT.
+const METHODS: [(&str, Kernel); 4] = [
+    ("packet", TileTracer::trace_packets),
+    ("samesign", TileTracer::trace_samesign),
+    ("frustum", TileTracer::trace_frustum),
+    ("mft", TileTracer::trace_mft),
+];
 
 /// The watertight test; a shared origin 2.3e-38 right of the root split x = 0, every ray
 /// heading +x with `d_x = 3.8e15`. The plane's distance along the second ray, -2.3e-38 /
@@ -80,19 +91,19 @@ fn plane_behind_the_origin_at_an_underflowed_distance_is_behind() {
     tracer.load_packets(&[packet]).unwrap();
     for any_hit in [false, true] {
         tracer.set_any_hit(any_hit);
-        for method in [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft] {
-            tracer.trace(&tree, method, &mut NoCounters);
+        for (method, trace) in METHODS {
+            trace(&mut tracer, &tree, &mut NoCounters);
             let hits = tracer.packet_hits()[0];
             for (lane, ray) in rays.iter().enumerate() {
                 if any_hit {
                     let found = hits.found.bitmask() >> lane & 1 != 0;
                     assert!(
                         oracle.equivalent_occlusion(ray, found, tree.occluded(ray)),
-                        "{method:?} any-hit lane {lane}"
+                        "{method} any-hit lane {lane}"
                     );
                 } else {
                     let got = hits.get(lane);
-                    assert!(oracle.equivalent_hits(ray, got, want[lane]), "{method:?} lane {lane}: {got:?}");
+                    assert!(oracle.equivalent_hits(ray, got, want[lane]), "{method} lane {lane}: {got:?}");
                 }
             }
         }
@@ -130,20 +141,20 @@ fn check_shared_origin_packets(soup: &[[[f32; 3]; 3]], watertight: bool, rays: &
     tracer.load_packets(&packets).unwrap();
     for any_hit in [false, true] {
         tracer.set_any_hit(any_hit);
-        for method in [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft] {
-            if any_hit && matches!(method, TileMethod::Packet | TileMethod::SameSign) {
+        for (method, trace) in METHODS {
+            if any_hit && matches!(method, "packet" | "samesign") {
                 continue;
             }
-            tracer.trace(&tree, method, &mut NoCounters);
+            trace(&mut tracer, &tree, &mut NoCounters);
             for ((hits, rays), want) in tracer.packet_hits().iter().zip(shared.chunks(4)).zip(want.chunks(4)) {
                 for (lane, ray) in rays.iter().enumerate() {
                     if any_hit {
                         let found = hits.found.bitmask() >> lane & 1 != 0;
                         let ok = oracle.equivalent_occlusion(ray, found, tree.occluded(ray));
-                        assert!(ok, "{method:?} any-hit lane {lane}: {found}");
+                        assert!(ok, "{method} any-hit lane {lane}: {found}");
                     } else {
                         let got = hits.get(lane);
-                        assert!(oracle.equivalent_hits(ray, got, want[lane]), "{method:?} lane {lane}: {got:?}");
+                        assert!(oracle.equivalent_hits(ray, got, want[lane]), "{method} lane {lane}: {got:?}");
                     }
                 }
             }

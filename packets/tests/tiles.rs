@@ -10,12 +10,20 @@ use common::{arena_and_eye, build, same_hit, signed_rng, vertex};
 use glam::Vec3;
 use kdtree::Counts;
 use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
-use packets::TileMethod;
 use packets::tile::TileTracer;
 use proptest::prelude::*;
 use scenes::{Camera, tiles};
 
-const METHODS: [TileMethod; 4] = [TileMethod::Packet, TileMethod::SameSign, TileMethod::Frustum, TileMethod::Mft];
+/// A tile kernel's entry point.
+type Kernel = fn(&mut TileTracer, &KdTree, &mut NoCounters);
+
+/// The four tile kernels by name: 2x2 packets (omni-directional, same-sign), one frustum, MFT.
+const METHODS: [(&str, Kernel); 4] = [
+    ("packet", TileTracer::trace_packets),
+    ("samesign", TileTracer::trace_samesign),
+    ("frustum", TileTracer::trace_frustum),
+    ("mft", TileTracer::trace_mft),
+];
 
 /// Checks per tile of `camera`'s image that MFT at `tile_size` does no more work (steps,
 /// triangle tests) than the single frustum of the same tile (thesis 4.1.5).
@@ -24,9 +32,9 @@ fn mft_work(tree: &KdTree, camera: &Camera, tile_size: u32) -> Result<(), String
     for tile in tiles(camera.width, camera.height, tile_size) {
         let (mut m, mut f) = (Counts::default(), Counts::default());
         mft.load_primary(camera, &tile).unwrap();
-        mft.trace(tree, TileMethod::Mft, &mut m);
+        mft.trace_mft(tree, &mut m);
         single.load_primary(camera, &tile).unwrap();
-        single.trace(tree, TileMethod::Frustum, &mut f);
+        single.trace_frustum(tree, &mut f);
         if m.nodes > f.nodes || m.tests > f.tests {
             return Err(format!("tile {tile:?}: MFT {m:?} did more than the frustum {f:?}"));
         }
@@ -174,13 +182,13 @@ fn non_finite_lanes_get_no_hit_and_the_others_match_single_rays() {
         let mut tracer = TileTracer::new(16).unwrap();
         for any_hit in [false, true] {
             tracer.set_any_hit(any_hit);
-            for method in METHODS {
+            for (method, trace) in METHODS {
                 tracer.load_packets(&packets).expect("the valid lanes share one origin");
-                tracer.trace(&tree, method, &mut NoCounters);
-                let any = any_hit && matches!(method, TileMethod::Frustum | TileMethod::Mft);
+                trace(&mut tracer, &tree, &mut NoCounters);
+                let any = any_hit && matches!(method, "frustum" | "mft");
                 for (p, hit) in tracer.packet_hits().iter().enumerate() {
                     for lane in 0..4 {
-                        check(method.name(), 4 * p + lane, hit.get(lane), any);
+                        check(method, 4 * p + lane, hit.get(lane), any);
                     }
                 }
             }
@@ -209,7 +217,7 @@ fn nan_frustum_bounds_fall_back_to_the_pyramid() {
     for tile in tiles(camera.width, camera.height, 16) {
         let mut want = vec![None; tile.pixel_count()];
         tracer.load_primary(&camera, &tile).unwrap();
-        tracer.trace(&tree, TileMethod::Frustum, &mut NoCounters);
+        tracer.trace_frustum(&tree, &mut NoCounters);
         tracer.write_hits(&mut want);
         for case in 0..4 {
             let pyramids = tracer.prepare(&tree);

@@ -5,7 +5,7 @@
 //! single rays (Table 4.6).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use trace::{Options, Registry, Structures, TileLayout};
+use trace::{Options, Structures, TileLayout};
 
 mod common;
 
@@ -17,7 +17,7 @@ fn primary(c: &mut Criterion) {
 }
 
 fn soft_shadows(c: &mut Criterion) {
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     for (name, scene, tree, camera) in trace::setup::packet_workloads(256) {
         let structures = Structures::new(&tree);
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);

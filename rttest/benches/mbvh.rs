@@ -14,12 +14,12 @@ use kdtree::Hit;
 use mbvh::Mbvh8;
 use trace::frame::Driven;
 use trace::workload::{self, Incoherent};
-use trace::{FrameTracer, Options, Registry, Structures, TileLayout};
+use trace::{FrameTracer, Options, Structures, TileLayout};
 
 const SIZE: u32 = 512;
 
 fn incoherent(c: &mut Criterion) {
-    let registry = Registry::ours();
+    let registry = baselines::registry();
     for (name, scene, tree, camera) in trace::setup::packet_workloads(SIZE) {
         let mut structures = Structures::new(&tree);
         registry.build_structures(&scene, &mut structures).expect("the scene's structures build");

@@ -16,7 +16,7 @@
 //!
 //! So a pixel's value is always "work per ray", and summing a cost image gives the total the
 //! counters report for the frame (tested below). Only primary rays are counted. The pass that
-//! attributes counts is separate from the timed passes ([`crate::frame::cost_pass`]): with
+//! attributes counts is separate from the timed passes (`crate::frame::cost_pass`): with
 //! cost images off nothing of this runs, and the kernels are the same monomorphic ones,
 //! counting into a [`Counts`] per call.
 
@@ -70,14 +70,6 @@ pub enum Attribution {
     Ray,
     /// Each render tile is traced whole; its counts are shared equally by its pixels.
     Tile,
-}
-
-impl Attribution {
-    /// The attribution for a registry entry: [`Attribution::Ray`] for single-ray methods,
-    /// [`Attribution::Tile`] for packets, frusta and cones.
-    pub fn for_entry(entry: &crate::registry::Entry) -> Attribution {
-        if entry.tiled || entry.packets { Attribution::Tile } else { Attribution::Ray }
-    }
 }
 
 /// One pixel's share of the traversal work: the counts of the call that traced it, divided
@@ -154,9 +146,6 @@ impl CostFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::registry::{Options, Registry, Structures};
-    use crate::render::{Renderer, Shadows};
-    use crate::setup::load_and_build;
 
     #[test]
     fn share_divides_by_rays() {
@@ -166,62 +155,6 @@ mod tests {
         assert_eq!(PixelCost::share(&c, 0).nodes, 10.0, "no rays counts as one");
         for cost in Cost::ALL {
             assert_eq!(f64::from(p.get(cost)) * 4.0, cost.of(&c) as f64, "{}", cost.name());
-        }
-    }
-
-    /// Summed over the image, each cost image gives the counters' totals of an ordinary
-    /// counted frame, for single rays (per pixel), 2x2 packets, frusta, MFT and cones (per
-    /// tile), on an image whose size is not a multiple of the tile.
-    #[test]
-    fn cost_images_sum_to_the_counters_totals() {
-        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
-        let camera = scene.default_view().camera(53, 37).unwrap();
-        let structures = Structures::new(&tree);
-        let registry = Registry::ours();
-        for name in ["mono", "packet", "samesign", "frustum-8", "mft-16", "cone-8", "mft-cone-16"] {
-            let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
-            let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
-            let mut buf = renderer.buffers();
-            let (_, counted, _) = renderer.trace_counted(&mut buf);
-            let expected_hits = buf.hits.clone();
-            let frame = renderer.trace_costs(&mut buf);
-            assert_eq!(buf.hits, expected_hits, "{name}: the cost pass traces the same hits");
-            assert_eq!(frame.totals, counted, "{name}: the cost pass counts what a counted frame counts");
-            assert!(counted.nodes > 0 && counted.tests > 0, "{name}");
-            let expected = if name == "mono" { Attribution::Ray } else { Attribution::Tile };
-            assert_eq!(frame.attribution, expected, "{name}");
-            for cost in Cost::ALL {
-                let total = cost.of(&counted) as f64;
-                let sum = frame.sum(cost);
-                assert!((sum - total).abs() <= 1e-6 * total.max(1.0), "{name} {}: {sum} vs {total}", cost.name());
-                let image = frame.image(cost);
-                assert_eq!(image.values.len(), (camera.width * camera.height) as usize);
-                assert!(image.values.iter().all(|v| v.is_finite() && *v >= 0.0));
-            }
-            if name.starts_with("frustum") || name.starts_with("mft-16") {
-                assert!(counted.culled > 0, "{name}: packet/leaf culling culls some packets");
-            }
-        }
-    }
-
-    /// Single rays: every pixel holds exactly its own ray's counts.
-    #[test]
-    fn single_ray_pixels_hold_their_own_ray() {
-        let (scene, tree, _) = load_and_build("touching-boxes", &Default::default()).unwrap();
-        let camera = scene.default_view().camera(19, 13).unwrap();
-        let structures = Structures::new(&tree);
-        let registry = Registry::ours();
-        let m = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
-        let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
-        let frame = renderer.trace_costs(&mut renderer.buffers());
-        for y in 0..camera.height {
-            for x in 0..camera.width {
-                let mut c = Counts::default();
-                let ray = crate::method::primary_ray(&camera, x, y);
-                let _ = tree.intersect_counted(&ray, &mut c);
-                let p = frame.pixels[(y * camera.width + x) as usize];
-                assert_eq!(p, PixelCost::share(&c, 1), "({x}, {y})");
-            }
         }
     }
 }

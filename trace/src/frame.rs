@@ -12,7 +12,7 @@
 //!
 //! The method is generic here, so every pass is one monomorphic loop; [`FrameTracer`] is the
 //! same passes behind a `dyn` (one virtual call per pass, never per ray), which is how the
-//! registry hands methods out ([`crate::registry`]).
+//! registry hands methods out (`crate::registry`).
 
 use kdtree::Counts;
 use kdtree::surface::Surfaces;
@@ -23,6 +23,10 @@ use scenes::{Camera, Scene, SphereLight, Tile};
 use crate::aov::{Attribution, PixelCost};
 pub use crate::method::SoftStats;
 use crate::method::{Method, ShadowJob, SoftJob, TileCounters};
+
+/// Default tile side: the frame driver's unit of work (one rayon task), and the frustum of
+/// the tiled methods.
+pub const TILE_SIZE: u32 = 16;
 
 /// An image split into tiles, with each tile's offset into tile-ordered per-pixel buffers.
 #[derive(Clone, Debug)]

@@ -4,12 +4,15 @@
 //! - [`method`]: the queries. [`Tracer`] is the single-ray query (closest hit, any hit), the
 //!   scalar twin; [`Method`] the group queries (a tile of primary rays, a tile's shadow rays,
 //!   a point's 16 soft-shadow rays, a stream of arbitrary rays).
-//! - [`ours`]: our kd-tree methods (single rays, packets, frusta, MFT, cones; thesis 2.2.1,
-//!   4.1.2-4.1.9) as `Method`s.
-//! - [`multibvh`]: our 4- and 8-wide BVHs (crate `mbvh`, Wald, Benthin & Boulos 2008) as
-//!   the single-ray methods `mbvh-4` and `mbvh-8`.
+//! - [`kernel`]: typed kernels, one trait per pass (primary, hard shadow, soft shadow,
+//!   stream), our kd-tree kernels (single rays, packets, frusta, MFT, cones, shadow frusta;
+//!   thesis 2.2.1, 4.1.2-4.1.9, Benthin & Wald 2009), and `Composed`, a method made of four;
+//!   [`shadow_frusta`]: a tile's shadow rays gathered in Morton order for the grouped ones.
+//! - [`ours`]: our methods, one registry line each composing kernels; [`multibvh`]: our 4-
+//!   and 8-wide BVHs (crate `mbvh`, Wald, Benthin & Boulos 2008) as the single-ray methods
+//!   `mbvh-4` and `mbvh-8`.
 //! - [`registry`]: names to methods (`mono`, `mft-16`, `embree-8`, ...), the structures they
-//!   trace, and the name list for `--help`.
+//!   trace, their kernels' names, and the name list and summaries for `--help`.
 //! - [`frame`]: the frame driver: primary, hard-shadow and soft-shadow passes over tiles with
 //!   rayon, the same for every method, and ray streams.
 //! - [`render`]: one view rendered with one method: timed tracing, then shading or AOVs;
@@ -23,14 +26,16 @@
 //! - [`workload`]: the incoherent rays (ambient occlusion, one diffuse bounce) generated once
 //!   from a frame's primary hits and traced by every method's stream queries.
 //!
-//! Adding a method: implement [`Method`] in its own module and add one [`registry::Entry`]
-//! line to [`Registry::ours`]; the conformance test (crate `conformance`, `tests/ours.rs`)
-//! then checks it against the brute-force oracle and single rays, and every command takes it
-//! by name.
+//! Adding a method: one line in [`Registry::ours`] composing existing kernels, or a new
+//! kernel type in [`kernel`] plus the lines that compose it (another tracer: a [`Method`]
+//! registered whole by `baselines`); the conformance test (crate `conformance`, `tests/ours.rs`) then
+//! checks it against the brute-force oracle and single rays, and every command takes it by
+//! name.
 
 pub mod aov;
 pub mod error;
 pub mod frame;
+pub mod kernel;
 pub mod machine;
 pub mod method;
 pub mod multibvh;
@@ -51,5 +56,5 @@ pub use error::Error;
 pub use frame::{FrameTracer, TileLayout};
 pub use machine::{Machine, SimdLevel};
 pub use method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, Tracer};
-pub use registry::{Bound, Options, Registry, SoftGrouping, Structures};
+pub use registry::{Bound, KernelNames, Options, Registry, SoftGrouping, Structures};
 pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};

@@ -5,17 +5,17 @@
 //! - [`Tracer`] is the single-ray query, closest hit and any hit: the scalar twin every group
 //!   method must agree with (our kd-tree, Embree's `rtcIntersect1`, a BVH crate);
 //! - [`Method`] is the group query: a tile of primary rays, the hard shadow rays of a tile's
-//!   hits, the 16 soft-shadow rays of one point and an arbitrary stream of rays. Our single
-//!   rays, 2x2 packets, frusta, MFT and cones implement it ([`crate::ours`]), and so do the
-//!   baselines (crate `baselines`).
+//!   hits, the 16 soft-shadow rays of one point and an arbitrary stream of rays. Our kd-tree
+//!   methods implement it as compositions of typed kernels, one per pass
+//!   (`crate::kernel::Composed`); the baselines implement it whole (crate `baselines`).
 //!
 //! A method's per-thread scratch space (packet buffers, Embree ray packets) is made once per
 //! rayon task by [`Method::scratch`], so no query allocates. Every query takes a counters
 //! argument `C: TileCounters`: with [`kdtree::NoCounters`] the counting compiles away, with
 //! [`kdtree::Counts`] it gives the thesis's N and I; baselines count nothing.
 //!
-//! The frame driver ([`crate::frame`]) runs a `Method` over whole frames; the registry
-//! ([`crate::registry`]) makes one from a name.
+//! The frame driver (`crate::frame`) runs a `Method` over whole frames; the registry
+//! (`crate::registry`) makes one from a name.
 
 use cones::Cone;
 use cones::shadows::{SAMPLES, light_samples, shadow_rays};
@@ -287,11 +287,23 @@ pub fn soft_by_points<M: Method + ?Sized, C: TileCounters>(
     visible: &mut [f32],
     counters: &mut C,
 ) -> SoftStats {
+    soft_points(job, visible, |rays, cone| method.soft_point(scratch, rays, cone, counters))
+}
+
+/// The soft shadows of `job` point by point: `point` answers each point's 16 rays
+/// ([`SoftJob::point`]) as a blocked mask, bit `i` for ray `i`; the visible fraction per pixel
+/// into `visible` (0 where no ray is cast).
+#[inline]
+pub fn soft_points(
+    job: &SoftJob<'_>,
+    visible: &mut [f32],
+    mut point: impl FnMut(&[Ray; SAMPLES], &Cone) -> u16,
+) -> SoftStats {
     let mut stats = SoftStats::default();
     for (i, slot) in visible.iter_mut().enumerate() {
         *slot = 0.0;
         let Some((rays, cone)) = job.point(i) else { continue };
-        *slot = stats.add_point(method.soft_point(scratch, &rays, &cone, counters));
+        *slot = stats.add_point(point(&rays, &cone));
     }
     stats
 }

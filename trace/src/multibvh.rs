@@ -11,14 +11,13 @@
 //! when the method is bound ([`mbvh::Avx2::detect`]), and with the scalar 8-wide test
 //! elsewhere.
 
-use kdtree::{Hit, Ray};
+use kdtree::{Hit, KdTree, Ray};
 use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
 use scenes::Scene;
 
-use crate::Error;
-use crate::frame::{Driven, FrameTracer};
+use crate::error::Error;
 use crate::method::{SingleRays, TileCounters, Tracer};
-use crate::registry::Structures;
+use crate::registry::Binding;
 
 /// The registry's name of the 4-wide BVH structure.
 pub const MBVH: &str = "mbvh";
@@ -49,27 +48,25 @@ pub fn build8(scene: &Scene) -> Result<Mbvh8, Error> {
 }
 
 /// A traversal's frame passes, one ray at a time.
-fn driven<'s, B: LeafBlock, K: BoxTest>(tr: Traversal<'s, B, K>) -> Box<dyn FrameTracer + 's> {
-    Box::new(Driven(SingleRays(tr)))
+fn driven<'s, B: LeafBlock + 's, K: BoxTest + 's>(tr: Traversal<'s, B, K>) -> Result<Binding<'s>, Error> {
+    Ok(Binding::method(SingleRays(tr)))
 }
 
-/// `mbvh-4`: single rays through the 4-wide BVH with the kd-tree's triangle test.
-pub fn bind<'s>(s: &'s Structures<'_>) -> Result<Box<dyn FrameTracer + 's>, Error> {
-    let bvh = s.get::<Mbvh>(MBVH)?;
-    Ok(match s.kdtree().intersector() {
+/// `mbvh-4`: single rays through the 4-wide BVH `bvh` with the triangle test of `tree`.
+pub fn bind<'s>(bvh: &'s Mbvh, tree: &KdTree) -> Result<Binding<'s>, Error> {
+    match tree.intersector() {
         kdtree::Intersector::Wald => driven(bvh.wald()),
         kdtree::Intersector::Watertight => driven(bvh.watertight()),
-    })
+    }
 }
 
-/// `mbvh-8`: single rays through the 8-wide BVH with the kd-tree's triangle test, the node
-/// test in AVX2 if this CPU has it (checked here, once), else scalar.
-pub fn bind8<'s>(s: &'s Structures<'_>) -> Result<Box<dyn FrameTracer + 's>, Error> {
-    let bvh = s.get::<Mbvh8>(MBVH8)?;
-    Ok(match (s.kdtree().intersector(), Avx2::detect()) {
+/// `mbvh-8`: single rays through the 8-wide BVH `bvh` with the triangle test of `tree`, the
+/// node test in AVX2 if this CPU has it (checked here, once), else scalar.
+pub fn bind8<'s>(bvh: &'s Mbvh8, tree: &KdTree) -> Result<Binding<'s>, Error> {
+    match (tree.intersector(), Avx2::detect()) {
         (kdtree::Intersector::Wald, Some(avx2)) => driven(bvh.wald().with_test(avx2)),
         (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
         (kdtree::Intersector::Watertight, Some(avx2)) => driven(bvh.watertight().with_test(avx2)),
         (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
-    })
+    }
 }

@@ -1,46 +1,48 @@
 //! The one method registry: a name (`mono`, `mft-16`, `embree-8`, ...) gives a method.
 //!
 //! The model is pbrt-v4's `CreateAccelerator`: every place that takes a method by name
-//! (`rttest render --method`, `rttest compare --methods`, the tables, the benches, the
-//! conformance test) asks the registry, and the same registry lists the names for `--help`
-//! and error messages. Adding a method is its own module plus one [`Entry`] line in
-//! [`Registry::ours`] (or in `baselines::register` for another tracer).
+//! (`rttest render --method`, `rttest compare --methods`, the tables, the benches, the viewer,
+//! the conformance test) asks the registry, and the same registry lists the names and
+//! summaries for `--help` and error messages. An [`Entry`] is one line: a method of ours
+//! composes four typed kernels (`crate::kernel`, one per pass: primary, hard shadow, soft
+//! shadow, stream), in `crate::ours`; another tracer registers a whole [`Method`] (crate
+//! `baselines`). The catalogue is assembled in one place, `baselines::registry()`:
+//! [`Registry::ours`] plus the baselines of the build.
 //!
 //! An entry names the structure it traces: our kd-tree ([`KDTREE`]), built by the caller
-//! with its `kdtree::BuildConfig`, or a structure of its own (Embree's BVHs, a BVH crate's),
-//! built by a [`StructureEntry`] of the registry so that `rttest compare` can time every
-//! build alike.
+//! with its `kdtree::BuildConfig`, or a structure of its own (Embree's BVHs, a BVH crate's,
+//! our 4- and 8-wide BVHs), built by a [`StructureEntry`] of the registry so that `rttest
+//! compare` can time every build alike.
 
 use std::any::Any;
 
 use kdtree::KdTree;
-use packets::{LaneWidth, TileMethod};
+use packets::LaneWidth;
 use scenes::Scene;
 
-use crate::Error;
+use crate::aov::Attribution;
+use crate::error::Error;
+pub use crate::frame::TILE_SIZE;
 use crate::frame::{Driven, FrameTracer};
-use crate::method::SingleRays;
-use crate::multibvh;
-use crate::ours::{Kernel, TileShadows, Tiled};
+use crate::method::Method;
 
 /// The name of our kd-tree as a structure.
 pub const KDTREE: &str = "kdtree";
 
-/// Default tile side: the unit of work of a thread, and the frustum of the tiled methods.
-pub const TILE_SIZE: u32 = 16;
-
-/// How a method is bound to its structure: tile size, packet/leaf culling, soft-shadow
-/// grouping and the SIMD lanes of `lane-frusta`.
+/// What a command asks of a method beyond its name. The frame driver reads the tile; every
+/// other field is read by the one kernel that takes it, once, when the method is bound
+/// (`crate::kernel::FromOptions`), and kept as that kernel's field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Options {
     /// Tile side: the frame driver's unit of work, and the frustum (or cone) of the tiled
-    /// methods (a multiple of 4 in `4..=64` for the packet methods).
+    /// kernels (a multiple of 4 in `4..=64` for the packet kernels).
     pub tile: u32,
-    /// Packet/leaf culling (thesis 4.1.4), for the frustum and cone methods.
+    /// Packet/leaf culling (thesis 4.1.4), for the frustum and cone kernels.
     pub culling: bool,
-    /// How the tiled methods group their 16-sample soft-shadow rays.
+    /// Which of an entry's soft-shadow kernels is bound: its per-stratum one, or its
+    /// per-point one ([`SoftGrouping::PerPoint`]; refused for an entry without one).
     pub soft: SoftGrouping,
-    /// How many shadow frusta `lane-frusta` traces at once (`packets::lane_frusta`): by
+    /// How many shadow frusta the lane kernels trace at once (`packets::lane_frusta`): by
     /// default the widest this CPU runs natively ([`LaneWidth::widest`]).
     pub lanes: LaneWidth,
 }
@@ -51,18 +53,18 @@ impl Default for Options {
     }
 }
 
-/// How a tiled method of ours traces the 16 soft-shadow rays of its points.
+/// Which soft-shadow kernel of an entry of ours is bound (`--soft-grouping`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum SoftGrouping {
-    /// Each tile's rays to each light stratum together (Benthin & Wald 2009): as 2x2
-    /// packets of neighbouring points' rays, or as shadow frusta for `multi-frusta`. The
-    /// default: 1.3-1.5x single rays on Sponza, kitchen and atrium
-    /// (`docs/results/coherent-shadows.md`).
+    /// The entry's own: for the packet, frustum and cone methods each tile's rays to each
+    /// light stratum together (Benthin & Wald 2009), as 2x2 packets of neighbouring points'
+    /// rays, or as shadow frusta for `multi-frusta`. The default: 1.3-1.5x single rays on
+    /// Sponza, kitchen and atrium (`docs/results/coherent-shadows.md`).
     #[default]
     Strata,
-    /// Each point's 16 rays on their own, under their pyramid (the packet, frustum and MFT
-    /// kernels) or their cone (the cone kernels): the thesis's soft shadows (4.1.9, Table
-    /// 4.6), slower than single rays on these scenes (0.3-0.9x).
+    /// The entry's per-point kernel: each point's 16 rays on their own, under their pyramid
+    /// (the packet, frustum and MFT methods) or their cone (the cone methods): the thesis's
+    /// soft shadows (4.1.9, Table 4.6), slower than single rays on these scenes (0.3-0.9x).
     PerPoint,
 }
 
@@ -112,11 +114,55 @@ impl<'a> Structures<'a> {
     }
 }
 
-/// Binds a method to the structures of a frame.
-pub type Bind = for<'s> fn(&'s Structures<'_>, &Options) -> Result<Box<dyn FrameTracer + 's>, Error>;
+/// Binds a method to the structures of a frame with the options of its selection.
+pub type Bind = for<'s> fn(&'s Structures<'_>, &Options) -> Result<Binding<'s>, Error>;
 
 /// Builds a structure of the registry for a scene.
 pub type Build = fn(&Scene) -> Result<Box<dyn Any + Send + Sync>, Error>;
+
+/// The names of a bound method's kernels, one per pass: their identities, by which `rttest
+/// compare` times each distinct kernel once and reports name what traced a pass.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KernelNames {
+    /// The primary-ray kernel: `kd-single`, `kd-mft-16`, `embree-8`, ...
+    pub primary: String,
+    /// The hard-shadow kernel: `kd-single`, `kd-packets`, `kd-frusta-16`, `kd-lane-frusta`, ...
+    pub shadow: String,
+    /// The 16-sample soft-shadow kernel: `kd-single`, `kd-stratum-packets`, `kd-pyramid`,
+    /// `kd-cone`, `kd-multi-frusta-16`, `kd-lane-frusta`, ...
+    pub soft: String,
+    /// The stream kernel: `kd-single`, `kd-omni-packets`, `kd-mft-runs`, ...
+    pub stream: String,
+}
+
+impl KernelNames {
+    /// One kernel for every pass, named `name`: a method registered whole (a baseline).
+    pub fn whole(name: &str) -> KernelNames {
+        KernelNames { primary: name.into(), shadow: name.into(), soft: name.into(), stream: name.into() }
+    }
+}
+
+/// What a [`Bind`] makes: the method's passes behind a `dyn` and, for a composition of
+/// kernels, their names.
+pub struct Binding<'s> {
+    /// The passes.
+    pub tracer: Box<dyn FrameTracer + 's>,
+    /// The kernels' names; `None`: the method is one kernel for every pass, named by its
+    /// entry.
+    pub kernels: Option<KernelNames>,
+}
+
+impl<'s> Binding<'s> {
+    /// A method whose passes are one kernel, named by its entry.
+    pub fn method<M: Method + 's>(method: M) -> Binding<'s> {
+        Binding { tracer: Box::new(Driven(method)), kernels: None }
+    }
+
+    /// The same binding with its kernels named.
+    pub fn named(self, kernels: KernelNames) -> Binding<'s> {
+        Binding { kernels: Some(kernels), ..self }
+    }
+}
 
 /// One registered method.
 #[derive(Clone, Copy, Debug)]
@@ -135,41 +181,36 @@ pub struct Entry {
     pub packets: bool,
     /// The structure it traces: [`KDTREE`] or a [`StructureEntry`]'s name.
     pub structure: &'static str,
-    /// Its hard-shadow kernel: methods sharing one are timed once (`rttest compare`). A name
-    /// ending in `-N` is a kernel that takes the tile as its frustum: `N` stands for the tile
-    /// size ([`Entry::shadow_kernel_for`]).
-    pub shadow_kernel: &'static str,
-    /// Its 16-sample soft-shadow kernel, shared like the hard-shadow one.
-    pub soft_kernel: &'static str,
-    /// Its soft-shadow kernel with [`SoftGrouping::PerPoint`], for the tiled methods of ours
-    /// that have one; `None`: the option does not apply (selecting it is an error).
-    pub per_point_soft_kernel: Option<&'static str>,
     /// Makes the method.
     pub bind: Bind,
+    /// Makes the method with its per-point soft-shadow kernel ([`SoftGrouping::PerPoint`]),
+    /// for the tiled and packet methods of ours that have one; `None`: the option does not
+    /// apply (selecting it is an error).
+    pub per_point: Option<Bind>,
 }
 
 impl Entry {
-    /// The hard-shadow kernel's name with `options`: `kd-frusta-N` with 16-pixel tiles is
-    /// `kd-frusta-16`; a name without `-N` is the same for every tile.
-    pub fn shadow_kernel_for(&self, options: &Options) -> String {
-        with_tile(self.shadow_kernel, options)
+    /// A method registered whole on `structure`: not tiled, no packets, no per-point
+    /// soft-shadow kernel, one kernel for every pass named `name` (the baselines, `mbvh-4`).
+    pub fn whole(
+        name: &'static str,
+        family: &'static str,
+        summary: &'static str,
+        structure: &'static str,
+        bind: Bind,
+    ) -> Entry {
+        Entry { name, family, summary, tiled: false, packets: false, structure, bind, per_point: None }
     }
 
-    /// The soft-shadow kernel's name with `options`, as [`Entry::shadow_kernel_for`]: the
-    /// per-point kernel with [`SoftGrouping::PerPoint`].
-    pub fn soft_kernel_for(&self, options: &Options) -> String {
-        match (options.soft, self.per_point_soft_kernel) {
-            (SoftGrouping::PerPoint, Some(kernel)) => with_tile(kernel, options),
-            _ => with_tile(self.soft_kernel, options),
-        }
+    /// Its name in `--help`: `mft[-N]` for a tiled method.
+    pub fn help_name(&self) -> String {
+        if self.tiled { format!("{}[-N]", self.name) } else { self.name.to_string() }
     }
-}
 
-/// `kernel` with a trailing `-N` replaced by the tile size of `options`.
-fn with_tile(kernel: &str, options: &Options) -> String {
-    match kernel.strip_suffix("-N") {
-        Some(base) => format!("{base}-{}", options.tile),
-        None => kernel.to_string(),
+    /// How its cost images attribute counts to pixels: per ray for methods neither tiled nor
+    /// tracing packets (single rays, the baselines), else per tile.
+    pub fn attribution(&self) -> Attribution {
+        if self.tiled || self.packets { Attribution::Tile } else { Attribution::Ray }
     }
 }
 
@@ -199,15 +240,21 @@ pub struct Bound<'s> {
     pub name: String,
     /// The registry entry.
     pub entry: Entry,
-    /// Tile and culling.
+    /// The options it was selected with (the frame driver's tile among them).
     pub options: Options,
+    /// Its kernels' names, one per pass.
+    pub kernels: KernelNames,
     /// The passes.
     pub tracer: Box<dyn FrameTracer + 's>,
 }
 
 impl std::fmt::Debug for Bound<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Bound").field("name", &self.name).field("options", &self.options).finish_non_exhaustive()
+        f.debug_struct("Bound")
+            .field("name", &self.name)
+            .field("options", &self.options)
+            .field("kernels", &self.kernels)
+            .finish_non_exhaustive()
     }
 }
 
@@ -219,126 +266,9 @@ pub struct Registry {
 }
 
 impl Registry {
-    /// Our methods: single rays, packets, frusta, MFT, cones (thesis 2.2.1, 4.1.2-4.1.9) on
-    /// our kd-tree, and single rays on our 4- and 8-wide BVHs (`mbvh-4`, structure `mbvh`;
-    /// `mbvh-8`, structure `mbvh8`).
-    pub fn ours() -> Registry {
-        let mut r = Registry::default();
-        r.add(ours(
-            "mono",
-            "single rays, closest and any hit (thesis 2.2.1)",
-            false,
-            false,
-            ("kd-single", "kd-single", None),
-            |s, _| Ok(Box::new(Driven(SingleRays(s.kdtree())))),
-        ));
-        r.add(ours(
-            "packet",
-            "omni-directional 2x2 packets (thesis 4.1.2)",
-            false,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
-            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Packet)),
-        ));
-        r.add(ours(
-            "samesign",
-            "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)",
-            false,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
-            |s, o| tiled(s, o, Kernel::Packets(TileMethod::SameSign)),
-        ));
-        r.add(ours(
-            "frustum",
-            "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)",
-            true,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
-            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Frustum)),
-        ));
-        r.add(ours(
-            "mft",
-            "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)",
-            true,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-pyramid")),
-            |s, o| tiled(s, o, Kernel::Packets(TileMethod::Mft)),
-        ));
-        r.add(ours(
-            "multi-frusta",
-            "MFT primaries; shadows as Benthin & Wald's (2009) frusta: one per tile, one per tile and light stratum",
-            true,
-            true,
-            ("kd-frusta-N", "kd-multi-frusta-N", None),
-            |s, o| {
-                Ok(Box::new(Driven(
-                    tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Frusta),
-                )))
-            },
-        ));
-        r.add(ours(
-            "lane-frusta",
-            "MFT primaries; shadows as Benthin & Wald's (2009) multi-frusta in SIMD lanes: a 4x4 block's or a point's rays per frustum, 8 (AVX2) or 4 frusta at once",
-            true,
-            true,
-            ("kd-lane-frusta", "kd-lane-frusta", None),
-            |s, o| {
-                Ok(Box::new(Driven(
-                    tiled_method(s, o, Kernel::Packets(TileMethod::Mft))?.with_shadows(TileShadows::Lanes(o.lanes)),
-                )))
-            },
-        ));
-        r.add(ours(
-            "cone",
-            "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)",
-            true,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-cone")),
-            |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::Cone)),
-        ));
-        r.add(ours(
-            "mft-cone",
-            "four quadrant cones per tile (thesis 4.1.9)",
-            true,
-            true,
-            ("kd-packets", "kd-stratum-packets", Some("kd-cone")),
-            |s, o| tiled(s, o, Kernel::Cones(cones::ConeMethod::MftCone)),
-        ));
-        r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });
-        r.add(Entry {
-            name: "mbvh-4",
-            family: "ours",
-            summary: "4-wide BVH, single rays, SIMD over children and leaf triangles (Wald, Benthin & Boulos 2008)",
-            tiled: false,
-            packets: false,
-            structure: multibvh::MBVH,
-            shadow_kernel: "mbvh-4",
-            soft_kernel: "mbvh-4",
-            per_point_soft_kernel: None,
-            bind: |s, _| multibvh::bind(s),
-        });
-        r.add_structure(StructureEntry {
-            name: multibvh::MBVH8,
-            build: |scene| Ok(Box::new(multibvh::build8(scene)?)),
-        });
-        r.add(Entry {
-            name: "mbvh-8",
-            family: "ours",
-            summary: "8-wide BVH, single rays, AVX2 over children (chosen at run time), SIMD over leaf triangles (Wald, Benthin & Boulos 2008)",
-            tiled: false,
-            packets: false,
-            structure: multibvh::MBVH8,
-            shadow_kernel: "mbvh-8",
-            soft_kernel: "mbvh-8",
-            per_point_soft_kernel: None,
-            bind: |s, _| multibvh::bind8(s),
-        });
-        r
-    }
-
-    /// Adds a method.
-    pub fn add(&mut self, entry: Entry) {
-        self.entries.push(entry);
+    /// Adds a method: an [`Entry`], or a line of ours composing kernels (`crate::ours`).
+    pub fn add(&mut self, entry: impl Into<Entry>) {
+        self.entries.push(entry.into());
     }
 
     /// Adds a structure that methods name.
@@ -386,9 +316,19 @@ impl Registry {
 
     /// The base names, for `--help` and error messages (`mono, packet, ..., mft[-N], ...`).
     pub fn help(&self) -> String {
-        let names: Vec<String> =
-            self.entries.iter().map(|e| if e.tiled { format!("{}[-N]", e.name) } else { e.name.to_string() }).collect();
+        let names: Vec<String> = self.entries.iter().map(Entry::help_name).collect();
         names.join(", ")
+    }
+
+    /// One line per entry, its base name and summary (`mft[-N]  Multiple Frustum ...`), for
+    /// the long `--help` of a method option: made from the entries, so it lists every method
+    /// this build has.
+    pub fn summaries(&self) -> String {
+        let names: Vec<String> = self.entries.iter().map(Entry::help_name).collect();
+        let width = names.iter().map(String::len).max().unwrap_or(0);
+        let lines: Vec<String> =
+            names.iter().zip(&self.entries).map(|(n, e)| format!("{n:width$}  {}", e.summary)).collect();
+        lines.join("\n")
     }
 
     /// The method `name`: an entry's name (tile from `options`) or, for a tiled method,
@@ -397,9 +337,8 @@ impl Registry {
     pub fn select(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let selected = self.select_name(name, options)?;
         let entry = &self.entries[selected.entry];
-        if options.soft == SoftGrouping::PerPoint && entry.per_point_soft_kernel.is_none() {
-            let with: Vec<&str> =
-                self.entries.iter().filter(|e| e.per_point_soft_kernel.is_some()).map(|e| e.name).collect();
+        if options.soft == SoftGrouping::PerPoint && entry.per_point.is_none() {
+            let with: Vec<&str> = self.entries.iter().filter(|e| e.per_point.is_some()).map(|e| e.name).collect();
             return Err(Error::Usage(format!(
                 "{}: no per-point soft-shadow kernel (methods with one: {})",
                 selected.name,
@@ -433,46 +372,15 @@ impl Registry {
         if !structures.has(entry.structure) {
             return Err(Error::Usage(format!("{}: structure '{}' was not built", selected.name, entry.structure)));
         }
-        let tracer =
-            (entry.bind)(structures, &selected.options).map_err(|e| Error::Usage(format!("{}: {e}", selected.name)))?;
-        Ok(Bound { name: selected.name.clone(), entry, options: selected.options, tracer })
+        let bind = match (selected.options.soft, entry.per_point) {
+            (SoftGrouping::PerPoint, Some(per_point)) => per_point,
+            _ => entry.bind,
+        };
+        let binding =
+            bind(structures, &selected.options).map_err(|e| Error::Usage(format!("{}: {e}", selected.name)))?;
+        let kernels = binding.kernels.unwrap_or_else(|| KernelNames::whole(entry.name));
+        Ok(Bound { name: selected.name.clone(), entry, options: selected.options, kernels, tracer: binding.tracer })
     }
-}
-
-/// An entry of ours on our kd-tree, with its hard- and soft-shadow kernels (and its
-/// per-point soft-shadow kernel, if any).
-fn ours(
-    name: &'static str,
-    summary: &'static str,
-    tiled: bool,
-    packets: bool,
-    (shadow, soft, per_point_soft): (&'static str, &'static str, Option<&'static str>),
-    bind: Bind,
-) -> Entry {
-    Entry {
-        name,
-        family: "ours",
-        summary,
-        tiled,
-        packets,
-        structure: KDTREE,
-        shadow_kernel: shadow,
-        soft_kernel: soft,
-        per_point_soft_kernel: per_point_soft,
-        bind,
-    }
-}
-
-/// A tile kernel of ours bound to the kd-tree.
-fn tiled<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Box<dyn FrameTracer + 's>, Error> {
-    Ok(Box::new(Driven(tiled_method(s, o, kernel)?)))
-}
-
-/// The [`Tiled`] method of `kernel` on the kd-tree, with the tile, culling and soft-shadow
-/// grouping of `o`.
-fn tiled_method<'s>(s: &'s Structures<'_>, o: &Options, kernel: Kernel) -> Result<Tiled<'s>, Error> {
-    let tiled = Tiled::new(s.kdtree(), kernel, o.tile, o.culling).map_err(|e| Error::Usage(format!("tile: {e}")))?;
-    Ok(tiled.with_soft(o.soft))
 }
 
 #[cfg(test)]
@@ -511,20 +419,62 @@ mod tests {
 
     #[test]
     fn per_point_soft_shadows_name_their_kernel_or_are_refused() {
+        let scene = scenes::load_scene("cube").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let s = Structures::new(&tree);
         let r = Registry::ours();
         let per_point = Options { soft: SoftGrouping::PerPoint, ..Options::default() };
+        let soft = |method: &str, o: Options| r.bind(&r.select(method, o).unwrap(), &s).unwrap().kernels.soft;
         for (method, strata, thesis) in [
             ("packet", "kd-stratum-packets", "kd-pyramid"),
             ("mft-8", "kd-stratum-packets", "kd-pyramid"),
             ("cone-16", "kd-stratum-packets", "kd-cone"),
         ] {
-            let e = r.entry(r.select(method, Options::default()).unwrap().entry);
-            assert_eq!(e.soft_kernel_for(&Options::default()), strata);
-            assert_eq!(e.soft_kernel_for(&r.select(method, per_point).unwrap().options), thesis);
+            assert_eq!(soft(method, Options::default()), strata);
+            assert_eq!(soft(method, per_point), thesis);
         }
         for method in ["mono", "multi-frusta-16", "mbvh-8"] {
             let e = r.select(method, per_point).unwrap_err().to_string();
             assert!(e.contains("no per-point") && e.contains("packet, samesign"), "{e}");
+        }
+    }
+
+    /// Each bound method names its kernels from the kernels themselves: the tile of a
+    /// frustum kernel is its own field.
+    #[test]
+    fn kernels_are_named_by_their_identity() {
+        let scene = scenes::load_scene("cube").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let s = Structures::new(&tree);
+        let r = Registry::ours();
+        let kernels = |method: &str| r.bind(&r.select(method, Options::default()).unwrap(), &s).unwrap().kernels;
+        let k = kernels("multi-frusta-8");
+        assert_eq!(
+            (k.primary.as_str(), k.shadow.as_str(), k.soft.as_str()),
+            ("kd-mft-8", "kd-frusta-8", "kd-multi-frusta-8")
+        );
+        assert_eq!(k.stream, "kd-mft-runs");
+        let k = kernels("mono");
+        assert_eq!([k.primary, k.shadow, k.soft, k.stream], ["kd-single"; 4]);
+        let k = kernels("lane-frusta-16");
+        assert_eq!((k.shadow.as_str(), k.soft.as_str()), ("kd-lane-frusta", "kd-lane-frusta"));
+        let k = kernels("packet");
+        assert_eq!(
+            (k.primary.as_str(), k.shadow.as_str(), k.stream.as_str()),
+            ("kd-omni-packets", "kd-packets", "kd-omni-packets")
+        );
+        let k = kernels("cone-4");
+        assert_eq!((k.primary.as_str(), k.stream.as_str()), ("kd-cone-4", "kd-cone-runs"));
+    }
+
+    /// The long help lists every entry with its summary, one line each.
+    #[test]
+    fn summaries_list_every_entry() {
+        let r = Registry::ours();
+        let help = r.summaries();
+        assert_eq!(help.lines().count(), r.entries().len());
+        for name in ["mono", "multi-frusta[-N]", "lane-frusta[-N]", "mbvh-4", "mbvh-8", "mft-cone[-N]"] {
+            assert!(help.lines().any(|l| l.starts_with(name)), "{name}: {help}");
         }
     }
 }

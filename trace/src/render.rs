@@ -9,7 +9,7 @@
 //! and intersection); shading into an image ([`Renderer::color`]) or taking the depth or
 //! primitive id comes after and is timed apart.
 //!
-//! The method's tile ([`Options::tile`](crate::registry::Options)) is the work unit of a
+//! The method's tile (the `tile` of its `crate::registry::Options`) is the work unit of a
 //! thread and, for the frustum and cone methods, the frustum.
 
 use std::sync::OnceLock;
@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use scenes::PointLight;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 
-use crate::aov::{Attribution, CostFrame, PixelCost};
+use crate::aov::{CostFrame, PixelCost};
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
 use crate::{shade, soft};
@@ -210,9 +210,9 @@ impl<'a> Renderer<'a> {
     /// The primary pass counted for cost images ([`crate::aov`]): hits into `buf.hits` (the
     /// shadow buffers are left alone), and each pixel's share of the traversal counts, per
     /// ray for single-ray methods and per tile for packets, frusta and cones
-    /// ([`Attribution::for_entry`]). Slower than [`Renderer::trace`]: not for timing.
+    /// (`Entry::attribution`). Slower than [`Renderer::trace`]: not for timing.
     pub fn trace_costs(&self, buf: &mut FrameBuffers) -> CostFrame {
-        let attribution = Attribution::for_entry(&self.method.entry);
+        let attribution = self.method.entry.attribution();
         let mut costs = vec![PixelCost::default(); self.layout.pixel_count()];
         let totals =
             self.method.tracer.primary_costs(&self.layout, &self.camera, attribution, &mut buf.hits, &mut costs);
@@ -450,6 +450,7 @@ impl GammaTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::aov::{Attribution, Cost};
     use crate::method::{Tracer, primary_ray};
     use crate::registry::{Options, Registry, Structures};
     use crate::setup::load_and_build;
@@ -624,6 +625,62 @@ mod tests {
                 renderer(after).trace(&mut fresh);
                 let (a, b) = (renderer(after).color(&reused), renderer(after).color(&fresh));
                 assert!(a.pixels == b.pixels, "{before:?} then {after:?}");
+            }
+        }
+    }
+
+    /// Summed over the image, each cost image gives the counters' totals of an ordinary
+    /// counted frame, for single rays (per pixel), 2x2 packets, frusta, MFT and cones (per
+    /// tile), on an image whose size is not a multiple of the tile.
+    #[test]
+    fn cost_images_sum_to_the_counters_totals() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(53, 37).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        for name in ["mono", "packet", "samesign", "frustum-8", "mft-16", "cone-8", "mft-cone-16"] {
+            let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+            let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
+            let mut buf = renderer.buffers();
+            let (_, counted, _) = renderer.trace_counted(&mut buf);
+            let expected_hits = buf.hits.clone();
+            let frame = renderer.trace_costs(&mut buf);
+            assert_eq!(buf.hits, expected_hits, "{name}: the cost pass traces the same hits");
+            assert_eq!(frame.totals, counted, "{name}: the cost pass counts what a counted frame counts");
+            assert!(counted.nodes > 0 && counted.tests > 0, "{name}");
+            let expected = if name == "mono" { Attribution::Ray } else { Attribution::Tile };
+            assert_eq!(frame.attribution, expected, "{name}");
+            for cost in Cost::ALL {
+                let total = cost.of(&counted) as f64;
+                let sum = frame.sum(cost);
+                assert!((sum - total).abs() <= 1e-6 * total.max(1.0), "{name} {}: {sum} vs {total}", cost.name());
+                let image = frame.image(cost);
+                assert_eq!(image.values.len(), (camera.width * camera.height) as usize);
+                assert!(image.values.iter().all(|v| v.is_finite() && *v >= 0.0));
+            }
+            if name.starts_with("frustum") || name.starts_with("mft-16") {
+                assert!(counted.culled > 0, "{name}: packet/leaf culling culls some packets");
+            }
+        }
+    }
+
+    /// Single rays: every pixel holds exactly its own ray's counts.
+    #[test]
+    fn single_ray_pixels_hold_their_own_ray() {
+        let (scene, tree, _) = load_and_build("touching-boxes", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(19, 13).unwrap();
+        let structures = Structures::new(&tree);
+        let registry = Registry::ours();
+        let m = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
+        let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
+        let frame = renderer.trace_costs(&mut renderer.buffers());
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let mut c = Counts::default();
+                let ray = primary_ray(&camera, x, y);
+                let _ = tree.intersect_counted(&ray, &mut c);
+                let p = frame.pixels[(y * camera.width + x) as usize];
+                assert_eq!(p, PixelCost::share(&c, 1), "({x}, {y})");
             }
         }
     }

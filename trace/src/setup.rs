@@ -12,7 +12,8 @@ use kdtree::{BuildConfig, KdTree, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Mesh, Scene};
 
-use crate::{Error, method, shade};
+use crate::error::Error;
+use crate::{method, shade};
 
 /// The Sponza file in the shared scenes folder, if it is there.
 pub fn sponza_path() -> Option<PathBuf> {

@@ -8,13 +8,18 @@
 //! taken in Morton (Z) order, so that each run of 4, 16 or 64 rays is a 2x2, 4x4 or 8x8
 //! block of the tile.
 //!
-//! - [`Grouping::Packets`]: each run of four as a same-sign 2x2 packet (thesis 2.3.1,
-//!   `packets::samesign::occluded`): one traversal for four rays, each lane in its own
+//! How a run of those rays is traced is a [`Grouping`], a type: the hard-shadow kernels
+//! `crate::kernel::shadow::{Packets, Frusta, Lanes}` are the groupings, and [`hard`] and
+//! [`soft_strata`] are generic over them, so each is one monomorphic loop:
+//! - 2x2 packets: each run of four as a same-sign 2x2 packet (thesis 2.3.1,
+//!   `packets::samesign::occluded_segments`): one traversal for four rays, each lane in its own
 //!   interval, finished at its first hit.
-//! - [`Grouping::Frusta`] (Benthin & Wald 2009): the tile's rays (per light stratum, for soft
+//! - shadow frusta (Benthin & Wald 2009): the tile's rays (per light stratum, for soft
 //!   shadows: "multi-frusta") as one frustum from the box of their starts to the box of their
 //!   ends, split into its 4x4 and 2x2 blocks where it is much wider than a voxel (MFT's
 //!   quadrants, thesis 4.1.5, applied again), 2x2 blocks handed over as packets.
+//! - frusta in SIMD lanes (`packets::lane_frusta`): each run of 16 hard rays (a 4x4 block)
+//!   as one frustum; for soft shadows each point's 16 rays as one frustum ([`soft_lanes`]).
 //!
 //! Every ray is the one single rays trace ([`crate::method::hard_shadow_segment`],
 //! [`SoftJob::point`]), and every kernel here answers each ray exactly as the single ray does
@@ -22,30 +27,35 @@
 
 use cones::shadows::SAMPLES;
 use glam::Vec3;
-use kdtree::{KdTree, Ray};
-use packets::lane_frusta::FRUSTUM_RAYS;
-use packets::{LaneFrusta, LaneWidth, ShadowFrustum, samesign};
+use kdtree::KdTree;
+use packets::{LaneFrusta, LaneWidth};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
 
-/// How a tile's shadow rays are grouped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Grouping {
-    /// 2x2 packets of neighbouring pixels' rays.
-    Packets,
-    /// One shadow frustum per tile (and light stratum), split where wide.
-    Frusta,
-    /// Frusta that share one end, several in SIMD lanes (`packets::lane_frusta`): each 4x4
-    /// block's hard shadow rays (the light their apex), each point's 16 soft-shadow rays.
-    Lanes(LaneWidth),
+/// How a run of shadow segments is traced: the answer for each segment, blocked or not.
+/// Implemented by the hard-shadow kernels that group rays (`crate::kernel::shadow`).
+pub trait Grouping: Sync {
+    /// What the grouping keeps between runs (a frustum's buffers), per thread.
+    type Scratch: Default + Send;
+
+    /// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::segment(starts[i],
+    /// ends[i])`) is blocked, appended to `blocked` (empty on entry), in order.
+    fn occluded<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut Self::Scratch,
+        starts: &[Vec3],
+        ends: &[Vec3],
+        blocked: &mut Vec<bool>,
+        counters: &mut C,
+    );
 }
 
-/// Per-thread space for one tile's shadow rays.
+/// Per-thread space for one tile's shadow rays, with the grouping's own `S`.
 #[derive(Debug, Default)]
-pub struct ShadowScratch {
-    frustum: ShadowFrustum,
-    lanes: LaneFrusta,
+pub struct ShadowScratch<S> {
+    group: S,
     /// The rays of one group as segments (ray `i` is `Ray::segment(starts[i],
     /// ends[i])`), and the pixel (tile index) of each.
     starts: Vec<Vec3>,
@@ -62,7 +72,13 @@ pub struct ShadowScratch {
     order_size: (u32, u32),
 }
 
-impl ShadowScratch {
+impl<S> ShadowScratch<S> {
+    /// The grouping's own scratch (a frustum's buffers), for a kernel that traces one group
+    /// of its own (a point's 16 rays).
+    pub fn group(&mut self) -> &mut S {
+        &mut self.group
+    }
+
     /// Computes the Morton (Z) order of `tile`'s pixels (row-major indices) into `order`,
     /// unless it holds that of a tile of the same size.
     fn morton_order(&mut self, tile: &Tile) {
@@ -80,34 +96,29 @@ impl ShadowScratch {
         self.slots.clear();
     }
 
-    /// Traces the group with `grouping`, the answers into `blocked`. Packets are made from
-    /// the segments four at a time (`samesign::occluded_segments`).
-    fn trace<C: TileCounters>(&mut self, tree: &KdTree, grouping: Grouping, counters: &mut C) {
+    /// Traces the group with `grouping`, the answers into `blocked`.
+    fn trace<G: Grouping<Scratch = S>, C: TileCounters>(&mut self, tree: &KdTree, grouping: &G, counters: &mut C) {
         self.blocked.clear();
-        match grouping {
-            Grouping::Packets => {
-                samesign::occluded_segments(tree, &self.starts, &self.ends, &mut self.blocked, counters);
-            }
-            Grouping::Lanes(width) => {
-                // Each run of 16 (a 4x4 block in Morton order) as one frustum.
-                self.lanes.clear();
-                for (starts, ends) in self.starts.chunks(FRUSTUM_RAYS).zip(self.ends.chunks(FRUSTUM_RAYS)) {
-                    self.lanes.push(starts, ends);
-                }
-                self.lanes.trace(tree, width, counters);
-                for (&mask, run) in self.lanes.blocked().iter().zip(self.starts.chunks(FRUSTUM_RAYS)) {
-                    self.blocked.extend((0..run.len()).map(|k| mask >> k & 1 != 0));
-                }
-            }
-            Grouping::Frusta => {
-                self.frustum.clear();
-                for (&start, &end) in self.starts.iter().zip(&self.ends) {
-                    self.frustum.push(Ray::segment(start, end));
-                }
-                self.frustum.trace(tree, counters);
-                self.blocked.extend_from_slice(self.frustum.blocked());
-            }
+        grouping.occluded(tree, &mut self.group, &self.starts, &self.ends, &mut self.blocked, counters);
+    }
+
+    /// Each point of `job` (per pixel, row-major) as its rays' origin and light samples, and
+    /// the masks cleared, for a tile of `n` pixels.
+    fn gather_soft(&mut self, job: &SoftJob<'_>, n: usize) {
+        self.soft.clear();
+        self.soft.extend((0..n).map(|i| job.samples(i).map(|(start, samples, _)| (start, samples))));
+        self.masks.clear();
+        self.masks.resize(n, 0);
+        self.morton_order(job.hits.tile);
+    }
+
+    /// The visible fraction per pixel from the masks, and what was traced.
+    fn finish_soft(&self, visible: &mut [f32]) -> SoftStats {
+        let mut stats = SoftStats::default();
+        for ((slot, rays), &mask) in visible.iter_mut().zip(&self.soft).zip(&self.masks) {
+            *slot = if rays.is_some() { stats.add_point(mask) } else { 0.0 };
         }
+        stats
     }
 }
 
@@ -131,12 +142,12 @@ fn morton(x: u32, y: u32) -> u64 {
     spread(x) | spread(y) << 1
 }
 
-/// The hard shadow rays of `job`, grouped by `grouping`, into `out`; returns (rays traced,
-/// rays blocked) as [`crate::Method::shadow_tile`].
-pub fn hard<C: TileCounters>(
+/// The hard shadow rays of `job`, in Morton order, traced by `grouping`, into `out`; returns
+/// (rays traced, rays blocked) as [`crate::method::Method::shadow_tile`].
+pub fn hard<G: Grouping, C: TileCounters>(
     tree: &KdTree,
-    grouping: Grouping,
-    scratch: &mut ShadowScratch,
+    grouping: &G,
+    scratch: &mut ShadowScratch<G::Scratch>,
     job: &ShadowJob<'_>,
     out: &mut [bool],
     counters: &mut C,
@@ -163,60 +174,64 @@ pub fn hard<C: TileCounters>(
     (scratch.slots.len() as u64, blocked)
 }
 
-/// The 16-sample soft shadows of `job`, the tile's rays to each light stratum grouped by
-/// `grouping` (Benthin & Wald's multi-frusta for [`Grouping::Frusta`]), the visible fraction
-/// per pixel into `visible`, as [`crate::Method::soft_tile`].
-pub fn soft<C: TileCounters>(
+/// The 16-sample soft shadows of `job`, the tile's rays to each light stratum traced together
+/// by `grouping` (Benthin & Wald's multi-frusta for shadow frusta), the visible fraction per
+/// pixel into `visible`, as [`crate::method::Method::soft_tile`].
+pub fn soft_strata<G: Grouping, C: TileCounters>(
     tree: &KdTree,
-    grouping: Grouping,
-    scratch: &mut ShadowScratch,
+    grouping: &G,
+    scratch: &mut ShadowScratch<G::Scratch>,
     job: &SoftJob<'_>,
     visible: &mut [f32],
     counters: &mut C,
 ) -> SoftStats {
-    scratch.soft.clear();
-    scratch.soft.extend((0..visible.len()).map(|i| job.samples(i).map(|(start, samples, _)| (start, samples))));
-    scratch.masks.clear();
-    scratch.masks.resize(visible.len(), 0);
-    scratch.morton_order(job.hits.tile);
-    if let Grouping::Lanes(width) = grouping {
-        // Each point's 16 rays, which share its origin, as one frustum.
-        let ShadowScratch { soft, order, lanes, slots, masks, .. } = &mut *scratch;
-        lanes.clear();
-        slots.clear();
+    scratch.gather_soft(job, visible.len());
+    for k in 0..SAMPLES {
+        scratch.clear();
+        let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
         for &i in order.iter() {
             if let Some((start, samples)) = &soft[i as usize] {
-                lanes.push(&[*start; SAMPLES], samples);
+                // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
+                starts.push(*start);
+                ends.push(samples[k]);
                 slots.push(i);
             }
         }
-        lanes.trace(tree, width, counters);
-        for (&slot, &mask) in slots.iter().zip(lanes.blocked()) {
-            masks[slot as usize] = mask;
-        }
-    } else {
-        for k in 0..SAMPLES {
-            scratch.clear();
-            let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
-            for &i in order.iter() {
-                if let Some((start, samples)) = &soft[i as usize] {
-                    // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
-                    starts.push(*start);
-                    ends.push(samples[k]);
-                    slots.push(i);
-                }
-            }
-            scratch.trace(tree, grouping, counters);
-            for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
-                scratch.masks[slot as usize] |= u16::from(b) << k;
-            }
+        scratch.trace(tree, grouping, counters);
+        for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
+            scratch.masks[slot as usize] |= u16::from(b) << k;
         }
     }
-    let mut stats = SoftStats::default();
-    for ((slot, rays), &mask) in visible.iter_mut().zip(&scratch.soft).zip(&scratch.masks) {
-        *slot = if rays.is_some() { stats.add_point(mask) } else { 0.0 };
+    scratch.finish_soft(visible)
+}
+
+/// The 16-sample soft shadows of `job` with each point's 16 rays, which share its origin, as
+/// one frustum of `packets::lane_frusta`, `width` of them at once, the points in Morton
+/// order; the visible fraction per pixel into `visible`, as
+/// [`crate::method::Method::soft_tile`].
+pub fn soft_lanes<C: TileCounters>(
+    tree: &KdTree,
+    width: LaneWidth,
+    scratch: &mut ShadowScratch<LaneFrusta>,
+    job: &SoftJob<'_>,
+    visible: &mut [f32],
+    counters: &mut C,
+) -> SoftStats {
+    scratch.gather_soft(job, visible.len());
+    let ShadowScratch { soft, order, group: lanes, slots, masks, .. } = &mut *scratch;
+    lanes.clear();
+    slots.clear();
+    for &i in order.iter() {
+        if let Some((start, samples)) = &soft[i as usize] {
+            lanes.push(&[*start; SAMPLES], samples);
+            slots.push(i);
+        }
     }
-    stats
+    lanes.trace(tree, width, counters);
+    for (&slot, &mask) in slots.iter().zip(lanes.blocked()) {
+        masks[slot as usize] = mask;
+    }
+    scratch.finish_soft(visible)
 }
 
 #[cfg(test)]
@@ -226,7 +241,7 @@ mod tests {
     #[test]
     fn morton_order_visits_blocks_of_four_together() {
         let tile = Tile { x0: 0, y0: 0, x1: 4, y1: 4 };
-        let mut s = ShadowScratch::default();
+        let mut s = ShadowScratch::<()>::default();
         s.morton_order(&tile);
         // The first 2x2 block, then the one to its right.
         assert_eq!(s.order[..8], [0, 1, 4, 5, 2, 3, 6, 7]);

@@ -52,13 +52,14 @@ pub fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 impl Incoherent {
     /// The incoherent rays of a frame exactly as `rttest compare` makes them: the primary
     /// hits of single rays on `tree` (the reference every method is checked against), taken
-    /// in the order of the frame's tiles of side [`crate::registry::TILE_SIZE`], then
+    /// in the order of the frame's tiles of side [`crate::frame::TILE_SIZE`], then
     /// [`Incoherent::generate`] with the tree's bounding-box diagonal. `rttest render
     /// --workload` traces these, so its figures and `compare`'s columns measure the same rays.
     pub fn of_frame(scene: &Scene, tree: &kdtree::KdTree, camera: &Camera, ao_per_hit: u32, seed: u64) -> Incoherent {
-        let layout = crate::TileLayout::new(camera.width, camera.height, crate::registry::TILE_SIZE);
+        let layout = crate::frame::TileLayout::new(camera.width, camera.height, crate::frame::TILE_SIZE);
         let mut hits = vec![None; layout.pixel_count()];
-        let (_, kdtree::NoCounters) = crate::frame::primary_pass(&crate::SingleRays(tree), &layout, camera, &mut hits);
+        let (_, kdtree::NoCounters) =
+            crate::frame::primary_pass(&crate::method::SingleRays(tree), &layout, camera, &mut hits);
         let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
         let diagonal = (tree.bounds().max - tree.bounds().min).length();
         Incoherent::generate(scene, camera, pixels, &hits, diagonal, ao_per_hit, seed)
@@ -126,7 +127,7 @@ mod tests {
         let tree = kdtree::KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
         let rays = Incoherent::of_frame(&scene, &tree, &camera, 3, SEED);
         // The same hits, gathered pixel by pixel in the layout's tile order.
-        let layout = crate::TileLayout::new(40, 24, crate::registry::TILE_SIZE);
+        let layout = crate::frame::TileLayout::new(40, 24, crate::frame::TILE_SIZE);
         let pixels: Vec<(u32, u32)> = layout.tiles().iter().flat_map(|t| t.pixels()).collect();
         let hits: Vec<Option<Hit>> =
             pixels.iter().map(|&(x, y)| tree.intersect(&crate::method::primary_ray(&camera, x, y))).collect();

@@ -1,9 +1,9 @@
 //! The render loop without a window: a [`ViewerState`] and a size in, a framebuffer of
 //! `0x00RRGGBB` pixels and a status line out.
 //!
-//! Every method is taken by name from `trace::Registry` and bound to the scene's kd-tree; a
-//! frame is `trace::Renderer`'s passes (primary, then hard, edge-width or soft shadows) and
-//! its shading, or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
+//! Every method is taken by name from the one catalogue, `baselines::registry()` (a
+//! `trace::Registry`), and bound to the scene's kd-tree; a frame is `trace::Renderer`'s passes
+//! (primary, then hard, edge-width or soft shadows) and its shading, or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
 //! Edge widths (thesis chapter 5) are traced over the kd-tree given to [`FrameLoop::new`]
 //! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
@@ -127,7 +127,7 @@ impl<'a> FrameLoop<'a> {
     /// built here too, so that every method binds; one that fails to build is named on stderr
     /// and its methods report the error when chosen.
     pub fn new(scene: &'a Scene, tree: &'a KdTree) -> FrameLoop<'a> {
-        let registry = Registry::ours();
+        let registry = baselines::registry();
         let mut structures = Structures::new(tree);
         if let Err(e) = registry.build_structures(scene, &mut structures) {
             eprintln!("viewer: {e}");
@@ -288,7 +288,7 @@ impl FrameLoop<'_> {
             state.pose.camera(state.fovy_deg, width, height).ok_or_else(|| Error::Usage("no camera".into()))?;
         // Bound apart from the loop's own registry, as `rttest render` binds it: once.
         let (scene, tree) = (self.scene, self.tree);
-        let registry = Registry::ours();
+        let registry = baselines::registry();
         let structures = Structures::new(tree);
         let bound = registry.bind(&registry.select(state.method_name(), Options::default())?, &structures)?;
         let shadows = renderer_shadows(state.shadows);

@@ -7,8 +7,8 @@
 #[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
 pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &[&str]) {
     use criterion::Throughput;
-    use trace::{Options, Registry, Renderer, Shadows, Structures};
-    let registry = Registry::ours();
+    use trace::{Options, Renderer, Shadows, Structures};
+    let registry = baselines::registry();
     for (name, scene, tree, camera) in trace::setup::packet_workloads(1024) {
         let structures = Structures::new(&tree);
         let mut g = c.benchmark_group(format!("{group}/{name}"));
@@ -36,8 +36,8 @@ pub fn bench_primary_methods(c: &mut criterion::Criterion, group: &str, names: &
 pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, methods: &[(&str, trace::SoftGrouping)]) {
     use criterion::Throughput;
     use trace::frame::View;
-    use trace::{Options, Registry, Structures, TileLayout, soft};
-    let registry = Registry::ours();
+    use trace::{Options, Structures, TileLayout, soft};
+    let registry = baselines::registry();
     for (name, scene, tree, camera) in trace::setup::packet_workloads(1024) {
         let structures = Structures::new(&tree);
         let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);

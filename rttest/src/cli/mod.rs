@@ -366,9 +366,9 @@ pub struct RenderArgs {
     /// Frames traced; the reported trace time is the fastest.
     #[arg(long, default_value_t = 5, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub frames: u32,
-    /// The method (a registry name: mono, packet, samesign, frustum, mft, cone, mft-cone,
-    /// NAME-TILE such as mft-16, or a baseline such as embree-8 in a build with it).
-    #[arg(long, default_value = "mono", value_name = "METHOD")]
+    /// The method: a registry name, or NAME-TILE for a tiled one (its help lists the methods
+    /// of this build, from the registry: [`method_help`], [`method_long_help`]).
+    #[arg(long, default_value = "mono", value_name = "METHOD", help = method_help(), long_help = method_long_help())]
     pub method: String,
     /// Tile side: the work unit of a thread, and the frustum of `frustum` and `mft` (a
     /// multiple of 4 from 4 to 64 for the packet methods).
@@ -399,6 +399,20 @@ pub struct RenderArgs {
     /// Ambient-occlusion rays per primary hit for `--workload ao` (1 to 64).
     #[arg(long, default_value_t = 4, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
     pub ao_rays: u32,
+}
+
+/// The short help of a `--method` option: the names of the registry every command uses, so
+/// that it lists every method of this build.
+pub fn method_help() -> String {
+    format!("The method: {} (NAME-N: the tiled ones on N x N tiles, e.g. mft-16)", baselines::registry().help())
+}
+
+/// The long help of a `--method` option: each method of the registry with its summary.
+pub fn method_long_help() -> String {
+    format!(
+        "The method: a registry name, or NAME-N for a tiled one (mft-16: MFT on 16x16 tiles, the same as mft with --tile 16). The methods of this build:\n\n{}",
+        baselines::registry().summaries()
+    )
 }
 
 /// `--workload` values: the incoherent streams of `trace::workload`.
@@ -944,8 +958,8 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         shadows: shadows.name().to_string(),
         shadow_kernel: match shadows {
             Shadows::None => String::new(),
-            Shadows::Hard => method.entry.shadow_kernel_for(&method.options),
-            Shadows::Soft16 => method.entry.soft_kernel_for(&method.options),
+            Shadows::Hard => method.kernels.shadow.clone(),
+            Shadows::Soft16 => method.kernels.soft.clone(),
             Shadows::EdgeWidth => "edge-width".to_string(),
         },
         aov: args.aov.name().to_string(),

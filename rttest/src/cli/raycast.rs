@@ -31,10 +31,10 @@ pub struct RaycastArgs {
     /// Format of the results (default: binary for an --out file ending in .bin or .f32, else text).
     #[arg(long, value_enum, value_name = "FORMAT")]
     pub out_format: Option<Format>,
-    /// How rays traverse the tree (a registered method: mono, packet, samesign, frustum, mft,
-    /// cone, mft-cone, ...): one by one, or grouped (4 consecutive rays to a packet; runs of
-    /// up to 64 rays sharing an origin to a frustum or cone).
-    #[arg(long, default_value = "mono", value_name = "METHOD")]
+    /// How rays traverse the tree (a registered method, traced by its stream kernel): one by
+    /// one, or grouped (4 consecutive rays to a packet; runs of up to 64 rays sharing an
+    /// origin to a frustum or cone).
+    #[arg(long, default_value = "mono", value_name = "METHOD", help = super::method_help(), long_help = super::method_long_help())]
     pub method: String,
     /// Ask only whether anything is hit (1 or 0 per ray), not for the closest hit.
     #[arg(long)]

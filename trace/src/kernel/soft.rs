@@ -1,0 +1,371 @@
+//! Soft-shadow kernels: the 16 rays of each primary hit to a spherical light (thesis 4.1.9,
+//! Table 4.6; Benthin & Wald 2009).
+//!
+//! Per point, the thesis's three ([`Method::soft_point`] point by point): [`Single`] (each
+//! ray alone, `kd-single`), [`Pyramid`] (the point's 16 rays as four 2x2 packets under their
+//! pyramid, `kd-pyramid`) and [`Cone`] (under the cone of the light's sample disk,
+//! `kd-cone`): `cones::SoftShadowTracer`. Per tile, each light stratum's rays of the tile
+//! together: [`StratumPackets`] (as same-sign 2x2 packets in Morton order,
+//! `kd-stratum-packets`, the default of every packet, frustum and cone method) and [`Frusta`]
+//! (as one shadow frustum per tile and stratum, Benthin & Wald's multi-frusta,
+//! `kd-multi-frusta-N`); and [`Lanes`] (each point's 16 rays as one frustum, several points
+//! in SIMD lanes, `kd-lane-frusta`).
+//!
+//! `--soft-grouping per-point` binds a method's per-point kernel (pyramid or cone) in place
+//! of its per-stratum one: the registry line names both.
+
+use cones::shadows::SAMPLES;
+use cones::{ShadowMethod, SoftShadowTracer};
+use kdtree::{KdTree, Ray};
+use packets::{LaneFrusta, LaneWidth, RayPacket, ShadowFrustum, samesign};
+
+use super::shadow;
+use super::{FromOptions, SoftShadow};
+use crate::error::Error;
+use crate::method::{Method, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points, soft_points};
+use crate::registry::Options;
+use crate::shadow_frusta::{self, ShadowScratch};
+
+/// Each of a point's rays alone ([`KdTree::occluded`]), point by point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Single;
+
+impl FromOptions for Single {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(Single)
+    }
+}
+
+impl SoftShadow for Single {
+    type Scratch = ();
+
+    fn name(&self) -> String {
+        "kd-single".into()
+    }
+
+    fn scratch(&self) {}
+
+    #[inline]
+    fn soft_tile<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        soft_by_points(&SingleRays(tree), &mut (), job, visible, counters)
+    }
+
+    #[inline]
+    fn soft_point<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray; SAMPLES],
+        cone: &cones::Cone,
+        counters: &mut C,
+    ) -> u16 {
+        SingleRays(tree).soft_point(&mut (), rays, cone, counters)
+    }
+}
+
+/// Defines a per-point kernel of `cones::SoftShadowTracer`: each point's 16 rays under
+/// one bound.
+macro_rules! per_point {
+    ($(#[$doc:meta])* $kernel:ident, $name:literal, $method:expr) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+        pub struct $kernel;
+
+        impl FromOptions for $kernel {
+            fn from_options(_: &Options) -> Result<Self, Error> {
+                Ok($kernel)
+            }
+        }
+
+        impl SoftShadow for $kernel {
+            type Scratch = Option<SoftShadowTracer>;
+
+            fn name(&self) -> String {
+                $name.into()
+            }
+
+            fn scratch(&self) -> Option<SoftShadowTracer> {
+                None
+            }
+
+            #[inline]
+            fn soft_tile<C: TileCounters>(
+                &self,
+                tree: &KdTree,
+                scratch: &mut Option<SoftShadowTracer>,
+                job: &SoftJob<'_>,
+                visible: &mut [f32],
+                counters: &mut C,
+            ) -> SoftStats {
+                soft_points(job, visible, |rays, cone| self.soft_point(tree, scratch, rays, cone, counters))
+            }
+
+            #[inline]
+            fn soft_point<C: TileCounters>(
+                &self,
+                tree: &KdTree,
+                scratch: &mut Option<SoftShadowTracer>,
+                rays: &[Ray; SAMPLES],
+                cone: &cones::Cone,
+                counters: &mut C,
+            ) -> u16 {
+                let tracer = scratch.get_or_insert_with(SoftShadowTracer::new);
+                tracer.occluded(tree, rays, cone, $method, counters)
+            }
+        }
+    };
+}
+
+per_point!(
+    /// A point's 16 rays as four 2x2 packets under their pyramid frustum (the per-axis
+    /// extremes of their directions; thesis Table 4.6).
+    Pyramid, "kd-pyramid", ShadowMethod::Pyramid
+);
+
+per_point!(
+    /// A point's 16 rays as four 2x2 packets under the cone of the light's sample disk
+    /// (`cones::shadows::sample_cone`; thesis 4.1.9, Table 4.6).
+    Cone, "kd-cone", ShadowMethod::Cone
+);
+
+/// A point's 16 rays as four same-sign 2x2 packets (rays `4i .. 4i + 4` the packet `i`):
+/// the per-point query of the kernels that group rays across points.
+fn four_packets<C: TileCounters>(tree: &KdTree, rays: &[Ray; SAMPLES], counters: &mut C) -> u16 {
+    let mut mask = 0u16;
+    for (i, four) in rays.chunks(4).enumerate() {
+        let found = samesign::occluded(tree, &RayPacket::new(four), counters).found.bitmask() as u16;
+        mask |= (found & 0xF) << (4 * i);
+    }
+    mask
+}
+
+/// Each tile's rays to each light stratum as same-sign 2x2 packets of neighbouring points'
+/// rays, in Morton order (Benthin & Wald 2009): `shadow_frusta::soft_strata` with
+/// [`shadow::Packets`]. The default of every packet, frustum and cone method: 1.3-1.5x
+/// single rays on Sponza, kitchen and atrium (`docs/results/coherent-shadows.md`). One
+/// point's rays alone go as four 2x2 packets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StratumPackets;
+
+impl FromOptions for StratumPackets {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(StratumPackets)
+    }
+}
+
+impl SoftShadow for StratumPackets {
+    type Scratch = ShadowScratch<()>;
+
+    fn name(&self) -> String {
+        "kd-stratum-packets".into()
+    }
+
+    fn scratch(&self) -> Self::Scratch {
+        ShadowScratch::default()
+    }
+
+    #[inline]
+    fn soft_tile<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut Self::Scratch,
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        shadow_frusta::soft_strata(tree, &shadow::Packets, scratch, job, visible, counters)
+    }
+
+    #[inline]
+    fn soft_point<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut Self::Scratch,
+        rays: &[Ray; SAMPLES],
+        _: &cones::Cone,
+        counters: &mut C,
+    ) -> u16 {
+        four_packets(tree, rays, counters)
+    }
+}
+
+/// Each tile's rays to each light stratum as one of Benthin & Wald's shadow frusta (their
+/// multi-frusta): `shadow_frusta::soft_strata` with [`shadow::Frusta`]. One point's rays
+/// alone go as one frustum.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frusta {
+    /// The tile, which is the frustum: part of the kernel's name (`kd-multi-frusta-16`).
+    pub tile: u32,
+}
+
+impl FromOptions for Frusta {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(Frusta { tile: options.tile })
+    }
+}
+
+impl SoftShadow for Frusta {
+    type Scratch = ShadowScratch<ShadowFrustum>;
+
+    fn name(&self) -> String {
+        format!("kd-multi-frusta-{}", self.tile)
+    }
+
+    fn scratch(&self) -> Self::Scratch {
+        ShadowScratch::default()
+    }
+
+    #[inline]
+    fn soft_tile<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut Self::Scratch,
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        shadow_frusta::soft_strata(tree, &shadow::Frusta { tile: self.tile }, scratch, job, visible, counters)
+    }
+
+    fn soft_point<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut Self::Scratch,
+        rays: &[Ray; SAMPLES],
+        _: &cones::Cone,
+        counters: &mut C,
+    ) -> u16 {
+        let frustum = scratch.group();
+        frustum.clear();
+        for &ray in rays {
+            frustum.push(ray);
+        }
+        frustum.trace(tree, counters);
+        frustum.blocked().iter().enumerate().fold(0, |mask, (i, &b)| mask | u16::from(b) << i)
+    }
+}
+
+/// Each point's 16 rays, which share its origin, as one of Benthin & Wald's multi-frusta,
+/// `width` points at once in SIMD lanes (`shadow_frusta::soft_lanes`). One point's rays alone
+/// fill one lane of several; they go as four 2x2 packets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Lanes {
+    /// How many frusta go down the tree together (`--lanes`).
+    pub width: LaneWidth,
+}
+
+impl FromOptions for Lanes {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(Lanes { width: options.lanes })
+    }
+}
+
+impl SoftShadow for Lanes {
+    type Scratch = ShadowScratch<LaneFrusta>;
+
+    fn name(&self) -> String {
+        "kd-lane-frusta".into()
+    }
+
+    fn scratch(&self) -> Self::Scratch {
+        ShadowScratch::default()
+    }
+
+    #[inline]
+    fn soft_tile<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut Self::Scratch,
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        shadow_frusta::soft_lanes(tree, self.width, scratch, job, visible, counters)
+    }
+
+    fn soft_point<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut Self::Scratch,
+        rays: &[Ray; SAMPLES],
+        _: &cones::Cone,
+        counters: &mut C,
+    ) -> u16 {
+        four_packets(tree, rays, counters)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::method::{ShadowJob, primary_ray};
+    use crate::setup::load_and_build;
+    use scenes::Tile;
+
+    /// Every soft-shadow kernel answers a point's 16 rays (`Method::soft_point`) as single
+    /// rays do, and a tile's soft shadows (`Method::soft_tile`) with the same visible
+    /// fractions, on the atrium's points.
+    #[test]
+    fn every_soft_kernel_gives_single_rays_answers() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(24, 16).unwrap();
+        let tile = Tile { x0: 0, y0: 0, x1: 24, y1: 16 };
+        let hits: Vec<_> = tile.pixels().map(|(x, y)| tree.intersect(&primary_ray(&camera, x, y))).collect();
+        let surfaces = crate::shade::surfaces(&scene.mesh);
+        let light = crate::soft::scene_light(&scene, &tree, 2.0);
+        let job = SoftJob {
+            hits: ShadowJob { scene: &scene, surfaces: &surfaces, camera: &camera, tile: &tile, hits: &hits },
+            light: &light,
+        };
+        let points: Vec<_> = (0..hits.len()).filter_map(|i| job.point(i)).collect();
+        assert!(points.len() > 100);
+        let want: Vec<u16> = points
+            .iter()
+            .map(|(rays, cone)| Single.soft_point(&tree, &mut (), rays, cone, &mut kdtree::NoCounters))
+            .collect();
+        assert!(want.iter().any(|&m| m != 0) && want.iter().any(|&m| m != u16::MAX), "some rays blocked, some not");
+        let mut visible = vec![0.0; hits.len()];
+        let want_stats = Single.soft_tile(&tree, &mut (), &job, &mut visible, &mut kdtree::NoCounters);
+        fn check<S: SoftShadow>(
+            kernel: S,
+            tree: &KdTree,
+            job: &SoftJob<'_>,
+            points: &[([Ray; SAMPLES], cones::Cone)],
+            want: &[u16],
+            tile: (&[f32], SoftStats),
+        ) {
+            let mut scratch = kernel.scratch();
+            for ((rays, cone), &w) in points.iter().zip(want) {
+                assert_eq!(
+                    kernel.soft_point(tree, &mut scratch, rays, cone, &mut kdtree::NoCounters),
+                    w,
+                    "{}",
+                    kernel.name()
+                );
+            }
+            let mut visible = vec![0.0; tile.0.len()];
+            assert_eq!(
+                kernel.soft_tile(tree, &mut scratch, job, &mut visible, &mut kdtree::NoCounters),
+                tile.1,
+                "{}",
+                kernel.name()
+            );
+            assert_eq!(visible, tile.0, "{}", kernel.name());
+        }
+        let tile = (&visible[..], want_stats);
+        check(Pyramid, &tree, &job, &points, &want, tile);
+        check(Cone, &tree, &job, &points, &want, tile);
+        check(StratumPackets, &tree, &job, &points, &want, tile);
+        check(Frusta { tile: 24 }, &tree, &job, &points, &want, tile);
+        for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::widest()] {
+            check(Lanes { width }, &tree, &job, &points, &want, tile);
+        }
+    }
+}

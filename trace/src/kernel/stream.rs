@@ -1,0 +1,248 @@
+//! Stream kernels: arbitrary runs of rays (ray files, the incoherent workload), closest hit
+//! and any hit, in order.
+//!
+//! - [`Single`]: each ray alone (`kd-single`);
+//! - [`Packets`]: each four consecutive rays as an omni-directional 2x2 packet where they
+//!   share an origin (and start at it), else as a same-sign packet split by direction signs
+//!   (`kd-omni-packets`);
+//! - [`SameSign`]: each four as a same-sign packet (`kd-samesign-packets`);
+//! - [`Runs`]: each run of up to [`STREAM_FRUSTUM_RAYS`] rays sharing an origin (and starting
+//!   at it) traced by a tile kernel (one frustum or cone, or four quarter-runs as MFT frusta
+//!   or cones; `kd-mft-runs`, ...), other rays as [`Packets`].
+
+use std::marker::PhantomData;
+
+use kdtree::{Hit, KdTree, Ray};
+use packets::{OmniPacket, RayPacket, TileTracer, omni, samesign};
+
+use super::primary::TileKernel;
+use super::{FromOptions, Stream};
+use crate::error::Error;
+use crate::method::{Method, SingleRays, TileCounters};
+use crate::registry::Options;
+
+/// Rays per frustum of a ray stream: up to 16 packets.
+pub const STREAM_FRUSTUM_RAYS: usize = 64;
+
+/// Each ray alone.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Single;
+
+impl FromOptions for Single {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(Single)
+    }
+}
+
+impl Stream for Single {
+    type Scratch = ();
+
+    fn name(&self) -> String {
+        "kd-single".into()
+    }
+
+    fn scratch(&self) {}
+
+    #[inline]
+    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+        SingleRays(tree).stream(&mut (), rays, out, c);
+    }
+
+    #[inline]
+    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
+        SingleRays(tree).stream_occluded(&mut (), rays, out, c);
+    }
+}
+
+/// Rays `rays` (at most four) as one omni-directional packet if they share an origin (and
+/// start at it), else as a same-sign packet: their closest hits into `out`.
+#[inline]
+fn four<C: TileCounters>(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
+    let packet = RayPacket::new(rays);
+    let hits = match OmniPacket::new(packet) {
+        Some(omni_packet) => omni::intersect(tree, &omni_packet, counters),
+        None => samesign::intersect(tree, &packet, counters),
+    };
+    for (lane, slot) in out.iter_mut().enumerate() {
+        *slot = hits.get(lane);
+    }
+}
+
+/// Whether `stream` finds a hit for each ray, in chunks of [`STREAM_FRUSTUM_RAYS`]: the any-hit
+/// query of the kernels without one of their own.
+#[inline]
+fn any_by_closest<C: TileCounters>(
+    rays: &[Ray],
+    out: &mut [bool],
+    counters: &mut C,
+    mut stream: impl FnMut(&[Ray], &mut [Option<Hit>], &mut C),
+) {
+    let mut hits = [None; STREAM_FRUSTUM_RAYS];
+    for (rays, out) in rays.chunks(STREAM_FRUSTUM_RAYS).zip(out.chunks_mut(STREAM_FRUSTUM_RAYS)) {
+        let hits = &mut hits[..rays.len()];
+        stream(rays, hits, counters);
+        for (slot, hit) in out.iter_mut().zip(hits.iter()) {
+            *slot = hit.is_some();
+        }
+    }
+}
+
+/// Omni-directional 2x2 packets where four consecutive rays share an origin, else same-sign
+/// packets; any hits as omni-directional any-hit packets (thesis 4.1.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Packets;
+
+impl FromOptions for Packets {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(Packets)
+    }
+}
+
+impl Stream for Packets {
+    type Scratch = ();
+
+    fn name(&self) -> String {
+        "kd-omni-packets".into()
+    }
+
+    fn scratch(&self) {}
+
+    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
+            four(tree, rays, out, c);
+        }
+    }
+
+    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
+        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
+            let packet = RayPacket::new(rays);
+            let found = match OmniPacket::new(packet) {
+                Some(p) => omni::occluded(tree, &p, c).found,
+                None => samesign::intersect(tree, &packet, c).found,
+            };
+            for (lane, slot) in out.iter_mut().enumerate() {
+                *slot = found.bitmask() >> lane & 1 != 0;
+            }
+        }
+    }
+}
+
+/// Each four consecutive rays as a same-sign 2x2 packet (thesis 2.3.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SameSign;
+
+impl FromOptions for SameSign {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(SameSign)
+    }
+}
+
+impl Stream for SameSign {
+    type Scratch = ();
+
+    fn name(&self) -> String {
+        "kd-samesign-packets".into()
+    }
+
+    fn scratch(&self) {}
+
+    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
+            let hits = samesign::intersect(tree, &RayPacket::new(rays), c);
+            for (lane, slot) in out.iter_mut().enumerate() {
+                *slot = hits.get(lane);
+            }
+        }
+    }
+
+    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, s: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
+        any_by_closest(rays, out, c, |rays, hits, c| self.stream(tree, s, rays, hits, c));
+    }
+}
+
+/// Runs of rays sharing an origin traced by the tile kernel `K` (frusta, MFT, cones), loaded
+/// as 2x2 packets in a tracer of four packets a quadrant; other rays as [`Packets`].
+#[derive(Debug)]
+pub struct Runs<K>(PhantomData<fn() -> K>);
+
+impl<K> Clone for Runs<K> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<K> Copy for Runs<K> {}
+
+impl<K> FromOptions for Runs<K> {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(Runs(PhantomData))
+    }
+}
+
+/// Scratch of [`Runs`]: the tracer (made on first use) and a run's packets.
+#[derive(Debug, Default)]
+pub struct RunScratch {
+    tracer: Option<TileTracer>,
+    group: Vec<OmniPacket>,
+}
+
+impl<K: TileKernel> Stream for Runs<K> {
+    type Scratch = RunScratch;
+
+    fn name(&self) -> String {
+        format!("kd-{}-runs", K::NAME)
+    }
+
+    fn scratch(&self) -> RunScratch {
+        RunScratch::default()
+    }
+
+    fn stream<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut RunScratch,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        let tracer = scratch.tracer.get_or_insert_with(|| TileTracer::new(4).expect("4 is a valid tile size"));
+        let group = &mut scratch.group;
+        let mut start = 0;
+        while start < rays.len() {
+            let origin = rays[start].origin;
+            let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
+            let run =
+                rays[start..].iter().take(STREAM_FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
+            if run > 4 {
+                group.clear();
+                for four in rays[start..start + run].chunks(4) {
+                    // A shared origin and t_min >= 0 were checked for the run.
+                    group.push(OmniPacket::new(RayPacket::new(four)).expect("run shares its origin"));
+                }
+                tracer.load_packets(group).expect("run shares its origin");
+                K::trace_loaded(tree, tracer, counters);
+                for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
+                    for (lane, slot) in slots.iter_mut().enumerate() {
+                        *slot = hits.get(lane);
+                    }
+                }
+                start += run;
+                continue;
+            }
+            let end = (start + 4).min(rays.len());
+            four(tree, &rays[start..end], &mut out[start..end], counters);
+            start = end;
+        }
+    }
+
+    fn stream_occluded<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        scratch: &mut RunScratch,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
+        any_by_closest(rays, out, counters, |rays, hits, c| self.stream(tree, scratch, rays, hits, c));
+    }
+}
