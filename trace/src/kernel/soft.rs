@@ -17,7 +17,7 @@
 use cones::shadows::SAMPLES;
 use cones::{ShadowMethod, SoftShadowTracer};
 use kdtree::{KdTree, Ray};
-use packets::{LaneFrusta, LaneWidth, RayPacket, ShadowFrustum, samesign};
+use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, omni, samesign};
 
 use super::shadow;
 use super::{FromOptions, SoftShadow};
@@ -144,6 +144,64 @@ fn four_packets<C: TileCounters>(tree: &KdTree, rays: &[Ray; SAMPLES], counters:
         mask |= (found & 0xF) << (4 * i);
     }
     mask
+}
+
+/// A point's 16 rays as four omni-directional 2x2 packets from the point (thesis 4.1.2: rays
+/// with a common origin and any mix of direction signs go down the tree together, without
+/// the pyramid or cone that [`Pyramid`] and [`Cone`] bound them by first). The per-point
+/// kernel in between single rays and the thesis's bounded ones: what the bound buys is
+/// `kd-pyramid` or `kd-cone` against this. Rays that do not share their origin (never the
+/// case for a point's rays) go as same-sign packets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OmniPoints;
+
+impl FromOptions for OmniPoints {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(OmniPoints)
+    }
+}
+
+impl SoftShadow for OmniPoints {
+    type Scratch = ();
+
+    fn name(&self) -> String {
+        "kd-omni-points".into()
+    }
+
+    fn scratch(&self) {}
+
+    #[inline]
+    fn soft_tile<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        job: &SoftJob<'_>,
+        visible: &mut [f32],
+        counters: &mut C,
+    ) -> SoftStats {
+        soft_points(job, visible, |rays, cone| self.soft_point(tree, &mut (), rays, cone, counters))
+    }
+
+    #[inline]
+    fn soft_point<C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray; SAMPLES],
+        _: &cones::Cone,
+        counters: &mut C,
+    ) -> u16 {
+        let mut mask = 0u16;
+        for (i, four) in rays.chunks(4).enumerate() {
+            let packet = RayPacket::new(four);
+            let found = match OmniPacket::new(packet) {
+                Some(omni_packet) => omni::occluded(tree, &omni_packet, counters).found,
+                None => samesign::occluded(tree, &packet, counters).found,
+            };
+            mask |= (found.bitmask() as u16 & 0xF) << (4 * i);
+        }
+        mask
+    }
 }
 
 /// Each tile's rays to each light stratum as same-sign 2x2 packets of neighbouring points'
@@ -362,6 +420,7 @@ mod tests {
         let tile = (&visible[..], want_stats);
         check(Pyramid, &tree, &job, &points, &want, tile);
         check(Cone, &tree, &job, &points, &want, tile);
+        check(OmniPoints, &tree, &job, &points, &want, tile);
         check(StratumPackets, &tree, &job, &points, &want, tile);
         check(Frusta { tile: 24 }, &tree, &job, &points, &want, tile);
         for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::widest()] {
