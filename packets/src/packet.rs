@@ -116,7 +116,10 @@ impl<V: SimdF32> RayPacket<V> {
     pub fn from_segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket<V> {
         let n = origins.len().min(targets.len()).min(V::LANES);
         if n == V::LANES {
-            let soa = |v: &[Vec3]| V::axes(V::array_from_fn(|l| v[l]));
+            let soa = |v: &[Vec3]| {
+                let v = &v[..V::LANES];
+                V::axes(V::array_from_fn(|l| v[l]))
+            };
             let (o, t) = (soa(origins), soa(targets));
             let raw: [V; 3] = std::array::from_fn(|a| t[a] - o[a]);
             let finite = |v: &[V]| v.iter().fold(V::Mask::splat(true), |m, c| m & c.is_finite_mask());

@@ -182,19 +182,21 @@ fn watertight_by_lane<V: SimdF32>(
     prim: u32,
 ) -> V::Mask {
     let bits = active.bitmask();
-    let mut hits = 0u32;
+    let mut hits = V::array_from_fn(|_| false);
     for lane in 0..V::LANES {
         if bits >> lane & 1 == 0 {
             continue;
         }
         let ray = r.ray(lane);
         if let Some((t, u, v)) = tri.intersect(&ray, &s.lanes[lane], hit.t[lane]) {
-            let mask = V::Mask::from_fn(|l| l == lane);
+            let mut mask = V::array_from_fn(|_| false);
+            mask[lane] = true;
+            let mask = V::Mask::from_fn(|l| mask[l]);
             hit.record(mask, V::splat(t), V::splat(u), V::splat(v), prim);
-            hits |= 1 << lane;
+            hits[lane] = true;
         }
     }
-    V::Mask::from_fn(|lane| hits >> lane & 1 != 0)
+    V::Mask::from_fn(|lane| hits[lane])
 }
 
 #[cfg(test)]
