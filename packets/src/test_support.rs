@@ -109,13 +109,14 @@ pub(crate) fn hard_scenes() -> Vec<HardScene> {
 }
 
 impl HardScene {
-    /// Packets of up to `width` rays, `kind` naming the hard case: random directions
-    /// (`0`), directions with zero components of both signs (`1`), an origin on a split plane
-    /// with half the rays in the plane (`2`), rays from far outside the box aimed into it, z their dominant axis (`3`),
-    /// a packet with fewer rays than lanes (`4`), rays aimed at vertices and edge points
-    /// (`5`). With `shared_origin` every ray starts at one point at `t_min = 0` (an
-    /// omni-directional packet); otherwise each ray has its own origin and some start
-    /// behind it (`t_min < 0`).
+    /// A packet of up to `width` rays, `kind` naming the hard case: directions (half of them
+    /// at a triangle's centre, so that many hit; so in `1`, `2` and `4`) in every octant
+    /// (`0`), directions with zero components of both signs (`1`), an origin on a split
+    /// plane with half the rays in the plane (`2`), rays from far outside the box aimed
+    /// into it, z their dominant axis (`3`), fewer rays than lanes (`4`), rays aimed at
+    /// vertices and edge points (`5`). With `shared_origin` every ray starts at one point at
+    /// `t_min = 0` (an omni-directional packet); otherwise each ray has its own origin and
+    /// some start behind it (`t_min < 0`).
     pub(crate) fn rays(&self, rng: &mut Rng, width: usize, kind: usize, shared_origin: bool) -> Vec<Ray> {
         let size = self.hi - self.lo;
         let (lo, hi) = (self.lo - 0.2 * size, self.hi + 0.2 * size);
