@@ -1,14 +1,18 @@
 //! Tracing rays in groups through the kd-tree (Tsakok 2008, sections 2.3.1-2.3.2 and
 //! 4.1.1-4.1.5).
 //!
-//! - [`packet`]: SoA packets of four rays, one glam `Vec4` (an SSE register) per coordinate,
-//!   masks as `BVec4A`, and their hits.
-//! - [`triangle4`]: the 4-ray x 1-triangle tests, for both intersectors of `kdtree`, giving
-//!   bit for bit the answers of the single-ray tests.
-//! - [`omni`]: omni-directional packet traversal (4.1.2, Listing 4.1): four rays with a common
-//!   origin and any mix of direction signs, front and back voxels chosen from the origin.
+//! - [`simd`]: the lane types a packet is generic over ([`simd::SimdF32`], [`simd::SimdMask`]):
+//!   glam's `Vec4` / `BVec4A` (4 lanes, SSE, the default) and the portable
+//!   [`simd::PortableF32<W>`] (any width, the scalar twin; 8 and 16 lanes).
+//! - [`packet`]: SoA packets of rays, one lane vector per coordinate (by default four rays,
+//!   one glam `Vec4`, an SSE register; the width is the lane type's), and their hits.
+//! - [`triangle4`]: the packet x 1-triangle tests, for both intersectors of `kdtree`, giving
+//!   bit for bit the answers of the single-ray tests, at every width.
+//! - [`omni`]: omni-directional packet traversal (4.1.2, Listing 4.1): the rays of a packet
+//!   with a common origin and any mix of direction signs, front and back voxels chosen from
+//!   the origin; written once for every width.
 //! - [`samesign`]: the standard packet traversal (2.3.1, Listing 2.4 corrected) beside it,
-//!   which splits a packet whose rays disagree on direction signs.
+//!   which splits a packet whose rays disagree on direction signs; every width.
 //! - [`bound`]: the bound a frustum goes down the tree with ([`FrustumBound`]): the pyramid
 //!   of its extremal rays (2.3.2) or a cone (4.1.7, made by the `cones` crate), and the plane
 //!   intervals and distance conversions the traversal does with it.
@@ -47,6 +51,7 @@ pub mod omni;
 pub mod packet;
 pub mod samesign;
 pub mod shadow_frustum;
+pub mod simd;
 #[cfg(test)]
 mod test_support;
 pub mod tile;

@@ -1,13 +1,15 @@
 //! Omni-directional packet traversal (thesis 4.1.2, Listing 4.1).
 //!
-//! Four rays with a common origin `o` and *any* mix of direction signs go down the tree
-//! together, without splitting. At a split plane the packet visits the **front voxel** (the
-//! child on the origin's side, from the sign of `split - o[axis]` alone) before the **back
-//! voxel**, and each lane's plane distance `d = (split - o[axis]) / dir[axis]` is taken as
-//! `+inf` when it is negative: that ray moves away from the plane and never reaches the back
-//! voxel. Each lane keeps its own interval `[near, far]`: front `[near, min(far, d)]`, back
-//! `[max(near, d), far]`; a lane is active where `near <= far`, and a child no lane is active
-//! in is skipped.
+//! The rays of a packet with a common origin `o` and *any* mix of direction signs go down
+//! the tree together, without splitting: four with the default `Vec4` lanes (the thesis's
+//! 2x2 packet), `W` with a `W`-lane type ([`crate::simd`]); the walk is written once for
+//! every width. At a split plane the packet visits the **front voxel** (the child on the
+//! origin's side, from the sign of `split - o[axis]` alone) before the **back voxel**, and
+//! each lane's plane distance `d = (split - o[axis]) / dir[axis]` is taken as `+inf` when it
+//! is negative: that ray moves away from the plane and never reaches the back voxel. Each
+//! lane keeps its own interval `[near, far]`: front `[near, min(far, d)]`, back
+//! `[max(near, d), far]`; a lane is active where `near <= far`, and a child no lane is
+//! active in is skipped.
 //!
 //! ## Hard cases
 //! - **Zero direction components**: `d = dist * (+-inf)` is `+inf` or `-inf` (never NaN,
@@ -23,64 +25,68 @@
 //!   it, and the packet stops when no lane is active (the single-ray rule, per lane).
 //! - Rays must start at the origin (`t_min >= 0`): [`OmniPacket::new`] checks it.
 
-use glam::{BVec4A, Vec4};
 use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
+use crate::simd::{SimdF32, SimdMask};
 use crate::triangle4::PacketTest;
 
 /// The closest hits of the packet's rays. Invalid lanes (missing rays, and rays with NaN or
 /// infinite components, see [`crate::RayPacket::new`]) get no hit.
 #[inline]
-pub fn intersect<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
-    trace::<C, false>(tree, packet, counters)
+pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>, counters: &mut C) -> PacketHit<V> {
+    trace::<V, C, false>(tree, packet, counters)
 }
 
 /// Which of the packet's rays are blocked (any hit: the shadow query). The returned hit's
 /// `found` lanes are the blocked rays; their `t` is the first blocker found, not the closest.
 /// Invalid lanes are never blocked.
 #[inline]
-pub fn occluded<C: Counters>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
-    trace::<C, true>(tree, packet, counters)
+pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>, counters: &mut C) -> PacketHit<V> {
+    trace::<V, C, true>(tree, packet, counters)
 }
 
 /// [`intersect`] (or [`occluded`], with `ANY_HIT`) with the tree's triangle test.
 #[inline(always)]
-fn trace<C: Counters, const ANY_HIT: bool>(tree: &KdTree, packet: &OmniPacket, counters: &mut C) -> PacketHit {
+fn trace<V: SimdF32, C: Counters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    packet: &OmniPacket<V>,
+    counters: &mut C,
+) -> PacketHit<V> {
     let order = Omni(packet.origin);
     match tree.intersector() {
-        Intersector::Wald => traverse::<_, _, C, ANY_HIT>(tree, tree.wald_records(), &packet.rays, &order, counters),
+        Intersector::Wald => traverse::<V, _, _, C, ANY_HIT>(tree, tree.wald_records(), &packet.rays, &order, counters),
         Intersector::Watertight => {
-            traverse::<_, _, C, ANY_HIT>(tree, tree.watertight_records(), &packet.rays, &order, counters)
+            traverse::<V, _, _, C, ANY_HIT>(tree, tree.watertight_records(), &packet.rays, &order, counters)
         }
     }
 }
 
 /// The lanes' intervals inside the tree's root box (`near > far` where a lane misses it).
 #[inline(always)]
-pub(crate) fn root_interval(tree: &KdTree, rays: &RayPacket) -> (Vec4, Vec4) {
+pub(crate) fn root_interval<V: SimdF32>(tree: &KdTree, rays: &RayPacket<V>) -> (V, V) {
     let b = tree.bounds();
     rays.clip(b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array())
 }
 
-/// How a 2x2 packet traversal orders an inner node's children, the one part in which
+/// How a packet traversal orders an inner node's children, the one part in which
 /// Listing 4.1 (omni-directional, [`Omni`]) and Listing 2.4 (same-sign,
 /// `samesign::SameSign`) differ; the loop, the leaf and the stack are [`traverse`]'s.
 pub(crate) trait ChildOrder {
     /// The children of inner `node` for the packet `rays` with lane intervals `[near, far]`.
-    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step;
+    fn step<V: SimdF32>(&self, rays: &RayPacket<V>, node: KdNode, near: V, far: V) -> Step<V>;
 }
 
 /// An inner node's children as a [`ChildOrder`] orders them.
-pub(crate) enum Step {
+pub(crate) enum Step<V> {
     /// Both children over the lanes' whole intervals, `first` first.
     Both { first: usize, second: usize },
     /// The front child with the lanes' intervals `[near, front_far]`, the back child with
     /// `[back_near, far]`.
-    Split { front: usize, back: usize, front_far: Vec4, back_near: Vec4 },
+    Split { front: usize, back: usize, front_far: V, back_near: V },
 }
 
 /// Listing 4.1's child order: front and back from the common origin's side of the plane
@@ -90,7 +96,7 @@ pub(crate) struct Omni(pub(crate) [f32; 4]);
 
 impl ChildOrder for Omni {
     #[inline(always)]
-    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step {
+    fn step<V: SimdF32>(&self, rays: &RayPacket<V>, node: KdNode, near: V, far: V) -> Step<V> {
         let axis = node.axis() & 3;
         let dist = node.split() - self.0[axis];
         let left = node.left_child();
@@ -103,8 +109,8 @@ impl ChildOrder for Omni {
         // that underflows to -0.0 is still a plane behind the origin (the fuzzer found a
         // lane sent to the far side of a plane 2.3e-38 behind it, at distance -6e-54).
         let inv = rays.inv[axis];
-        let behind = if dist > 0.0 { inv.cmplt(Vec4::ZERO) } else { inv.cmpgt(Vec4::ZERO) };
-        let d = Vec4::select(behind, Vec4::INFINITY, Vec4::splat(dist) * inv);
+        let behind = if dist > 0.0 { inv.cmplt(V::ZERO) } else { inv.cmpgt(V::ZERO) };
+        let d = V::select(behind, V::INFINITY, V::splat(dist) * inv);
         // Modification 2: front and back from the origin's side of the plane.
         let upper_front = (dist < 0.0) as usize;
         let (front, back) = (left + upper_front, left + 1 - upper_front);
@@ -112,39 +118,43 @@ impl ChildOrder for Omni {
     }
 }
 
-/// The 2x2 packet traversal of Listings 4.1 and 2.4, with the child order `O`: closest hits,
-/// or any hits (`ANY_HIT`, a lane finished at its first hit).
+/// The packet traversal of Listings 4.1 and 2.4, with the child order `O`, at the width of
+/// the lane type `V`: closest hits, or any hits (`ANY_HIT`, a lane finished at its first
+/// hit).
 #[inline(always)]
-pub(crate) fn traverse<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
+pub(crate) fn traverse<V: SimdF32, O: ChildOrder, T: TriangleTest + PacketTest<V>, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     records: &[T],
-    rays: &RayPacket,
+    rays: &RayPacket<V>,
     order: &O,
     counters: &mut C,
-) -> PacketHit {
-    traverse_from::<O, T, C, ANY_HIT>(tree, records, rays, order, (0, root_interval(tree, rays)), counters)
+) -> PacketHit<V> {
+    traverse_from::<V, O, T, C, ANY_HIT>(tree, records, rays, order, (0, root_interval(tree, rays)), counters)
 }
 
-/// A 2x2 packet walking the tree ([`kdtree::descent`]): the child order `O`'s step, a leaf
-/// visitor testing the active lanes against each triangle, and the per-lane pop rule.
-struct Packet<'a, O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> {
+/// A packet walking the tree ([`kdtree::descent`]): the child order `O`'s step, a leaf
+/// visitor testing the active lanes against each triangle, and the per-lane pop rule. Its
+/// span is one interval per lane, `(near, far)`: the packet's width is `V`'s.
+struct Packet<'a, V: SimdF32, O: ChildOrder, T: TriangleTest + PacketTest<V>, const ANY_HIT: bool> {
     records: &'a [T],
     refs: &'a [u32],
-    rays: &'a RayPacket,
+    rays: &'a RayPacket<V>,
     order: &'a O,
     data: T::PacketData,
-    hit: PacketHit,
+    hit: PacketHit<V>,
     // Ends each lane's search: its closest hit, or -inf once an any-hit lane is done.
-    limit: Vec4,
+    limit: V,
 }
 
-impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent for Packet<'_, O, T, ANY_HIT> {
-    type Span = (Vec4, Vec4);
-    type Deferred = (Vec4, Vec4);
-    type Stack = Stack<Entry<(Vec4, Vec4)>>;
+impl<V: SimdF32, O: ChildOrder, T: TriangleTest + PacketTest<V>, const ANY_HIT: bool> Descent
+    for Packet<'_, V, O, T, ANY_HIT>
+{
+    type Span = (V, V);
+    type Deferred = (V, V);
+    type Stack = Stack<Entry<(V, V)>>;
 
     #[inline(always)]
-    fn inner(&mut self, node: KdNode, span: &mut (Vec4, Vec4), _: &Self::Stack) -> Visit<(Vec4, Vec4)> {
+    fn inner(&mut self, node: KdNode, span: &mut (V, V), _: &Self::Stack) -> Visit<(V, V)> {
         match self.order.step(self.rays, node, span.0, span.1) {
             Step::Both { first, second } => Visit::Both { first, second, deferred: *span },
             Step::Split { front, back, front_far, back_near } => {
@@ -154,13 +164,7 @@ impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent f
     }
 
     #[inline(always)]
-    fn leaf<C: Counters>(
-        &mut self,
-        node: KdNode,
-        &(near, far): &(Vec4, Vec4),
-        _: &Self::Stack,
-        counters: &mut C,
-    ) -> Flow {
+    fn leaf<C: Counters>(&mut self, node: KdNode, &(near, far): &(V, V), _: &Self::Stack, counters: &mut C) -> Flow {
         counters.leaf();
         let active = near.cmple(far);
         let prims = &self.refs[node.prim_range()];
@@ -170,12 +174,12 @@ impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent f
             let lanes = self.records[prim as usize].intersect4(
                 rays,
                 &self.data,
-                active & !self.hit.found.and_if(ANY_HIT),
+                active & !and_if(self.hit.found, ANY_HIT),
                 &mut self.hit,
                 prim,
             );
             if ANY_HIT && lanes.any() {
-                self.limit = Vec4::select(self.hit.found, Vec4::NEG_INFINITY, self.limit);
+                self.limit = V::select(self.hit.found, V::NEG_INFINITY, self.limit);
                 if (self.hit.found | !rays.valid).all() {
                     return Flow::Stop;
                 }
@@ -189,7 +193,7 @@ impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent f
 
     /// Each lane clamped to its closest hit; dropped where no lane is left active.
     #[inline(always)]
-    fn resume(&mut self, (near, far): (Vec4, Vec4)) -> Option<(Vec4, Vec4)> {
+    fn resume(&mut self, (near, far): (V, V)) -> Option<(V, V)> {
         let far = far.min(self.limit);
         near.cmple(far).any().then_some((near, far))
     }
@@ -199,15 +203,21 @@ impl<O: ChildOrder, T: TriangleTest + PacketTest, const ANY_HIT: bool> Descent f
 /// (those from the root box for the root), visiting only its subtree: a group of rays handed
 /// over from a wider traversal (`crate::shadow_frustum`).
 #[inline(always)]
-pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
+pub(crate) fn traverse_from<
+    V: SimdF32,
+    O: ChildOrder,
+    T: TriangleTest + PacketTest<V>,
+    C: Counters,
+    const ANY_HIT: bool,
+>(
     tree: &KdTree,
     records: &[T],
-    rays: &RayPacket,
+    rays: &RayPacket<V>,
     order: &O,
-    (start, (near, far)): (usize, (Vec4, Vec4)),
+    (start, (near, far)): (usize, (V, V)),
     counters: &mut C,
-) -> PacketHit {
-    let mut group = Packet::<O, T, ANY_HIT> {
+) -> PacketHit<V> {
+    let mut group = Packet::<V, O, T, ANY_HIT> {
         records,
         refs: tree.prim_refs(),
         rays,
@@ -228,11 +238,11 @@ pub(crate) fn traverse_from<O: ChildOrder, T: TriangleTest + PacketTest, C: Coun
 /// active in it; the back child is deferred when lanes are active in both. `span` becomes
 /// the entered child's.
 #[inline(always)]
-pub(crate) fn descend_split(
-    span: &mut (Vec4, Vec4),
+pub(crate) fn descend_split<V: SimdF32>(
+    span: &mut (V, V),
     (front, back): (usize, usize),
-    (front_far, back_near): (Vec4, Vec4),
-) -> Visit<(Vec4, Vec4)> {
+    (front_far, back_near): (V, V),
+) -> Visit<(V, V)> {
     let (near, far) = *span;
     let in_front = near.cmple(front_far);
     let in_back = back_near.cmple(far);
@@ -248,23 +258,20 @@ pub(crate) fn descend_split(
     }
 }
 
-/// `self` where `enabled`, else all false: a mask that only applies to one query kind.
-trait AndIf {
-    fn and_if(self, enabled: bool) -> BVec4A;
-}
-
-impl AndIf for BVec4A {
-    #[inline(always)]
-    fn and_if(self, enabled: bool) -> BVec4A {
-        if enabled { self } else { BVec4A::splat(false) }
-    }
+/// `mask` where `enabled`, else all false: a mask that only applies to one query kind.
+#[inline(always)]
+fn and_if<M: SimdMask>(mask: M, enabled: bool) -> M {
+    if enabled { mask } else { M::splat(false) }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use crate::simd::PortableF32;
+    use crate::test_support::{self, Rng, check_against_single_rays, packet_hit_bits, ray_packet_bits};
+    use glam::{Vec3, Vec4};
     use kdtree::counters::NoCounters;
+    use kdtree::triangle::WatertightTriangle;
     use kdtree::{BuildConfig, Ray};
 
     fn tree(intersector: Intersector) -> KdTree {
@@ -300,6 +307,78 @@ mod tests {
                 for (lane, ray) in rays.iter().enumerate() {
                     assert_eq!(hits[lane], tree.intersect(ray), "{intersector:?} packet {i} lane {lane}");
                     assert_eq!(blocked.found.bitmask() >> lane & 1 != 0, tree.occluded(ray));
+                }
+            }
+        }
+    }
+
+    /// `rays` (one origin) as one omni-directional packet of `V`'s width: both queries,
+    /// checked against single rays. Returns the number of rays that hit something and
+    /// whether the packet's watertight shear is uniform.
+    fn check_omni<V: SimdF32>(tree: &KdTree, rays: &[Ray], what: &str) -> (usize, bool) {
+        let packet = OmniPacket::new(RayPacket::<V>::from_rays(rays)).expect("one origin, t_min = 0");
+        let closest = intersect(tree, &packet, &mut NoCounters);
+        let any = occluded(tree, &packet, &mut NoCounters);
+        let hits = check_against_single_rays(tree, rays, &closest, &any, what);
+        (hits, WatertightTriangle::prepare4(&packet.rays).uniform)
+    }
+
+    /// The one walk at 4 (glam), 8 and 16 lanes (the portable lane type): every lane's
+    /// closest and any hit are the single ray's, bit for bit, for both intersectors, on a
+    /// random soup, on split planes (origins on them, rays in them), with zero direction
+    /// components, at tiny and huge coordinates and 1e5 from the origin, in partial packets
+    /// and aimed at vertices and edges. Both watertight paths (shared shear axes, and the
+    /// scalar lanes of mixed axes) run, and every scene and case has rays that hit.
+    #[test]
+    fn omni_packets_of_every_width_match_single_rays() {
+        let mut rng = Rng(0x00a1_1ce5);
+        let mut uniform = [0usize; 2];
+        for scene in test_support::hard_scenes() {
+            let mut hits = [0usize; 6];
+            for (t, tree) in scene.trees.iter().enumerate() {
+                for round in 0..60 {
+                    let kind = round % 6;
+                    let what = format!("{} tree {t} round {round} kind {kind}", scene.name);
+                    hits[kind] += check_omni::<Vec4>(tree, &scene.rays(&mut rng, 4, kind, true), &what).0;
+                    for (h, u) in [
+                        check_omni::<PortableF32<8>>(tree, &scene.rays(&mut rng, 8, kind, true), &what),
+                        check_omni::<PortableF32<16>>(tree, &scene.rays(&mut rng, 16, kind, true), &what),
+                    ] {
+                        hits[kind] += h;
+                        uniform[usize::from(u)] += 1;
+                    }
+                }
+            }
+            assert!(hits.iter().all(|&h| h > 20), "{}: rays that hit, by case: {hits:?}", scene.name);
+        }
+        assert!(uniform[0] > 100 && uniform[1] > 100, "mixed and shared shear axes: {uniform:?}");
+    }
+
+    /// The portable lane type at 4 lanes gives the glam packet's answers lane for lane, bit
+    /// for bit: the packet, its root interval, and every lane of both queries' hits (the
+    /// misses' `t_max` and the barycentrics included).
+    #[test]
+    fn portable_four_lanes_are_the_glam_walk_bit_for_bit() {
+        let mut rng = Rng(0xface_f00d);
+        for scene in test_support::hard_scenes() {
+            for tree in &scene.trees {
+                for round in 0..30 {
+                    let rays = scene.rays(&mut rng, 4, round % 6, true);
+                    let glam = OmniPacket::new(RayPacket::<Vec4>::from_rays(&rays)).unwrap();
+                    let portable = OmniPacket::new(RayPacket::<PortableF32<4>>::from_rays(&rays)).unwrap();
+                    let what = format!("{} round {round}", scene.name);
+                    assert_eq!(ray_packet_bits(&glam.rays), ray_packet_bits(&portable.rays), "{what}");
+                    assert_eq!(glam.origin.map(f32::to_bits), portable.origin.map(f32::to_bits), "{what}");
+                    let (g, p) = (root_interval(tree, &glam.rays), root_interval(tree, &portable.rays));
+                    assert_eq!((g.0.to_array(), g.1.to_array()), (p.0.0, p.1.0), "{what}");
+                    for any in [false, true] {
+                        let (g, p) = if any {
+                            (occluded(tree, &glam, &mut NoCounters), occluded(tree, &portable, &mut NoCounters))
+                        } else {
+                            (intersect(tree, &glam, &mut NoCounters), intersect(tree, &portable, &mut NoCounters))
+                        };
+                        assert_eq!(packet_hit_bits(&g), packet_hit_bits(&p), "{what} any {any}");
+                    }
                 }
             }
         }

@@ -1,128 +1,147 @@
-//! SoA packets of four rays and their hits (thesis 2.3.1, Listings 2.5-2.6).
+//! SoA packets of rays and their hits (thesis 2.3.1, Listings 2.5-2.6).
 //!
-//! A [`RayPacket`] keeps each coordinate of its four rays in one `Vec4` (one SSE register),
-//! so that a traversal step or a triangle test handles the four rays with the same
-//! instructions as one. Per-axis data sits in `[Vec4; 4]` arrays whose fourth entry is
-//! padding: an axis read from a node (`0..=2`, masked with `& 3`) indexes them without a
-//! bounds check.
+//! A [`RayPacket<V>`] keeps each coordinate of its rays in one lane vector `V`
+//! ([`SimdF32`]), so that a traversal step or a triangle test handles all of them with the
+//! same instructions as one. **The packet's width is its lane type's**: `V::LANES` rays. The
+//! default, glam's `Vec4` (one SSE register), is the thesis's 2x2 packet, and `RayPacket`
+//! without a parameter is that one; [`crate::simd::PortableF32`] gives any width (8 and 16
+//! lanes). Per-axis data sits in `[V; 4]` arrays whose fourth entry is padding: an axis read
+//! from a node (`0..=2`, masked with `& 3`) indexes them without a bounds check.
 //!
-//! Lanes that hold no ray (at the edge of an image, or a packet of fewer than four rays) are
+//! Lanes that hold no ray (at the edge of an image, or a packet of fewer than `W` rays) are
 //! *invalid*: they carry an empty interval (`t_min = +inf`, `t_max = -inf`) and take part in
 //! no test.
 
-use glam::{BVec4A, Mat4, Vec3, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 use kdtree::traverse::WIDEN;
 use kdtree::{Hit, Ray};
 
-/// Four rays' directions and their reciprocals as [`Ray::new`] makes them, one axis per
-/// vector: `1 / d` per lane (one division per axis for four rays, each correctly rounded as
+use crate::simd::{SimdF32, SimdMask};
+
+/// `W` rays' directions and their reciprocals as [`Ray::new`] makes them, one axis per
+/// vector: `1 / d` per lane (one division per axis for `W` rays, each correctly rounded as
 /// the scalar division), and a component whose reciprocal overflows (a denormal) flushed to a
 /// zero of its sign. NaN components stay NaN, as `Ray::new` keeps them. Shared by the packets
 /// built without `Ray`s: [`RayPacket::segments`] and the tile tracer's primary rays.
 #[inline(always)]
-pub(crate) fn directions(raw: [Vec4; 3]) -> ([Vec4; 3], [Vec4; 3]) {
-    let inv = raw.map(Vec4::recip);
+pub(crate) fn directions<V: SimdF32>(raw: [V; 3]) -> ([V; 3], [V; 3]) {
+    let inv = raw.map(V::recip);
     let d = std::array::from_fn(|a| {
-        let keep = inv[a].is_finite_mask() | raw[a].cmpeq(Vec4::ZERO) | raw[a].is_nan_mask();
-        Vec4::select(keep, raw[a], Vec4::ZERO.copysign(raw[a]))
+        let keep = inv[a].is_finite_mask() | raw[a].cmpeq(V::ZERO) | raw[a].is_nan_mask();
+        V::select(keep, raw[a], V::ZERO.copysign(raw[a]))
     });
     (d, inv)
 }
 
-/// Four vectors, one per lane, as one `Vec4` per axis (and zeros in the fourth): a 4x4
-/// transpose in shuffles rather than scalar stores read back as vectors.
-#[inline(always)]
-fn axes(v: [Vec3; 4]) -> [Vec4; 4] {
-    let m = Mat4::from_cols(v[0].extend(0.0), v[1].extend(0.0), v[2].extend(0.0), v[3].extend(0.0)).transpose();
-    [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
-}
-
-/// Four rays in structure-of-arrays form.
+/// `V::LANES` rays in structure-of-arrays form: by default four, one glam `Vec4` per
+/// coordinate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
-pub struct RayPacket {
-    /// Origins: `o[axis]` holds that coordinate of the four rays (`o[3]` is padding).
-    pub o: [Vec4; 4],
+pub struct RayPacket<V: SimdF32 = Vec4> {
+    /// Origins: `o[axis]` holds that coordinate of the rays (`o[3]` is padding).
+    pub o: [V; 4],
     /// Directions, as [`Ray::dir`] (denormal components flushed to signed zeros).
-    pub d: [Vec4; 4],
+    pub d: [V; 4],
     /// `1 / d`, per component (signed infinities for zero components).
-    pub inv: [Vec4; 4],
+    pub inv: [V; 4],
     /// Start of each ray's interval (`+inf` in invalid lanes).
-    pub t_min: Vec4,
+    pub t_min: V,
     /// End of each ray's interval (`-inf` in invalid lanes).
-    pub t_max: Vec4,
+    pub t_max: V,
     /// The lanes that hold a ray.
-    pub valid: BVec4A,
+    pub valid: V::Mask,
 }
 
+/// The 4-wide packet's constructors, by the names the workspace calls them (each the generic
+/// constructor of its line at `V = Vec4`).
 impl RayPacket {
-    /// A packet of up to four rays; lanes past `rays.len()` are invalid.
+    /// A packet of up to four rays; lanes past `rays.len()` are invalid
+    /// ([`RayPacket::from_rays`]).
+    pub fn new(rays: &[Ray]) -> RayPacket {
+        RayPacket::from_rays(rays)
+    }
+
+    /// A packet from four optional rays ([`RayPacket::from_slots`]).
+    pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
+        RayPacket::from_slots(lanes)
+    }
+
+    /// The packet of up to four segments ([`RayPacket::from_segments`]).
+    pub fn segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket {
+        RayPacket::from_segments(origins, targets)
+    }
+}
+
+impl<V: SimdF32> RayPacket<V> {
+    /// A packet of up to `V::LANES` rays; lanes past `rays.len()` are invalid.
     ///
     /// Rays with a NaN or infinite origin or direction, a zero direction, or a NaN or empty
     /// interval are marked invalid, like missing ones: like [`kdtree::KdTree::intersect`],
     /// every method reports no hit for them. Invalid lanes hold a copy of the first usable
     /// ray (or a finite filler), never the rejected one.
-    pub fn new(rays: &[Ray]) -> RayPacket {
-        let mut lanes = [None; 4];
-        for (slot, ray) in lanes.iter_mut().zip(rays) {
+    pub fn from_rays(rays: &[Ray]) -> RayPacket<V> {
+        let mut lanes = V::array_from_fn(|_| None);
+        for (slot, ray) in lanes.as_mut().iter_mut().zip(rays) {
             *slot = Some(*ray);
         }
-        RayPacket::from_lanes(lanes)
+        RayPacket::from_slots(lanes)
     }
 
-    /// A packet from four optional rays (`None` lanes, and rays [`RayPacket::new`] rejects,
-    /// are invalid).
-    pub fn from_lanes(lanes: [Option<Ray>; 4]) -> RayPacket {
-        let usable = lanes.map(|ray| ray.filter(Ray::is_valid));
-        let fill = usable.iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
-        let rays = usable.map(|ray| ray.unwrap_or(fill));
-        let valid = BVec4A::new(usable[0].is_some(), usable[1].is_some(), usable[2].is_some(), usable[3].is_some());
-        // Each vector field one axis per vector (`axes`).
-        let soa = |field: fn(&Ray) -> Vec3| axes(rays.each_ref().map(field));
-        let lane =
-            |field: fn(&Ray) -> f32| Vec4::new(field(&rays[0]), field(&rays[1]), field(&rays[2]), field(&rays[3]));
+    /// A packet from one optional ray per lane (`None` lanes, and rays
+    /// [`RayPacket::from_rays`] rejects, are invalid).
+    pub fn from_slots(lanes: V::Array<Option<Ray>>) -> RayPacket<V> {
+        let usable = V::array_from_fn(|l| lanes[l].filter(Ray::is_valid));
+        let fill = usable.as_ref().iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
+        let rays = V::array_from_fn(|l| usable[l].unwrap_or(fill));
+        let valid = V::Mask::from_fn(|l| usable[l].is_some());
+        // Each vector field one axis per vector (`SimdF32::axes`).
+        let soa = |field: fn(&Ray) -> Vec3| V::axes(V::array_from_fn(|l| field(&rays[l])));
+        let lane = |field: fn(&Ray) -> f32| V::from_fn(|l| field(&rays[l]));
         RayPacket {
             o: soa(|r| r.origin),
             d: soa(|r| r.dir),
             inv: soa(|r| r.inv_dir),
-            t_min: Vec4::select(valid, lane(|r| r.t_min), Vec4::INFINITY),
-            t_max: Vec4::select(valid, lane(|r| r.t_max), Vec4::NEG_INFINITY),
+            t_min: V::select(valid, lane(|r| r.t_min), V::INFINITY),
+            t_max: V::select(valid, lane(|r| r.t_max), V::NEG_INFINITY),
             valid,
         }
     }
 
-    /// The packet of the segments from `origins[i]` to `targets[i]` (up to four pairs; the
-    /// lanes past them are invalid): bit for bit [`RayPacket::new`] of the rays
-    /// `Ray::segment(origin, target)`, the shadow rays of a light point or
-    /// sample, made four at a time in vectors (one division per axis for the four
-    /// reciprocals) instead of ray by ray. Four finite segments of non-zero length take the
+    /// The packet of the segments from `origins[i]` to `targets[i]` (up to `V::LANES` pairs;
+    /// the lanes past them are invalid): bit for bit [`RayPacket::from_rays`] of the rays
+    /// `Ray::segment(origin, target)`, the shadow rays of a light point or sample, made
+    /// `V::LANES` at a time in vectors (one division per axis for all the reciprocals)
+    /// instead of ray by ray. A full packet of finite segments of non-zero length takes the
     /// vector path; any other input goes ray by ray.
-    pub fn segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket {
-        let n = origins.len().min(targets.len()).min(4);
-        if n == 4 {
-            let soa = |v: &[Vec3]| axes([v[0], v[1], v[2], v[3]]);
+    pub fn from_segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket<V> {
+        let n = origins.len().min(targets.len()).min(V::LANES);
+        if n == V::LANES {
+            let soa = |v: &[Vec3]| {
+                let v = &v[..V::LANES];
+                V::axes(V::array_from_fn(|l| v[l]))
+            };
             let (o, t) = (soa(origins), soa(targets));
-            let raw: [Vec4; 3] = std::array::from_fn(|a| t[a] - o[a]);
-            let finite = |v: &[Vec4]| v.iter().fold(BVec4A::splat(true), |m, c| m & c.is_finite_mask());
+            let raw: [V; 3] = std::array::from_fn(|a| t[a] - o[a]);
+            let finite = |v: &[V]| v.iter().fold(V::Mask::splat(true), |m, c| m & c.is_finite_mask());
             // Then `Ray::is_valid` wants finite, non-zero directions.
             let (d, inv) = directions(raw);
-            let zero = d.iter().fold(BVec4A::splat(true), |m, c| m & c.cmpeq(Vec4::ZERO));
+            let zero = d.iter().fold(V::Mask::splat(true), |m, c| m & c.cmpeq(V::ZERO));
             if (finite(&o[..3]) & finite(&raw) & !zero).all() {
                 return RayPacket {
                     o,
-                    d: [d[0], d[1], d[2], Vec4::ZERO],
-                    inv: [inv[0], inv[1], inv[2], Vec4::ZERO],
-                    t_min: Vec4::ZERO,
-                    t_max: Vec4::ONE,
-                    valid: BVec4A::splat(true),
+                    d: [d[0], d[1], d[2], V::ZERO],
+                    inv: [inv[0], inv[1], inv[2], V::ZERO],
+                    t_min: V::ZERO,
+                    t_max: V::ONE,
+                    valid: V::Mask::splat(true),
                 };
             }
         }
-        let mut lanes = [None; 4];
-        for (lane, (&o, &t)) in lanes.iter_mut().zip(origins.iter().zip(targets)) {
+        let mut lanes = V::array_from_fn(|_| None);
+        for (lane, (&o, &t)) in lanes.as_mut().iter_mut().zip(origins.iter().zip(targets)) {
             *lane = Some(Ray::segment(o, t));
         }
-        RayPacket::from_lanes(lanes)
+        RayPacket::from_slots(lanes)
     }
 
     /// The ray in `lane` (also for an invalid lane, whose content is filler).
@@ -135,11 +154,11 @@ impl RayPacket {
     /// The common origin of the valid lanes, if they all start at one point (bit for bit).
     pub fn common_origin(&self) -> Option<Vec3> {
         let first = self.valid.bitmask().trailing_zeros() as usize;
-        if first >= 4 {
+        if first >= V::LANES {
             return None;
         }
         let origin = Vec3::new(self.o[0][first], self.o[1][first], self.o[2][first]);
-        let same = (0..3).fold(BVec4A::splat(true), |m, a| m & self.o[a].cmpeq(Vec4::splat(origin[a])));
+        let same = (0..3).fold(V::Mask::splat(true), |m, a| m & self.o[a].cmpeq(V::splat(origin[a])));
         // Compare bits, so that -0.0 and 0.0 count as different origins only where they differ.
         (same | !self.valid).all().then_some(origin)
     }
@@ -149,21 +168,19 @@ impl RayPacket {
     /// `enter > exit`. An axis with a zero direction component constrains nothing when the
     /// origin is inside the slab and empties the interval otherwise (no `0 * inf`).
     #[inline(always)]
-    pub fn clip(&self, lo: [f32; 4], hi: [f32; 4]) -> (Vec4, Vec4) {
+    pub fn clip(&self, lo: [f32; 4], hi: [f32; 4]) -> (V, V) {
         let (mut enter, mut exit) = (self.t_min, self.t_max);
         for axis in 0..3 {
-            let (l, h) = (Vec4::splat(lo[axis]), Vec4::splat(hi[axis]));
+            let (l, h) = (V::splat(lo[axis]), V::splat(hi[axis]));
             let (o, inv) = (self.o[axis], self.inv[axis]);
             let (t_l, t_h) = ((l - o) * inv, (h - o) * inv);
-            let zero = self.d[axis].cmpeq(Vec4::ZERO);
+            let zero = self.d[axis].cmpeq(V::ZERO);
             let inside = o.cmpge(l) & o.cmple(h);
-            let (open_near, open_far) = (
-                Vec4::select(inside, Vec4::NEG_INFINITY, Vec4::INFINITY),
-                Vec4::select(inside, Vec4::INFINITY, Vec4::NEG_INFINITY),
-            );
+            let (open_near, open_far) =
+                (V::select(inside, V::NEG_INFINITY, V::INFINITY), V::select(inside, V::INFINITY, V::NEG_INFINITY));
             // Infinite distances (an overflowing product) widen to themselves, never NaN.
-            let near = Vec4::select(zero, open_near, t_l.min(t_h));
-            let far = Vec4::select(zero, open_far, t_l.max(t_h));
+            let near = V::select(zero, open_near, t_l.min(t_h));
+            let far = V::select(zero, open_far, t_l.max(t_h));
             enter = enter.max(widen_down(near));
             exit = exit.min(widen_up(far));
         }
@@ -174,65 +191,82 @@ impl RayPacket {
 /// A packet whose rays share one origin: what the omni-directional traversal (4.1.2) and the
 /// frusta (4.1.3-4.1.5) need, since they choose front and back voxels from the origin alone.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct OmniPacket {
+pub struct OmniPacket<V: SimdF32 = Vec4> {
     /// The rays (every valid lane starts at `origin`).
-    pub rays: RayPacket,
+    pub rays: RayPacket<V>,
     /// The common origin, `[x, y, z, 0]`.
     pub origin: [f32; 4],
 }
 
-impl OmniPacket {
+impl<V: SimdF32> OmniPacket<V> {
     /// The packet, if its valid lanes share one origin and none has a negative `t_min` (the
     /// omni-directional rule "a plane behind the origin is never crossed" assumes rays start
     /// at their origin). A packet with no valid lane qualifies (its origin is the filler's,
-    /// finite). Lanes with NaN or infinite rays are invalid ([`RayPacket::new`]), so they
-    /// neither decide the origin nor get a hit.
-    pub fn new(rays: RayPacket) -> Option<OmniPacket> {
+    /// finite). Lanes with NaN or infinite rays are invalid ([`RayPacket::from_rays`]), so
+    /// they neither decide the origin nor get a hit.
+    pub fn new(rays: RayPacket<V>) -> Option<OmniPacket<V>> {
         let origin = match rays.common_origin() {
             Some(o) => o,
-            None if !rays.valid.any() => Vec3::new(rays.o[0].x, rays.o[1].x, rays.o[2].x),
+            None if !rays.valid.any() => Vec3::new(rays.o[0][0], rays.o[1][0], rays.o[2][0]),
             None => return None,
         };
-        if (rays.t_min.cmplt(Vec4::ZERO) & rays.valid).any() {
+        if (rays.t_min.cmplt(V::ZERO) & rays.valid).any() {
             return None;
         }
         Some(OmniPacket { rays, origin: origin.extend(0.0).to_array() })
     }
 }
 
-/// The closest hits of a packet's four rays, SoA: `t = +inf` (or the ray's `t_max`) where a
-/// lane has no hit yet.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The closest hits of a packet's rays, SoA: `t = +inf` (or the ray's `t_max`) where a lane
+/// has no hit yet.
+#[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
-pub struct PacketHit {
+pub struct PacketHit<V: SimdF32 = Vec4> {
     /// Hit distance per lane; the ray's `t_max` while it has no hit.
-    pub t: Vec4,
+    pub t: V,
     /// Barycentric weight of the second vertex.
-    pub u: Vec4,
+    pub u: V,
     /// Barycentric weight of the third vertex.
-    pub v: Vec4,
+    pub v: V,
     /// Triangle index per lane (meaningful where `found` is set).
-    pub prim: [u32; 4],
+    pub prim: V::Array<u32>,
     /// Lanes that have a hit.
-    pub found: BVec4A,
+    pub found: V::Mask,
 }
 
-impl PacketHit {
+/// Lane by lane `==` of every field (as a derived `PartialEq`).
+impl<V: SimdF32> PartialEq for PacketHit<V> {
+    fn eq(&self, other: &Self) -> bool {
+        self.t == other.t
+            && self.u == other.u
+            && self.v == other.v
+            && self.prim.as_ref() == other.prim.as_ref()
+            && self.found == other.found
+    }
+}
+
+impl<V: SimdF32> PacketHit<V> {
     /// No hits yet: each lane's search ends at its ray's `t_max`.
     #[inline(always)]
-    pub fn new(rays: &RayPacket) -> PacketHit {
-        PacketHit { t: rays.t_max, u: Vec4::ZERO, v: Vec4::ZERO, prim: [u32::MAX; 4], found: BVec4A::splat(false) }
+    pub fn new(rays: &RayPacket<V>) -> PacketHit<V> {
+        PacketHit {
+            t: rays.t_max,
+            u: V::ZERO,
+            v: V::ZERO,
+            prim: V::array_from_fn(|_| u32::MAX),
+            found: V::Mask::splat(false),
+        }
     }
 
     /// Takes `(t, u, v, prim)` in the lanes of `mask`.
     #[inline(always)]
-    pub fn record(&mut self, mask: BVec4A, t: Vec4, u: Vec4, v: Vec4, prim: u32) {
-        self.t = Vec4::select(mask, t, self.t);
-        self.u = Vec4::select(mask, u, self.u);
-        self.v = Vec4::select(mask, v, self.v);
+    pub fn record(&mut self, mask: V::Mask, t: V, u: V, v: V, prim: u32) {
+        self.t = V::select(mask, t, self.t);
+        self.u = V::select(mask, u, self.u);
+        self.v = V::select(mask, v, self.v);
         self.found |= mask;
         let bits = mask.bitmask();
-        for lane in 0..4 {
+        for lane in 0..V::LANES {
             if bits >> lane & 1 != 0 {
                 self.prim[lane] = prim;
             }
@@ -250,23 +284,23 @@ impl PacketHit {
         })
     }
 
-    /// The four lanes' hits.
-    pub fn hits(&self) -> [Option<Hit>; 4] {
-        [self.get(0), self.get(1), self.get(2), self.get(3)]
+    /// Every lane's hit, in lane order.
+    pub fn hits(&self) -> V::Array<Option<Hit>> {
+        V::array_from_fn(|lane| self.get(lane))
     }
 }
 
 /// `t` moved towards `+inf` by [`WIDEN`]: `t + |t| W`, the single-ray kernel's formula;
 /// infinities stay as they are (the formula would turn `-inf` into NaN).
 #[inline(always)]
-pub fn widen_up(t: Vec4) -> Vec4 {
-    Vec4::select(t.is_finite_mask(), t + t.abs() * WIDEN, t)
+pub fn widen_up<V: SimdF32>(t: V) -> V {
+    V::select(t.is_finite_mask(), t + t.abs() * V::splat(WIDEN), t)
 }
 
 /// `t` moved towards `-inf` by [`WIDEN`]: `t - |t| W`; infinities stay.
 #[inline(always)]
-pub fn widen_down(t: Vec4) -> Vec4 {
-    Vec4::select(t.is_finite_mask(), t - t.abs() * WIDEN, t)
+pub fn widen_down<V: SimdF32>(t: V) -> V {
+    V::select(t.is_finite_mask(), t - t.abs() * V::splat(WIDEN), t)
 }
 
 /// Scalar [`widen_up`].
@@ -296,6 +330,8 @@ pub(crate) fn max_where(mask: BVec4A, v: Vec4) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::{PortableF32, PortableMask};
+    use crate::test_support::{packet_hit_bits, ray_packet_bits};
     use kdtree::Aabb;
     use kdtree::traverse::clip_to_box;
 
@@ -351,8 +387,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn segments_are_the_packet_of_their_rays_bit_for_bit() {
+    /// Random segments (and hard lanes: a shared end, a zero-length segment, a denormal or
+    /// zero component, non-finite input, fewer segments than lanes), `width` at a time.
+    fn segment_cases(width: usize) -> Vec<(Vec<Vec3>, Vec<Vec3>)> {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut next = || {
             seed ^= seed << 13;
@@ -361,23 +398,41 @@ mod tests {
             (seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5
         };
         let (nan, inf, tiny) = (f32::NAN, f32::INFINITY, 6e-45f32);
-        for case in 0..400 {
-            let scale = [1e-3, 1.0, 1e5][case % 3];
-            let mut origins: Vec<Vec3> = (0..4).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
-            let mut targets: Vec<Vec3> = (0..4).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
-            // Hard lanes: a shared end, a zero-length segment, a denormal or zero component,
-            // non-finite input, fewer than four segments.
-            match case % 9 {
-                1 => targets = vec![targets[0]; 4],
-                2 => targets[1] = origins[1],
-                3 => targets[2] = origins[2] + Vec3::new(tiny, 1.0, 0.0),
-                4 => targets[3].x = origins[3].x,
-                5 => origins[0].y = nan,
-                6 => targets[2].z = inf,
-                7 => origins.truncate(3),
-                8 => targets.truncate(1),
-                _ => {}
-            }
+        (0..400)
+            .map(|case| {
+                let scale = [1e-3, 1.0, 1e5][case % 3];
+                let mut origins: Vec<Vec3> = (0..width).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
+                let mut targets: Vec<Vec3> = (0..width).map(|_| Vec3::new(next(), next(), next()) * scale).collect();
+                let last = width - 1;
+                match case % 9 {
+                    1 => targets = vec![targets[0]; width],
+                    2 => targets[1] = origins[1],
+                    3 => targets[2] = origins[2] + Vec3::new(tiny, 1.0, 0.0),
+                    4 => targets[last].x = origins[last].x,
+                    5 => origins[0].y = nan,
+                    6 => targets[2].z = inf,
+                    7 => origins.truncate(width - 1),
+                    8 => targets.truncate(1),
+                    _ => {}
+                }
+                (origins, targets)
+            })
+            .collect()
+    }
+
+    /// `V::LANES` segments at a time: `from_segments` is `from_rays` of their rays, bit for
+    /// bit.
+    fn check_segments<V: SimdF32>() {
+        for (case, (origins, targets)) in segment_cases(V::LANES).into_iter().enumerate() {
+            let rays: Vec<Ray> = origins.iter().zip(&targets).map(|(&o, &t)| Ray::segment(o, t)).collect();
+            let (got, want) = (RayPacket::<V>::from_segments(&origins, &targets), RayPacket::<V>::from_rays(&rays));
+            assert_eq!(ray_packet_bits(&got), ray_packet_bits(&want), "{} lanes, case {case}", V::LANES);
+        }
+    }
+
+    #[test]
+    fn segments_are_the_packet_of_their_rays_bit_for_bit() {
+        for (case, (origins, targets)) in segment_cases(4).into_iter().enumerate() {
             let rays: Vec<Ray> = origins.iter().zip(&targets).map(|(&o, &t)| Ray::segment(o, t)).collect();
             let (got, want) = (RayPacket::segments(&origins, &targets), RayPacket::new(&rays));
             let bits = |p: &RayPacket| {
@@ -385,6 +440,59 @@ mod tests {
                 (v(&p.o), v(&p.d), v(&p.inv), v(&[p.t_min, p.t_max]), p.valid.bitmask())
             };
             assert_eq!(bits(&got), bits(&want), "case {case}");
+        }
+        check_segments::<PortableF32<4>>();
+        check_segments::<PortableF32<8>>();
+        check_segments::<PortableF32<16>>();
+    }
+
+    /// The portable lane type at 4 lanes builds the glam packet bit for bit (from rays, from
+    /// optional lanes, from segments), clips it to the same intervals, finds the same common
+    /// origin and records the same hits.
+    #[test]
+    fn portable_four_lanes_are_the_glam_packet_bit_for_bit() {
+        let r = rays();
+        let bad = Ray::new(Vec3::ZERO, Vec3::ZERO, 0.0, 1.0);
+        let boxes = [(Vec3::ZERO, Vec3::ONE), (Vec3::new(0.5, -1.0, 0.0), Vec3::new(0.5, 2.0, 4.0))];
+        let lane_sets = [
+            [Some(r[0]), Some(r[1]), Some(r[2]), Some(r[3])],
+            [None, Some(r[2]), Some(bad), Some(r[0])],
+            [Some(r[0]), Some(r[1]), None, None],
+            [None; 4],
+        ];
+        for lanes in lane_sets {
+            let (g, p) = (RayPacket::from_lanes(lanes), RayPacket::<PortableF32<4>>::from_slots(lanes));
+            assert_eq!(ray_packet_bits(&g), ray_packet_bits(&p), "{lanes:?}");
+            assert_eq!(g.common_origin(), p.common_origin());
+            assert_eq!(OmniPacket::new(g).map(|o| o.origin), OmniPacket::new(p).map(|o| o.origin));
+            for (lo, hi) in boxes {
+                let (lo, hi) = (lo.extend(0.0).to_array(), hi.extend(0.0).to_array());
+                let (ge, gx) = g.clip(lo, hi);
+                let (pe, px) = p.clip(lo, hi);
+                assert_eq!(
+                    (ge.to_array().map(f32::to_bits), gx.to_array().map(f32::to_bits)),
+                    (pe.0.map(f32::to_bits), px.0.map(f32::to_bits))
+                );
+            }
+            let (mut gh, mut ph) = (PacketHit::new(&g), PacketHit::new(&p));
+            let mask = [true, false, true, true];
+            gh.record(BVec4A::from_array(mask), Vec4::splat(2.0), Vec4::splat(0.25), Vec4::splat(0.5), 7);
+            ph.record(
+                PortableMask(mask),
+                PortableF32::splat(2.0),
+                PortableF32::splat(0.25),
+                PortableF32::splat(0.5),
+                7,
+            );
+            assert_eq!(packet_hit_bits(&gh), packet_hit_bits(&ph));
+            assert_eq!(gh.hits(), ph.hits());
+        }
+        for (case, (origins, targets)) in segment_cases(4).into_iter().enumerate() {
+            let (g, p) = (
+                RayPacket::segments(&origins, &targets),
+                RayPacket::<PortableF32<4>>::from_segments(&origins, &targets),
+            );
+            assert_eq!(ray_packet_bits(&g), ray_packet_bits(&p), "case {case}");
         }
     }
 

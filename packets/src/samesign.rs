@@ -1,12 +1,13 @@
-//! The standard 2x2 packet traversal (thesis 2.3.1, Listing 2.4, corrected), kept beside the
+//! The standard packet traversal (thesis 2.3.1, Listing 2.4, corrected), kept beside the
 //! omni-directional one so the two can be compared on packets whose rays disagree on
-//! direction signs.
+//! direction signs. Written once for every packet width: four rays with the default `Vec4`
+//! lanes (the thesis's 2x2 packet), `W` with a `W`-lane type ([`crate::simd`]).
 //!
 //! All rays of a packet must agree on the sign of each direction component, because the near
 //! and far children are chosen once for the packet from the direction's sign. A packet that
 //! mixes signs is split into sub-packets of equal sign patterns (masking the other lanes),
-//! each traced on its own: up to four traversals where the omni-directional packet needs one.
-//! The rays need not share an origin.
+//! each traced on its own: up to eight traversals (four in a 2x2 packet) where the
+//! omni-directional packet needs one. The rays need not share an origin.
 //!
 //! Listing 2.4 picks near/far from `dir[0]` (the x component, whatever the split axis) with
 //! the sign test the wrong way round (see `../shared/seeds/README.md`). Here, as in the
@@ -16,28 +17,29 @@
 //! rays may start behind their origin, `t_min < 0`), and a lane lying in the split plane
 //! (`d` NaN) visits both children over its whole interval.
 
-use glam::{BVec4A, Vec3, Vec4};
+use glam::Vec3;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
 
 use crate::omni::{self, ChildOrder, Step};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
+use crate::simd::{SimdF32, SimdMask};
 use crate::triangle4::PacketTest;
 
 /// The closest hits of the packet's rays, splitting it by direction signs. Invalid lanes
 /// (rays with NaN or infinite components among them, see [`crate::RayPacket::new`]) get no
 /// hit.
 #[inline]
-pub fn intersect<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
-    split_by_signs::<C, false>(tree, packet, None, counters)
+pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, counters: &mut C) -> PacketHit<V> {
+    split_by_signs::<V, C, false>(tree, packet, None, counters)
 }
 
 /// Which of the packet's rays are blocked (any hit, the shadow query), splitting it by
 /// direction signs: the `found` lanes are the blocked rays, each lane leaving at its first
 /// hit. Invalid lanes are never blocked.
 #[inline]
-pub fn occluded<C: Counters>(tree: &KdTree, packet: &RayPacket, counters: &mut C) -> PacketHit {
-    split_by_signs::<C, true>(tree, packet, None, counters)
+pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, counters: &mut C) -> PacketHit<V> {
+    split_by_signs::<V, C, true>(tree, packet, None, counters)
 }
 
 /// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::new(start, end - start, 0,
@@ -63,27 +65,27 @@ pub fn occluded_segments<C: Counters>(
 /// being `from.1` (from `RayPacket::clip` against that box): the shadow frusta of
 /// `crate::shadow_frustum` hand their rays over four at a time this way.
 #[inline]
-pub fn occluded_in<C: Counters>(
+pub fn occluded_in<V: SimdF32, C: Counters>(
     tree: &KdTree,
-    packet: &RayPacket,
-    from: (usize, (Vec4, Vec4)),
+    packet: &RayPacket<V>,
+    from: (usize, (V, V)),
     counters: &mut C,
-) -> PacketHit {
-    split_by_signs::<C, true>(tree, packet, Some(from), counters)
+) -> PacketHit<V> {
+    split_by_signs::<V, C, true>(tree, packet, Some(from), counters)
 }
 
 /// [`intersect`] or, with `ANY_HIT`, [`occluded`]; from the root, or from `from` as
 /// [`occluded_in`].
 #[inline(always)]
-fn split_by_signs<C: Counters, const ANY_HIT: bool>(
+fn split_by_signs<V: SimdF32, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
-    packet: &RayPacket,
-    from: Option<(usize, (Vec4, Vec4))>,
+    packet: &RayPacket<V>,
+    from: Option<(usize, (V, V))>,
     counters: &mut C,
-) -> PacketHit {
-    let traverse_group = |sub: &RayPacket, counters: &mut C| match tree.intersector() {
-        Intersector::Wald => traverse::<_, C, ANY_HIT>(tree, tree.wald_records(), sub, from, counters),
-        Intersector::Watertight => traverse::<_, C, ANY_HIT>(tree, tree.watertight_records(), sub, from, counters),
+) -> PacketHit<V> {
+    let traverse_group = |sub: &RayPacket<V>, counters: &mut C| match tree.intersector() {
+        Intersector::Wald => traverse::<V, _, C, ANY_HIT>(tree, tree.wald_records(), sub, from, counters),
+        Intersector::Watertight => traverse::<V, _, C, ANY_HIT>(tree, tree.watertight_records(), sub, from, counters),
     };
     // The common case (neighbouring rays to one light): every valid lane in one sign group.
     // The group is then the packet itself, and so is its hit (invalid lanes hold empty
@@ -95,14 +97,14 @@ fn split_by_signs<C: Counters, const ANY_HIT: bool>(
     for group in sign_groups(packet) {
         let mut sub = *packet;
         sub.valid &= group;
-        sub.t_min = Vec4::select(group, sub.t_min, Vec4::INFINITY);
-        sub.t_max = Vec4::select(group, sub.t_max, Vec4::NEG_INFINITY);
+        sub.t_min = V::select(group, sub.t_min, V::INFINITY);
+        sub.t_max = V::select(group, sub.t_max, V::NEG_INFINITY);
         let part = traverse_group(&sub, counters);
-        hit.t = Vec4::select(group, part.t, hit.t);
-        hit.u = Vec4::select(group, part.u, hit.u);
-        hit.v = Vec4::select(group, part.v, hit.v);
+        hit.t = V::select(group, part.t, hit.t);
+        hit.u = V::select(group, part.u, hit.u);
+        hit.v = V::select(group, part.v, hit.v);
         hit.found |= part.found & group;
-        for lane in 0..4 {
+        for lane in 0..V::LANES {
             if group.bitmask() >> lane & 1 != 0 {
                 hit.prim[lane] = part.prim[lane];
             }
@@ -113,7 +115,7 @@ fn split_by_signs<C: Counters, const ANY_HIT: bool>(
 
 /// Whether the valid lanes (at least one) share their direction signs on every axis.
 #[inline(always)]
-fn one_sign_group(packet: &RayPacket) -> bool {
+fn one_sign_group<V: SimdF32>(packet: &RayPacket<V>) -> bool {
     let valid = packet.valid.bitmask();
     valid != 0
         && (0..3).all(|a| {
@@ -123,21 +125,19 @@ fn one_sign_group(packet: &RayPacket) -> bool {
 }
 
 /// The valid lanes grouped by direction sign pattern (sign bits of x, y, z): one mask per
-/// distinct pattern, at most four.
-pub fn sign_groups(packet: &RayPacket) -> impl Iterator<Item = BVec4A> + use<> {
-    let signs: [u32; 4] =
-        std::array::from_fn(|lane| (0..3).fold(0, |s, a| s | u32::from(packet.d[a][lane].is_sign_negative()) << a));
+/// distinct pattern, at most eight (four in a 2x2 packet).
+pub fn sign_groups<V: SimdF32>(packet: &RayPacket<V>) -> impl Iterator<Item = V::Mask> + use<V> {
+    let signs =
+        V::array_from_fn(|lane| (0..3).fold(0u32, |s, a| s | u32::from(packet.d[a][lane].is_sign_negative()) << a));
     let valid = packet.valid.bitmask();
     let mut seen = 0u32;
-    (0..4).filter_map(move |lane| {
+    (0..V::LANES).filter_map(move |lane| {
         if valid >> lane & 1 == 0 || seen >> lane & 1 != 0 {
             return None;
         }
-        let group: [bool; 4] = std::array::from_fn(|l| valid >> l & 1 != 0 && signs[l] == signs[lane]);
-        for (l, &g) in group.iter().enumerate() {
-            seen |= u32::from(g) << l;
-        }
-        Some(BVec4A::from_array(group))
+        let group = V::Mask::from_fn(|l| valid >> l & 1 != 0 && signs[l] == signs[lane]);
+        seen |= group.bitmask();
+        Some(group)
     })
 }
 
@@ -149,37 +149,36 @@ struct SameSign(usize);
 
 impl ChildOrder for SameSign {
     #[inline(always)]
-    fn step(&self, rays: &RayPacket, node: KdNode, near: Vec4, far: Vec4) -> Step {
+    fn step<V: SimdF32>(&self, rays: &RayPacket<V>, node: KdNode, near: V, far: V) -> Step<V> {
         let axis = node.axis() & 3;
-        let d = (Vec4::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
+        let d = (V::splat(node.split()) - rays.o[axis]) * rays.inv[axis];
         let in_plane = d.cmpne(d);
         let upper = (self.0 >> axis) & 1;
         let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
-        let front_far = Vec4::select(in_plane, far, far.min(widen_up(d)));
-        let back_near = Vec4::select(in_plane, near, near.max(widen_down(d)));
+        let front_far = V::select(in_plane, far, far.min(widen_up(d)));
+        let back_near = V::select(in_plane, near, near.max(widen_down(d)));
         Step::Split { front, back, front_far, back_near }
     }
 }
 
 /// Traversal of a packet whose valid lanes share direction signs.
 #[inline(always)]
-fn traverse<T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
+fn traverse<V: SimdF32, T: TriangleTest + PacketTest<V>, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     records: &[T],
-    rays: &RayPacket,
-    from: Option<(usize, (Vec4, Vec4))>,
+    rays: &RayPacket<V>,
+    from: Option<(usize, (V, V))>,
     counters: &mut C,
-) -> PacketHit {
-    let first = (rays.valid.bitmask().trailing_zeros() as usize).min(3);
+) -> PacketHit<V> {
+    let first = (rays.valid.bitmask().trailing_zeros() as usize).min(V::LANES - 1);
     let upper_first = (0..3).fold(0usize, |m, a| m | usize::from(rays.d[a][first].is_sign_negative()) << a);
     let order = SameSign(upper_first);
     match from {
-        None => omni::traverse::<_, _, C, ANY_HIT>(tree, records, rays, &order, counters),
+        None => omni::traverse::<V, _, _, C, ANY_HIT>(tree, records, rays, &order, counters),
         Some((node, (near, far))) => {
             // The lanes outside this sign group are empty intervals.
-            let (near, far) =
-                (Vec4::select(rays.valid, near, Vec4::INFINITY), Vec4::select(rays.valid, far, Vec4::NEG_INFINITY));
-            omni::traverse_from::<_, _, C, ANY_HIT>(tree, records, rays, &order, (node, (near, far)), counters)
+            let (near, far) = (V::select(rays.valid, near, V::INFINITY), V::select(rays.valid, far, V::NEG_INFINITY));
+            omni::traverse_from::<V, _, _, C, ANY_HIT>(tree, records, rays, &order, (node, (near, far)), counters)
         }
     }
 }
@@ -187,7 +186,9 @@ fn traverse<T: TriangleTest + PacketTest, C: Counters, const ANY_HIT: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use crate::simd::PortableF32;
+    use crate::test_support::{self, Rng, check_against_single_rays, packet_hit_bits};
+    use glam::Vec4;
     use kdtree::counters::NoCounters;
     use kdtree::{BuildConfig, Ray};
 
@@ -219,6 +220,72 @@ mod tests {
             let hits = intersect(&tree, &RayPacket::new(&rays), &mut NoCounters).hits();
             for (lane, ray) in rays.iter().enumerate() {
                 assert_eq!(hits[lane], tree.intersect(ray), "{intersector:?} lane {lane}");
+            }
+        }
+    }
+
+    /// `rays` (any origins) as one same-sign packet of `V`'s width: both queries, and the
+    /// any-hit query from the root's subtree (`occluded_in`), checked against single rays.
+    /// Returns the number of rays that hit something and of sign groups.
+    fn check_samesign<V: SimdF32>(tree: &KdTree, rays: &[Ray], what: &str) -> (usize, usize) {
+        let packet = RayPacket::<V>::from_rays(rays);
+        let closest = intersect(tree, &packet, &mut NoCounters);
+        let any = occluded(tree, &packet, &mut NoCounters);
+        let hits = check_against_single_rays(tree, rays, &closest, &any, what);
+        let from_root = occluded_in(tree, &packet, (0, omni::root_interval(tree, &packet)), &mut NoCounters);
+        assert_eq!(from_root.found.bitmask(), any.found.bitmask(), "{what}: occluded_in");
+        (hits, sign_groups(&packet).count())
+    }
+
+    /// The same-sign walk at 4 (glam), 8 and 16 lanes (the portable lane type), its packets
+    /// split by sign pattern: every lane's closest and any hit are the single ray's, bit for
+    /// bit, for both intersectors, on every hard case (rays with their own origins, some
+    /// starting behind them), and every scene and case has rays that hit.
+    #[test]
+    fn same_sign_packets_of_every_width_match_single_rays() {
+        let mut rng = Rng(0x000b_ead5);
+        let (mut one_group, mut split) = (0, 0);
+        for scene in test_support::hard_scenes() {
+            let mut hits = [0usize; 6];
+            for (t, tree) in scene.trees.iter().enumerate() {
+                for round in 0..60 {
+                    let kind = round % 6;
+                    let what = format!("{} tree {t} round {round} kind {kind}", scene.name);
+                    hits[kind] += check_samesign::<Vec4>(tree, &scene.rays(&mut rng, 4, kind, false), &what).0;
+                    for (h, groups) in [
+                        check_samesign::<PortableF32<8>>(tree, &scene.rays(&mut rng, 8, kind, false), &what),
+                        check_samesign::<PortableF32<16>>(tree, &scene.rays(&mut rng, 16, kind, false), &what),
+                    ] {
+                        hits[kind] += h;
+                        if groups == 1 { one_group += 1 } else { split += 1 }
+                    }
+                }
+            }
+            assert!(hits.iter().all(|&h| h > 20), "{}: rays that hit, by case: {hits:?}", scene.name);
+        }
+        assert!(one_group > 20 && split > 20, "one sign group {one_group}, split {split}");
+    }
+
+    /// The portable lane type at 4 lanes gives the glam same-sign walk's answers lane for
+    /// lane, bit for bit, and the same sign groups.
+    #[test]
+    fn portable_four_lanes_are_the_glam_walk_bit_for_bit() {
+        let mut rng = Rng(0x5eed_cafe);
+        for scene in test_support::hard_scenes() {
+            for tree in &scene.trees {
+                for round in 0..30 {
+                    let rays = scene.rays(&mut rng, 4, round % 6, false);
+                    let (glam, portable) =
+                        (RayPacket::<Vec4>::from_rays(&rays), RayPacket::<PortableF32<4>>::from_rays(&rays));
+                    let what = format!("{} round {round}", scene.name);
+                    let glam_groups: Vec<u32> = sign_groups(&glam).map(|g| g.bitmask()).collect();
+                    let portable_groups: Vec<u32> = sign_groups(&portable).map(|g| g.bitmask()).collect();
+                    assert_eq!(glam_groups, portable_groups, "{what}");
+                    let (g, p) = (intersect(tree, &glam, &mut NoCounters), intersect(tree, &portable, &mut NoCounters));
+                    assert_eq!(packet_hit_bits(&g), packet_hit_bits(&p), "{what}");
+                    let (g, p) = (occluded(tree, &glam, &mut NoCounters), occluded(tree, &portable, &mut NoCounters));
+                    assert_eq!(packet_hit_bits(&g), packet_hit_bits(&p), "{what} any hit");
+                }
             }
         }
     }

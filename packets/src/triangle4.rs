@@ -1,4 +1,6 @@
-//! The 4-ray x 1-triangle tests: both intersectors of `kdtree`, four rays per instruction.
+//! The packet x 1-triangle tests: both intersectors of `kdtree`, one packet's rays per
+//! instruction (four with the default `Vec4` lanes; the width is the lane type's,
+//! [`crate::simd`]).
 //!
 //! Each lane computes exactly what the single-ray test computes, with the same operations in
 //! the same order (Rust never fuses a multiply and an add on its own), so a packet lane and
@@ -7,68 +9,73 @@
 //! wins in both.
 //!
 //! - Wald's test (thesis 4.2) projects along the triangle's own axis `k`, the same for all
-//!   four rays: a straight SIMD translation.
+//!   rays of the packet: a straight SIMD translation.
 //! - The watertight test shears along each *ray's* dominant axis. When the packet's valid
 //!   lanes share their shear axes (almost always for coherent rays) the SIMD path runs;
 //!   otherwise, and for lanes whose edge functions hit an exact zero (the double-precision
 //!   fallback), the lane runs the scalar test.
+//!
+//! The methods keep their 4-wide names (`prepare4`, `intersect4`: the thesis's 2x2 packet)
+//! at every width.
 
-use glam::{BVec4A, Vec4};
+use glam::Vec4;
 use kdtree::triangle::{ShearedRay, TriangleTest, WaldTriangle, WatertightTriangle};
 
 use crate::packet::{PacketHit, RayPacket};
+use crate::simd::{SimdF32, SimdMask};
 
-/// A ray-triangle test that also takes four rays at once.
-pub trait PacketTest: TriangleTest {
+/// A ray-triangle test that also takes a packet of rays at once: `V::LANES` rays, four
+/// (`Vec4`) unless another lane type is named.
+pub trait PacketTest<V: SimdF32 = Vec4>: TriangleTest {
     /// What the test precomputes once per packet.
     type PacketData: Copy;
     /// The per-packet precomputation.
-    fn prepare4(rays: &RayPacket) -> Self::PacketData;
+    fn prepare4(rays: &RayPacket<V>) -> Self::PacketData;
     /// The precomputation of packet `i` of a tile, looked up in the per-trace table
     /// `sheared` that [`TileTracer::trace`](crate::TileTracer::trace) fills for watertight
     /// trees (not remade at every leaf the packet meets).
-    fn tile_data(sheared: &[ShearedPacket], i: usize) -> Self::PacketData;
+    fn tile_data(sheared: &[ShearedPacket<V>], i: usize) -> Self::PacketData;
     /// Tests the lanes of `active`; each lane that hits at `t` in `[t_min, hit.t]` records the
     /// hit as triangle `prim`. Returns the lanes that hit.
     fn intersect4(
         &self,
-        rays: &RayPacket,
+        rays: &RayPacket<V>,
         data: &Self::PacketData,
-        active: BVec4A,
-        hit: &mut PacketHit,
+        active: V::Mask,
+        hit: &mut PacketHit<V>,
         prim: u32,
-    ) -> BVec4A;
+    ) -> V::Mask;
 }
 
-impl PacketTest for WaldTriangle {
+impl<V: SimdF32> PacketTest<V> for WaldTriangle {
     type PacketData = ();
 
     #[inline(always)]
-    fn prepare4(_rays: &RayPacket) {}
+    fn prepare4(_rays: &RayPacket<V>) {}
 
     #[inline(always)]
-    fn tile_data(_sheared: &[ShearedPacket], _i: usize) {}
+    fn tile_data(_sheared: &[ShearedPacket<V>], _i: usize) {}
 
     #[inline(always)]
-    fn intersect4(&self, r: &RayPacket, _: &(), active: BVec4A, hit: &mut PacketHit, prim: u32) -> BVec4A {
+    fn intersect4(&self, r: &RayPacket<V>, _: &(), active: V::Mask, hit: &mut PacketHit<V>, prim: u32) -> V::Mask {
         let (k, u, v) = self.axes();
         let (ok, ou, ov) = (r.o[k], r.o[u], r.o[v]);
         let (dk, du, dv) = (r.d[k], r.d[u], r.d[v]);
-        let (n_u, n_v) = (Vec4::splat(self.n_u), Vec4::splat(self.n_v));
+        let (n_u, n_v) = (V::splat(self.n_u), V::splat(self.n_v));
         let denom = dk + n_u * du + n_v * dv;
         // As the scalar test: vertex `a` relative to the origin first.
-        let (ak, au, av) = (Vec4::splat(self.a_k) - ok, Vec4::splat(self.a_u) - ou, Vec4::splat(self.a_v) - ov);
+        let (ak, au, av) = (V::splat(self.a_k) - ok, V::splat(self.a_u) - ou, V::splat(self.a_v) - ov);
         let t = (ak + n_u * au + n_v * av) / denom;
         // NaN fails every comparison, as in the scalar test.
-        let mut mask = active & t.cmpge(r.t_min) & t.cmple(hit.t) & t.cmplt(Vec4::INFINITY);
+        let mut mask = active & t.cmpge(r.t_min) & t.cmple(hit.t) & t.cmplt(V::INFINITY);
         if !mask.any() {
             return mask;
         }
         let hu = t * du - au;
         let hv = t * dv - av;
-        let beta = Vec4::splat(self.b_nu) * hu + Vec4::splat(self.b_nv) * hv;
-        let gamma = Vec4::splat(self.c_nu) * hu + Vec4::splat(self.c_nv) * hv;
-        mask &= beta.cmpge(Vec4::ZERO) & gamma.cmpge(Vec4::ZERO) & (beta + gamma).cmple(Vec4::ONE);
+        let beta = V::splat(self.b_nu) * hu + V::splat(self.b_nv) * hv;
+        let gamma = V::splat(self.c_nu) * hu + V::splat(self.c_nv) * hv;
+        mask &= beta.cmpge(V::ZERO) & gamma.cmpge(V::ZERO) & (beta + gamma).cmple(V::ONE);
         if mask.any() {
             hit.record(mask, t, beta, gamma, prim);
         }
@@ -79,54 +86,61 @@ impl PacketTest for WaldTriangle {
 /// The watertight test's per-packet shear: the lanes' shared axes (when `uniform`) and the
 /// per-lane shear factors, plus each lane's scalar shear for the fallback.
 #[derive(Clone, Copy, Debug)]
-pub struct ShearedPacket {
+pub struct ShearedPacket<V: SimdF32 = Vec4> {
     /// True when every valid lane has the same `(kx, ky, kz)`.
     pub uniform: bool,
     /// Shared axes `(kx, ky, kz)` (meaningful when `uniform`).
     pub axes: (usize, usize, usize),
     /// `d[kx] / d[kz]` per lane.
-    pub sx: Vec4,
+    pub sx: V,
     /// `d[ky] / d[kz]` per lane.
-    pub sy: Vec4,
+    pub sy: V,
     /// `1 / d[kz]` per lane.
-    pub sz: Vec4,
+    pub sz: V,
     /// Each lane's scalar shear.
-    pub lanes: [ShearedRay; 4],
+    pub lanes: V::Array<ShearedRay>,
 }
 
-impl PacketTest for WatertightTriangle {
-    type PacketData = ShearedPacket;
+impl<V: SimdF32> PacketTest<V> for WatertightTriangle {
+    type PacketData = ShearedPacket<V>;
 
     #[inline]
-    fn prepare4(rays: &RayPacket) -> ShearedPacket {
-        let lanes = [0, 1, 2, 3].map(|lane| WatertightTriangle::prepare(&rays.ray(lane)));
+    fn prepare4(rays: &RayPacket<V>) -> ShearedPacket<V> {
+        let lanes = V::array_from_fn(|lane| WatertightTriangle::prepare(&rays.ray(lane)));
         let valid = rays.valid.bitmask();
-        let first = (valid.trailing_zeros() as usize).min(3);
+        let first = (valid.trailing_zeros() as usize).min(V::LANES - 1);
         let key = |s: &ShearedRay| (s.kx, s.ky, s.kz);
-        let uniform = (0..4).all(|lane| valid >> lane & 1 == 0 || key(&lanes[lane]) == key(&lanes[first]));
+        let uniform = (0..V::LANES).all(|lane| valid >> lane & 1 == 0 || key(&lanes[lane]) == key(&lanes[first]));
         ShearedPacket {
             uniform,
             axes: key(&lanes[first]),
-            sx: Vec4::from_array(lanes.map(|s| s.sx)),
-            sy: Vec4::from_array(lanes.map(|s| s.sy)),
-            sz: Vec4::from_array(lanes.map(|s| s.sz)),
+            sx: V::from_fn(|lane| lanes[lane].sx),
+            sy: V::from_fn(|lane| lanes[lane].sy),
+            sz: V::from_fn(|lane| lanes[lane].sz),
             lanes,
         }
     }
 
     #[inline(always)]
-    fn tile_data(sheared: &[ShearedPacket], i: usize) -> ShearedPacket {
+    fn tile_data(sheared: &[ShearedPacket<V>], i: usize) -> ShearedPacket<V> {
         sheared[i]
     }
 
     #[inline(always)]
-    fn intersect4(&self, r: &RayPacket, s: &ShearedPacket, active: BVec4A, hit: &mut PacketHit, prim: u32) -> BVec4A {
+    fn intersect4(
+        &self,
+        r: &RayPacket<V>,
+        s: &ShearedPacket<V>,
+        active: V::Mask,
+        hit: &mut PacketHit<V>,
+        prim: u32,
+    ) -> V::Mask {
         if !s.uniform {
             return watertight_by_lane(self, r, s, active, hit, prim);
         }
         let (kx, ky, kz) = (s.axes.0 & 3, s.axes.1 & 3, s.axes.2 & 3);
         // Vertices relative to the origin, each coordinate as (vertex - origin) per lane.
-        let rel = |vertex: usize, axis: usize| Vec4::splat(self.v[vertex][axis]) - r.o[axis];
+        let rel = |vertex: usize, axis: usize| V::splat(self.v[vertex][axis]) - r.o[axis];
         let (a_z, b_z, c_z) = (rel(0, kz), rel(1, kz), rel(2, kz));
         let (ax, ay) = (rel(0, kx) - s.sx * a_z, rel(0, ky) - s.sy * a_z);
         let (bx, by) = (rel(1, kx) - s.sx * b_z, rel(1, ky) - s.sy * b_z);
@@ -134,7 +148,7 @@ impl PacketTest for WatertightTriangle {
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
-        let zero = Vec4::ZERO;
+        let zero = V::ZERO;
         // Lanes with an exact zero take the scalar test and its double-precision fallback.
         let exact_zero = active & (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero));
         let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
@@ -143,9 +157,9 @@ impl PacketTest for WatertightTriangle {
         let mut mask = active & !exact_zero & !(negative & positive) & det.cmpne(zero) & det.cmpeq(det);
         if mask.any() {
             let t_scaled = u * (s.sz * a_z) + v * (s.sz * b_z) + w * (s.sz * c_z);
-            let inv_det = Vec4::ONE / det;
+            let inv_det = V::ONE / det;
             let t = t_scaled * inv_det;
-            mask &= t.cmpge(r.t_min) & t.cmple(hit.t) & t.cmplt(Vec4::INFINITY);
+            mask &= t.cmpge(r.t_min) & t.cmple(hit.t) & t.cmplt(V::INFINITY);
             if mask.any() {
                 hit.record(mask, t, v * inv_det, w * inv_det, prim);
             }
@@ -159,41 +173,48 @@ impl PacketTest for WatertightTriangle {
 
 /// The scalar watertight test, lane by lane, for the lanes of `active`.
 #[cold]
-fn watertight_by_lane(
+fn watertight_by_lane<V: SimdF32>(
     tri: &WatertightTriangle,
-    r: &RayPacket,
-    s: &ShearedPacket,
-    active: BVec4A,
-    hit: &mut PacketHit,
+    r: &RayPacket<V>,
+    s: &ShearedPacket<V>,
+    active: V::Mask,
+    hit: &mut PacketHit<V>,
     prim: u32,
-) -> BVec4A {
+) -> V::Mask {
     let bits = active.bitmask();
-    let mut hits = [false; 4];
-    for lane in 0..4 {
+    let mut hits = V::array_from_fn(|_| false);
+    for lane in 0..V::LANES {
         if bits >> lane & 1 == 0 {
             continue;
         }
         let ray = r.ray(lane);
         if let Some((t, u, v)) = tri.intersect(&ray, &s.lanes[lane], hit.t[lane]) {
-            let mut mask = [false; 4];
+            let mut mask = V::array_from_fn(|_| false);
             mask[lane] = true;
-            let mask = BVec4A::from_array(mask);
-            hit.record(mask, Vec4::splat(t), Vec4::splat(u), Vec4::splat(v), prim);
+            let mask = V::Mask::from_fn(|l| mask[l]);
+            hit.record(mask, V::splat(t), V::splat(u), V::splat(v), prim);
             hits[lane] = true;
         }
     }
-    BVec4A::from_array(hits)
+    V::Mask::from_fn(|lane| hits[lane])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::PortableF32;
     use glam::Vec3;
     use kdtree::Ray;
     use proptest::prelude::*;
 
     fn check_lanes<T: PacketTest>(tri: &T, rays: &[Ray; 4]) {
-        let p = RayPacket::new(rays);
+        check_width::<Vec4, T>(tri, rays);
+    }
+
+    /// `rays` as one packet of `V`'s width (lanes past them invalid): each lane's answer is
+    /// the single-ray test's, bit for bit.
+    fn check_width<V: SimdF32, T: PacketTest<V>>(tri: &T, rays: &[Ray]) {
+        let p = RayPacket::<V>::from_rays(rays);
         let data = T::prepare4(&p);
         let mut hit = PacketHit::new(&p);
         let mask = tri.intersect4(&p, &data, p.valid, &mut hit, 9);
@@ -210,6 +231,7 @@ mod tests {
                 );
             }
         }
+        assert_eq!(mask.bitmask() >> rays.len(), 0, "invalid lanes never hit");
     }
 
     fn vec3() -> impl Strategy<Value = Vec3> {
@@ -228,6 +250,24 @@ mod tests {
             check_lanes(&WatertightTriangle::new(&tri), &rays);
         }
 
+        /// 8 and 16 random rays in one packet of the portable lane type (mixed shear axes,
+        /// so the watertight test's scalar lanes; and one shared direction, so its SIMD
+        /// path), and fewer rays than lanes: every lane equals the single-ray test.
+        #[test]
+        fn wide_lanes_equal_single_rays(a in vec3(), b in vec3(), c in vec3(), n in 1usize..=16,
+                                        rays in prop::array::uniform16((vec3(), vec3(), 0.0f32..1.0, 1.0f32..20.0))) {
+            let tri = [a, b, c];
+            let rays = rays.map(|(o, d, t0, t1)| Ray::new(o, if d == Vec3::ZERO { Vec3::X } else { d }, t0, t1));
+            let d = (a + b + c) / 3.0 - rays[0].origin;
+            let shared = rays.map(|r| Ray::new(r.origin, if d == Vec3::ZERO { Vec3::X } else { d }, r.t_min, r.t_max));
+            for rays in [&rays, &shared] {
+                check_width::<PortableF32<8>, _>(&WaldTriangle::new(&tri), &rays[..8]);
+                check_width::<PortableF32<8>, _>(&WatertightTriangle::new(&tri), &rays[..8]);
+                check_width::<PortableF32<16>, _>(&WaldTriangle::new(&tri), &rays[..n]);
+                check_width::<PortableF32<16>, _>(&WatertightTriangle::new(&tri), &rays[..n]);
+            }
+        }
+
         /// Rays aimed exactly at vertices and edge points from one origin: the watertight
         /// test's exact-zero fallback runs in the lanes that need it.
         #[test]
@@ -237,6 +277,10 @@ mod tests {
             let rays = targets.map(|p| Ray::new(o, if p == o { Vec3::Z } else { p - o }, 0.0, f32::INFINITY));
             check_lanes(&WaldTriangle::new(&tri), &rays);
             check_lanes(&WatertightTriangle::new(&tri), &rays);
+            let targets = [tri[0], tri[1], tri[2], tri[0].lerp(tri[1], s), tri[1].lerp(tri[2], s), tri[2].lerp(tri[0], s)];
+            let rays = targets.map(|p| Ray::new(o, if p == o { Vec3::Z } else { p - o }, 0.0, f32::INFINITY));
+            check_width::<PortableF32<8>, _>(&WaldTriangle::new(&tri), &rays);
+            check_width::<PortableF32<8>, _>(&WatertightTriangle::new(&tri), &rays);
         }
     }
 
