@@ -41,6 +41,16 @@ pub trait FromOptions: Sized {
     fn from_options(options: &Options) -> Result<Self, Error>;
 }
 
+/// A kernel that reads no option: made by its `Default` (the [`FromOptions`] of every such
+/// kernel).
+pub trait NoOptions: Default {}
+
+impl<K: NoOptions> FromOptions for K {
+    fn from_options(_: &Options) -> Result<Self, Error> {
+        Ok(K::default())
+    }
+}
+
 /// The primary-ray kernel of a method: a tile of camera rays.
 pub trait Primary: FromOptions + Sync {
     /// Per-thread scratch (a tile's packets), made once per rayon task.

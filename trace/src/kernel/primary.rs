@@ -17,7 +17,7 @@ use kdtree::{Counters, Hit, KdTree};
 use packets::TileTracer;
 use scenes::{Camera, Tile};
 
-use super::{FromOptions, Primary};
+use super::{FromOptions, NoOptions, Primary};
 use crate::error::Error;
 use crate::method::{Method, SingleRays, TileCounters};
 use crate::registry::Options;
@@ -26,11 +26,7 @@ use crate::registry::Options;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Single;
 
-impl FromOptions for Single {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Single)
-    }
-}
+impl NoOptions for Single {}
 
 impl Primary for Single {
     type Scratch = ();

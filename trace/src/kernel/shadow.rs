@@ -19,7 +19,7 @@ use kdtree::{KdTree, Ray};
 use packets::lane_frusta::FRUSTUM_RAYS;
 use packets::{LaneFrusta, LaneWidth, ShadowFrustum, samesign};
 
-use super::{FromOptions, HardShadow};
+use super::{FromOptions, HardShadow, NoOptions};
 use crate::error::Error;
 use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
 use crate::registry::Options;
@@ -29,11 +29,7 @@ use crate::shadow_frusta::{self, Grouping, ShadowScratch};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Single;
 
-impl FromOptions for Single {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Single)
-    }
-}
+impl NoOptions for Single {}
 
 impl HardShadow for Single {
     type Scratch = ();
@@ -62,11 +58,7 @@ impl HardShadow for Single {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Packets;
 
-impl FromOptions for Packets {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Packets)
-    }
-}
+impl NoOptions for Packets {}
 
 impl Grouping for Packets {
     type Scratch = ();

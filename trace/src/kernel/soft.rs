@@ -20,7 +20,7 @@ use kdtree::{KdTree, Ray};
 use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, omni, samesign};
 
 use super::shadow;
-use super::{FromOptions, SoftShadow};
+use super::{FromOptions, NoOptions, SoftShadow};
 use crate::error::Error;
 use crate::method::{Method, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points, soft_points};
 use crate::registry::Options;
@@ -30,11 +30,7 @@ use crate::shadow_frusta::{self, ShadowScratch};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Single;
 
-impl FromOptions for Single {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Single)
-    }
-}
+impl NoOptions for Single {}
 
 impl SoftShadow for Single {
     type Scratch = ();
@@ -78,11 +74,7 @@ macro_rules! per_point {
         #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
         pub struct $kernel;
 
-        impl FromOptions for $kernel {
-            fn from_options(_: &Options) -> Result<Self, Error> {
-                Ok($kernel)
-            }
-        }
+        impl NoOptions for $kernel {}
 
         impl SoftShadow for $kernel {
             type Scratch = Option<SoftShadowTracer>;
@@ -155,11 +147,7 @@ fn four_packets<C: TileCounters>(tree: &KdTree, rays: &[Ray; SAMPLES], counters:
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct OmniPoints;
 
-impl FromOptions for OmniPoints {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(OmniPoints)
-    }
-}
+impl NoOptions for OmniPoints {}
 
 impl SoftShadow for OmniPoints {
     type Scratch = ();
@@ -212,11 +200,7 @@ impl SoftShadow for OmniPoints {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StratumPackets;
 
-impl FromOptions for StratumPackets {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(StratumPackets)
-    }
-}
+impl NoOptions for StratumPackets {}
 
 impl SoftShadow for StratumPackets {
     type Scratch = ShadowScratch<()>;

@@ -16,10 +16,8 @@ use kdtree::{Hit, KdTree, Ray};
 use packets::{OmniPacket, RayPacket, TileTracer, omni, samesign};
 
 use super::primary::TileKernel;
-use super::{FromOptions, Stream};
-use crate::error::Error;
+use super::{NoOptions, Stream};
 use crate::method::{Method, SingleRays, TileCounters};
-use crate::registry::Options;
 
 /// Rays per frustum of a ray stream: up to 16 packets.
 pub const STREAM_FRUSTUM_RAYS: usize = 64;
@@ -28,11 +26,7 @@ pub const STREAM_FRUSTUM_RAYS: usize = 64;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Single;
 
-impl FromOptions for Single {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Single)
-    }
-}
+impl NoOptions for Single {}
 
 impl Stream for Single {
     type Scratch = ();
@@ -92,11 +86,7 @@ fn any_by_closest<C: TileCounters>(
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Packets;
 
-impl FromOptions for Packets {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Packets)
-    }
-}
+impl NoOptions for Packets {}
 
 impl Stream for Packets {
     type Scratch = ();
@@ -131,11 +121,7 @@ impl Stream for Packets {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SameSign;
 
-impl FromOptions for SameSign {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(SameSign)
-    }
-}
+impl NoOptions for SameSign {}
 
 impl Stream for SameSign {
     type Scratch = ();
@@ -173,11 +159,13 @@ impl<K> Clone for Runs<K> {
 
 impl<K> Copy for Runs<K> {}
 
-impl<K> FromOptions for Runs<K> {
-    fn from_options(_: &Options) -> Result<Self, Error> {
-        Ok(Runs(PhantomData))
+impl<K> Default for Runs<K> {
+    fn default() -> Self {
+        Runs(PhantomData)
     }
 }
+
+impl<K> NoOptions for Runs<K> {}
 
 /// Scratch of [`Runs`]: the tracer (made on first use) and a run's packets.
 #[derive(Debug, Default)]
