@@ -17,6 +17,15 @@
 //!   error the filter adds even to exact visibilities (penumbrae narrower than the filter are
 //!   blurred), which no choice of samples removes.
 //!
+//! Every frame runs on the frame driver of `rttest render`: its primary pass
+//! (`trace::frame::primary_pass` with single rays, `mono`) and its tile loop
+//! (`trace::frame::for_tiles`) for the visibility passes. The methods are named experiment
+//! variants over the kernels the registry composes: single rays (`KdTree::occluded`, the
+//! `kd-single` kernel), the same-sign segment packets of `kd-packets` /
+//! `kd-stratum-packets` (`packets::samesign::occluded_segments`), the lane frusta of
+//! `kd-lane-frusta` (`packets::LaneFrusta`) and the edge-width kernels; what they add is the
+//! area light's samples and their filters, which no registry pass has.
+//!
 //! Shading is the light's centre times the visible fraction (both papers). The reference is
 //! `--ref-samples` (1024) stratified samples per pixel, cached on disk (see
 //! [`reference_cache_path`]); for the `analytic` scene (a sphere over a plane under a
@@ -41,7 +50,8 @@ use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
-use trace::method::primary_ray;
+use trace::frame::{for_tiles, primary_pass};
+use trace::method::{SingleRays, primary_ray};
 use trace::progress::Progress;
 use trace::shadow_frusta::morton_order;
 use trace::{TileLayout, shade};
@@ -309,24 +319,20 @@ impl<'a> ShadowSetup<'a> {
         let start = Instant::now();
         let n = self.layout.pixel_count();
         let mut hits = vec![None; n];
-        let camera = &self.camera;
-        self.layout.tiles().par_iter().zip(self.layout.chunks_mut(&mut hits)).for_each(|(tile, out)| {
-            for ((x, y), slot) in tile.pixels().zip(out) {
-                *slot = self.tree.intersect(&primary_ray(camera, x, y));
-            }
-        });
+        // The frame driver's primary pass with single rays, as `rttest render --method mono`.
+        primary_pass::<_, NoCounters>(&SingleRays(self.tree), &self.layout, &self.camera, &mut hits);
         let mut vis = vec![0.0f32; n];
         let shadow_rays = if method == ShadowMethod::Adaptive {
             self.adaptive(&hits, &mut vis)
         } else {
             let sets = InterleavedSets::new(7);
             let chunks: Vec<_> = self.layout.chunks(&hits).into_iter().zip(self.layout.chunks_mut(&mut vis)).collect();
-            self.layout
-                .tiles()
-                .par_iter()
-                .zip(chunks)
-                .map(|(tile, (hits, out))| self.visibility_tile(method, tile, hits, out, &sets))
-                .sum()
+            for_tiles(
+                &self.layout,
+                chunks,
+                || (),
+                |_, tile, (hits, out)| self.visibility_tile(method, tile, hits, out, &sets),
+            )
         };
         let hits = self.layout.to_row_major(&hits);
         let mut visibility = self.layout.to_row_major(&vis);
@@ -427,7 +433,6 @@ impl<'a> ShadowSetup<'a> {
     /// traced: 4 per hit and 12 per refined pixel.
     fn adaptive(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         const NO_HIT: u8 = u8::MAX;
-        let tiles = self.layout.tiles();
         // The shading point and sample generator of each pixel of `tile` that `keep` names.
         let points = |tile: &scenes::Tile, hits: &[Option<Hit>], keep: &dyn Fn(usize) -> bool| {
             tile.pixels()
@@ -444,8 +449,12 @@ impl<'a> ShadowSetup<'a> {
             p.shadow_segment(self.light.sample(p.point, adaptive::sample_position(*rng, k)))
         };
         let mut probes = vec![NO_HIT; hits.len()];
-        tiles.par_iter().zip(self.layout.chunks(hits)).zip(self.layout.chunks_mut(&mut probes)).for_each(
-            |((tile, hits), probes)| {
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(&mut probes)).collect();
+        for_tiles(
+            &self.layout,
+            chunks,
+            || (),
+            |_, tile, (hits, probes)| {
                 let points = points(tile, hits, &|_| true);
                 let order = morton_order(tile.width(), tile.height());
                 let mut visible = vec![0u32; points.len()];
@@ -461,11 +470,12 @@ impl<'a> ShadowSetup<'a> {
         let (w, h) = (self.camera.width, self.camera.height);
         let grid = self.layout.to_row_major(&probes);
         let at = |x: u32, y: u32| grid[(y * w + x) as usize];
-        let refined: u64 = tiles
-            .par_iter()
-            .zip(self.layout.chunks(hits))
-            .zip(self.layout.chunks_mut(out))
-            .map(|((tile, hits), out)| {
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(out)).collect();
+        let refined: u64 = for_tiles(
+            &self.layout,
+            chunks,
+            || (),
+            |_, tile, (hits, out)| {
                 let refine: Vec<bool> = tile
                     .pixels()
                     .map(|(x, y)| {
@@ -486,8 +496,8 @@ impl<'a> ShadowSetup<'a> {
                     *slot = if own == NO_HIT { 0.0 } else { adaptive::fraction(own, refine.then_some(rest as u8)) };
                 }
                 refine.iter().filter(|&&r| r).count() as u64
-            })
-            .sum();
+            },
+        );
         let probed = hits.iter().filter(|h| h.is_some()).count() as u64;
         adaptive::PROBES.len() as u64 * probed + adaptive::REST.len() as u64 * refined
     }

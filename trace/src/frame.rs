@@ -108,8 +108,10 @@ impl TileLayout {
     }
 }
 
-/// What a tile's pass returns, summed over tiles.
-trait Sum: Default + Send {
+/// What a tile's pass returns, summed over tiles by [`for_tiles`] (hits, ray counts,
+/// soft-shadow statistics).
+pub trait Sum: Default + Send {
+    /// The sum of two tiles' (or groups of tiles') results.
     fn sum(self, other: Self) -> Self;
 }
 
@@ -135,34 +137,55 @@ impl Sum for SoftStats {
     }
 }
 
-/// Runs `pass` on every tile of `layout` with its chunk of `chunks`, in parallel over the
-/// current rayon pool with one scratch per rayon task, and sums what the tiles return and
-/// count.
+/// The frame driver's tile loop: runs `pass` on every tile of `layout` with its chunk of
+/// `chunks`, in parallel over the current rayon pool with one `scratch()` per rayon task, and
+/// sums what the tiles return. Every pass of a frame runs on it, and so do the experiments'
+/// own per-tile passes (`experiments::shadows`).
+pub fn for_tiles<S, I: Send, R: Sum>(
+    layout: &TileLayout,
+    chunks: Vec<I>,
+    scratch: impl Fn() -> S + Sync + Send,
+    pass: impl Fn(&mut S, &Tile, I) -> R + Sync + Send,
+) -> R {
+    layout
+        .tiles()
+        .par_iter()
+        .zip(chunks)
+        .map_init(scratch, |scratch, (tile, chunk)| pass(scratch, tile, chunk))
+        .reduce(R::default, R::sum)
+}
+
+/// A tile's result with its counts, summed together.
+#[derive(Default)]
+struct Counted<R, C>(R, C);
+
+impl<R: Sum, C: TileCounters> Sum for Counted<R, C> {
+    fn sum(self, other: Self) -> Self {
+        let mut counts = self.1;
+        counts += other.1;
+        Counted(self.0.sum(other.0), counts)
+    }
+}
+
+/// [`for_tiles`] with `method`'s scratch and a fresh `C` per tile: sums what the tiles return
+/// and count.
 fn over_tiles<M: Method, C: TileCounters, I: Send, R: Sum>(
     method: &M,
     layout: &TileLayout,
     chunks: Vec<I>,
     pass: impl Fn(&mut M::Scratch, &Tile, I, &mut C) -> R + Sync + Send,
 ) -> (R, C) {
-    layout
-        .tiles()
-        .par_iter()
-        .zip(chunks)
-        .map_init(
-            || method.scratch(),
-            |scratch, (tile, chunk)| {
-                let mut counts = C::default();
-                let out = pass(scratch, tile, chunk, &mut counts);
-                (out, counts)
-            },
-        )
-        .reduce(
-            || (R::default(), C::default()),
-            |(a, mut ca), (b, cb)| {
-                ca += cb;
-                (a.sum(b), ca)
-            },
-        )
+    let Counted(out, counts) = for_tiles(
+        layout,
+        chunks,
+        || method.scratch(),
+        |scratch, tile, chunk| {
+            let mut counts = C::default();
+            let out = pass(scratch, tile, chunk, &mut counts);
+            Counted(out, counts)
+        },
+    );
+    (out, counts)
 }
 
 /// Pass 1: the closest hit of every pixel's primary ray into `out` (tile order of `layout`).
