@@ -1,15 +1,16 @@
 //! The per-tile entry points of the packet kernels (thesis 4.1.2-4.1.5): each traces a loaded
 //! tile one way. They are the one place that turns a kernel into a traversal; the traversals
 //! live in [`crate::omni`], [`crate::samesign`] and [`crate::frustum`]. Which one a method
-//! runs is chosen once, by the type of its kernel (crate `trace`, `kernel::primary`).
+//! runs is chosen once, by the type of its kernel (crate `trace`, `kernel::primary`), and so
+//! is the tree's triangle test: the `_with::<I>` forms take it as a type ([`TreeTest`]); the
+//! plain names match `tree.intersector()` once and call them.
 
 use kdtree::{Counters, Intersector, KdTree, TreeTest, WaldTest, WatertightTest};
-
-use crate::triangle4::PacketTest;
 
 use crate::bound;
 use crate::frustum::{self, Bounds};
 use crate::tile::TileTracer;
+use crate::triangle4::PacketTest;
 use crate::{omni, samesign};
 
 impl TileTracer {
