@@ -13,8 +13,8 @@
 //! the rays exactly.
 
 use glam::{DVec3, Vec3};
-use kdtree::{Counters, KdTree, Ray};
-use packets::{Frusta, OmniPacket, RayPacket, TileTracer};
+use kdtree::{Counters, Intersector, KdTree, Ray, WaldTest, WatertightTest};
+use packets::{Frusta, OmniPacket, PacketTreeTest, RayPacket, TileTracer};
 use scenes::SphereLight;
 
 use crate::cone::Cone;
@@ -183,10 +183,26 @@ impl SoftShadowTracer {
         method: ShadowMethod,
         counters: &mut C,
     ) -> u16 {
+        match tree.intersector() {
+            Intersector::Wald => self.occluded_with::<WaldTest, C>(tree, rays, cone, method, counters),
+            Intersector::Watertight => self.occluded_with::<WatertightTest, C>(tree, rays, cone, method, counters),
+        }
+    }
+
+    /// [`SoftShadowTracer::occluded`] with the tree's triangle test `I`, chosen once by the
+    /// caller (see [`kdtree::TreeTest`]).
+    pub fn occluded_with<I: PacketTreeTest, C: Counters>(
+        &mut self,
+        tree: &KdTree,
+        rays: &[Ray; SAMPLES],
+        cone: &Cone,
+        method: ShadowMethod,
+        counters: &mut C,
+    ) -> u16 {
         if method == ShadowMethod::Single {
             let mut mask = 0u16;
             for (i, ray) in rays.iter().enumerate() {
-                mask |= u16::from(tree.occluded_counted(ray, counters)) << i;
+                mask |= u16::from(tree.occluded_with_counted::<I, C>(ray, counters)) << i;
             }
             return mask;
         }
@@ -195,17 +211,17 @@ impl SoftShadowTracer {
             match OmniPacket::new(RayPacket::new(four)) {
                 Some(p) => self.packets.push(p),
                 // Rays that do not share an origin: one by one.
-                None => return self.occluded(tree, rays, cone, ShadowMethod::Single, counters),
+                None => return self.occluded_with::<I, C>(tree, rays, cone, ShadowMethod::Single, counters),
             }
         }
         if self.tracer.load_packets(&self.packets).is_none() {
             // The packets' origins differ.
-            return self.occluded(tree, rays, cone, ShadowMethod::Single, counters);
+            return self.occluded_with::<I, C>(tree, rays, cone, ShadowMethod::Single, counters);
         }
         match method {
-            ShadowMethod::Pyramid => self.tracer.trace_frustum(tree, counters),
+            ShadowMethod::Pyramid => self.tracer.trace_frustum_with::<I, C>(tree, counters),
             _ => {
-                let intervals = self.tracer.prepare_intervals(tree);
+                let intervals = self.tracer.prepare_intervals_with::<I>(tree);
                 let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
                 let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
                 let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -215,7 +231,7 @@ impl SoftShadowTracer {
                 }
                 let pyramid = packets::FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near, far, hit_scale: 1.0 };
                 let bound = cone_bound(cone, &pyramid, (lo * (1.0 - 1e-12), hi * (1.0 + 1e-12)));
-                self.tracer.trace_frusta(tree, &Frusta::One(bound), counters);
+                self.tracer.trace_frusta_with::<I, C>(tree, &Frusta::One(bound), counters);
             }
         }
         let mut mask = 0u16;

@@ -27,9 +27,9 @@
 //! [`crate::cone::MAX_HALF_ANGLE`] holds falls back to the pyramid.
 
 use glam::{DVec3, Vec3};
-use kdtree::{Counters, KdTree};
+use kdtree::{Counters, Intersector, KdTree, WaldTest, WatertightTest};
 use packets::bound::T_UNDERFLOW;
-use packets::{Frusta, FrustumBound, OmniPacket, TileTracer};
+use packets::{Frusta, FrustumBound, OmniPacket, PacketTreeTest, TileTracer};
 use scenes::{Camera, Tile};
 
 use crate::cone::{Cone, ConeError, angle_between};
@@ -169,17 +169,34 @@ fn interval_bound((near, far): (f32, f32)) -> FrustumBound {
 /// of single rays. Invalid lanes (rays with NaN or infinite components, see
 /// `packets::RayPacket::new`) get no hit and do not shape the cone.
 pub fn trace_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
-    let intervals = tracer.prepare_intervals(tree);
+    match tree.intersector() {
+        Intersector::Wald => trace_cone_with::<WaldTest, C>(tree, tracer, counters),
+        Intersector::Watertight => trace_cone_with::<WatertightTest, C>(tree, tracer, counters),
+    }
+}
+
+/// [`trace_cone`] with the tree's triangle test `I`, chosen once by the caller (see
+/// [`kdtree::TreeTest`]).
+pub fn trace_cone_with<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    let intervals = tracer.prepare_intervals_with::<I>(tree);
     let frusta = tile_cone_frusta(tree, tracer, &intervals);
-    tracer.trace_frusta(tree, &frusta, counters);
+    tracer.trace_frusta_with::<I, C>(tree, &frusta, counters);
 }
 
 /// [`trace_cone`] with the tile's four quadrant cones in the lanes of a `Vec4` (MFT cones,
 /// 4.1.9).
 pub fn trace_mft_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
-    let intervals = tracer.prepare_intervals(tree);
+    match tree.intersector() {
+        Intersector::Wald => trace_mft_cone_with::<WaldTest, C>(tree, tracer, counters),
+        Intersector::Watertight => trace_mft_cone_with::<WatertightTest, C>(tree, tracer, counters),
+    }
+}
+
+/// [`trace_mft_cone`] with the tree's triangle test `I` (see [`kdtree::TreeTest`]).
+pub fn trace_mft_cone_with<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    let intervals = tracer.prepare_intervals_with::<I>(tree);
     let frusta = quadrant_cone_frusta(tree, tracer, &intervals);
-    tracer.trace_frusta(tree, &frusta, counters);
+    tracer.trace_frusta_with::<I, C>(tree, &frusta, counters);
 }
 
 #[cfg(test)]

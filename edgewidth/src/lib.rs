@@ -33,4 +33,4 @@ pub mod traverse;
 pub use occlusion::{occlusion_factor, width_from_light};
 pub use pairing::{LeakRemedies, Pairing};
 pub use sampling::AreaLight;
-pub use traverse::{EdgeScratch, edge_width};
+pub use traverse::{EdgeScratch, edge_width, edge_width_with};

@@ -17,13 +17,13 @@
 use glam::{BVec4A, Vec3, Vec4};
 use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
-use kdtree::{Counters, Intersector, KdNode, KdTree, NoCounters};
+use kdtree::{Counters, Intersector, KdNode, KdTree, NoCounters, TreeTest, WaldTest, WatertightTest};
 use packets::packet::{widen_down, widen_up};
 use packets::triangle4::PacketTest;
 use packets::{PacketHit, RayPacket};
 
 use crate::pairing::{LeakRemedies, Pairing};
-use crate::traverse::{EdgeScratch, edge_width, slack};
+use crate::traverse::{EdgeScratch, edge_width_with, slack};
 
 /// Per-thread scratch of [`edge_width4`]: one pending list per lane.
 #[derive(Clone, Debug, Default)]
@@ -42,9 +42,21 @@ pub fn edge_width4(
     scratch: &mut EdgeScratch4,
 ) -> [f32; 4] {
     match tree.intersector() {
-        Intersector::Wald => kernel4(tree, tree.wald_records(), rays, r, remedies, scratch),
-        Intersector::Watertight => kernel4(tree, tree.watertight_records(), rays, r, remedies, scratch),
+        Intersector::Wald => edge_width4_with::<WaldTest>(tree, rays, r, remedies, scratch),
+        Intersector::Watertight => edge_width4_with::<WatertightTest>(tree, rays, r, remedies, scratch),
     }
+}
+
+/// [`edge_width4`] with the tree's triangle test `I`, chosen once by the caller (see
+/// [`TreeTest`]).
+pub fn edge_width4_with<I: TreeTest<Record: PacketTest>>(
+    tree: &KdTree,
+    rays: &RayPacket,
+    r: [f32; 4],
+    remedies: &LeakRemedies,
+    scratch: &mut EdgeScratch4,
+) -> [f32; 4] {
+    kernel4::<I>(tree, rays, r, remedies, scratch)
 }
 
 /// The four rays walking the tree ([`kdtree::descent`]): the same-sign packet step of
@@ -154,14 +166,14 @@ fn lanes(mask: BVec4A) -> impl Iterator<Item = usize> {
 }
 
 #[inline(always)]
-fn kernel4<T: PacketTest>(
+fn kernel4<I: TreeTest<Record: PacketTest>>(
     tree: &KdTree,
-    records: &[T],
     rays: &RayPacket,
     r: [f32; 4],
     remedies: &LeakRemedies,
     scratch: &mut EdgeScratch4,
 ) -> [f32; 4] {
+    let records = I::records(tree);
     let mut out = [0.0f32; 4];
     let bounds = tree.bounds();
     let (t0, t1) = rays.clip(bounds.min.extend(0.0).to_array(), bounds.max.extend(0.0).to_array());
@@ -176,7 +188,7 @@ fn kernel4<T: PacketTest>(
         let neg = rays.d[axis].is_negative_bitmask() & bits;
         if neg != 0 && neg != bits {
             for lane in lanes(active) {
-                out[lane] = edge_width(tree, &rays.ray(lane), r[lane], remedies, &mut scratch.lanes[lane]);
+                out[lane] = edge_width_with::<I>(tree, &rays.ray(lane), r[lane], remedies, &mut scratch.lanes[lane]);
             }
             return out;
         }
@@ -189,7 +201,7 @@ fn kernel4<T: PacketTest>(
         tree,
         records,
         rays,
-        prepared: T::prepare4(rays),
+        prepared: <I::Record as PacketTest>::prepare4(rays),
         upper_first,
         dirs: [0, 1, 2, 3].map(|lane| rays.ray(lane).dir),
         slacks: [0, 1, 2, 3].map(|lane| slack(&rays.ray(lane), &bounds)),

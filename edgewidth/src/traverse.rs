@@ -31,7 +31,7 @@ use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::traverse::{RaySpan, clip_to_box, ray_step};
 use kdtree::triangle::TriangleTest;
-use kdtree::{Aabb, Counters, Intersector, KdNode, KdTree, NoCounters, Ray};
+use kdtree::{Aabb, Counters, Intersector, KdNode, KdTree, NoCounters, Ray, TreeTest, WaldTest, WatertightTest};
 
 use crate::pairing::{HitList, LeakRemedies, Pairing};
 
@@ -69,9 +69,21 @@ pub(crate) fn slack(ray: &Ray, bounds: &Aabb) -> f32 {
 /// `r = +inf`).
 pub fn edge_width(tree: &KdTree, ray: &Ray, r: f32, remedies: &LeakRemedies, scratch: &mut EdgeScratch) -> f32 {
     match tree.intersector() {
-        Intersector::Wald => kernel(tree, tree.wald_records(), ray, r, remedies, scratch),
-        Intersector::Watertight => kernel(tree, tree.watertight_records(), ray, r, remedies, scratch),
+        Intersector::Wald => edge_width_with::<WaldTest>(tree, ray, r, remedies, scratch),
+        Intersector::Watertight => edge_width_with::<WatertightTest>(tree, ray, r, remedies, scratch),
     }
+}
+
+/// [`edge_width`] with the tree's triangle test `I`, chosen once by the caller (see
+/// [`TreeTest`]).
+pub fn edge_width_with<I: TreeTest>(
+    tree: &KdTree,
+    ray: &Ray,
+    r: f32,
+    remedies: &LeakRemedies,
+    scratch: &mut EdgeScratch,
+) -> f32 {
+    kernel(tree, I::records(tree), ray, r, remedies, scratch)
 }
 
 /// The edge-width ray walking the tree: the single-ray step ([`ray_step`]), a leaf visitor

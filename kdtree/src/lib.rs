@@ -7,6 +7,8 @@
 //!   contiguous triangle-reference array.
 //! - [`triangle`]: Wald's projected-barycentric test (thesis 4.2) and the watertight test of
 //!   Woop, Benthin and Wald 2013, selectable per tree.
+//! - [`intersect`]: the triangle test as a type ([`TreeTest`]: [`WaldTest`], [`WatertightTest`]),
+//!   chosen once when a kernel is bound to a tree, so no kernel matches on the intersector.
 //! - [`leaf`]: SIMD leaves, each leaf's triangle records stored inline in groups of four
 //!   (structure-of-arrays) and tested four at a time against one ray.
 //! - [`traverse`]: iterative single-ray traversal with a fixed stack, closest hit
@@ -26,6 +28,7 @@ pub mod aabb;
 pub mod build;
 pub mod counters;
 pub mod descent;
+pub mod intersect;
 pub mod leaf;
 pub mod node;
 pub mod oracle;
@@ -44,6 +47,7 @@ mod validate;
 pub use aabb::Aabb;
 pub use build::{BuildConfig, BuildError, BuildStrategy, CostModel, first_phase_bytes, human_bytes};
 pub use counters::{Counters, Counts, NoCounters};
+pub use intersect::{PreparedRays, TreeTest, WaldTest, WatertightTest};
 pub use node::KdNode;
 pub use oracle::BruteForce;
 pub use ray::{Hit, Ray, RayError};

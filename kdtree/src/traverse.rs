@@ -33,6 +33,7 @@
 
 use crate::counters::{Counters, NoCounters};
 use crate::descent::{Descent, Entry, Flow, Visit, descend};
+use crate::intersect::{TreeTest, WaldTest, WatertightTest};
 use crate::leaf::{LANES, LeafGroup};
 use crate::node::KdNode;
 use crate::stack::Stack;
@@ -65,25 +66,48 @@ impl KdTree {
     }
 
     /// [`KdTree::intersect`], counting nodes, leaves and intersection tests into `counters`.
+    /// Matches on the tree's intersector once and calls [`KdTree::intersect_with`].
     #[inline]
     pub fn intersect_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
         match self.intersector {
-            Intersector::Wald => traverse::<_, C, false, true>(self, &self.wald4, &self.wald, ray, counters),
-            Intersector::Watertight => {
-                traverse::<_, C, false, true>(self, &self.watertight4, &self.watertight, ray, counters)
-            }
+            Intersector::Wald => self.intersect_with_counted::<WaldTest, C>(ray, counters),
+            Intersector::Watertight => self.intersect_with_counted::<WatertightTest, C>(ray, counters),
         }
     }
 
     /// [`KdTree::occluded`], counting nodes, leaves and intersection tests into `counters`.
+    /// Matches on the tree's intersector once and calls [`KdTree::occluded_with`].
     #[inline]
     pub fn occluded_counted<C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
         match self.intersector {
-            Intersector::Wald => traverse::<_, C, true, true>(self, &self.wald4, &self.wald, ray, counters).is_some(),
-            Intersector::Watertight => {
-                traverse::<_, C, true, true>(self, &self.watertight4, &self.watertight, ray, counters).is_some()
-            }
+            Intersector::Wald => self.occluded_with_counted::<WaldTest, C>(ray, counters),
+            Intersector::Watertight => self.occluded_with_counted::<WatertightTest, C>(ray, counters),
         }
+    }
+
+    /// [`KdTree::intersect`] with the triangle test `I` chosen by the caller, once, when it
+    /// bound the tree (`I` must be the tree's own: see [`TreeTest`]). No match inside.
+    #[inline]
+    pub fn intersect_with<I: TreeTest>(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect_with_counted::<I, _>(ray, &mut NoCounters)
+    }
+
+    /// [`KdTree::occluded`] with the triangle test `I` (see [`KdTree::intersect_with`]).
+    #[inline]
+    pub fn occluded_with<I: TreeTest>(&self, ray: &Ray) -> bool {
+        self.occluded_with_counted::<I, _>(ray, &mut NoCounters)
+    }
+
+    /// [`KdTree::intersect_with`], counting into `counters`.
+    #[inline]
+    pub fn intersect_with_counted<I: TreeTest, C: Counters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        traverse::<I::Group, C, false, true>(self, I::groups(self), I::records(self), ray, counters)
+    }
+
+    /// [`KdTree::occluded_with`], counting into `counters`.
+    #[inline]
+    pub fn occluded_with_counted<I: TreeTest, C: Counters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        traverse::<I::Group, C, true, true>(self, I::groups(self), I::records(self), ray, counters).is_some()
     }
 
     /// [`KdTree::intersect`] with the scalar twin of the SIMD leaves: each leaf's triangles
@@ -91,10 +115,8 @@ impl KdTree {
     /// the same answer, bit for bit ([`crate::leaf`]); for tests and measurements.
     pub fn intersect_scalar_leaves(&self, ray: &Ray) -> Option<Hit> {
         match self.intersector {
-            Intersector::Wald => traverse::<_, _, false, false>(self, &self.wald4, &self.wald, ray, &mut NoCounters),
-            Intersector::Watertight => {
-                traverse::<_, _, false, false>(self, &self.watertight4, &self.watertight, ray, &mut NoCounters)
-            }
+            Intersector::Wald => self.intersect_scalar_leaves_with::<WaldTest>(ray),
+            Intersector::Watertight => self.intersect_scalar_leaves_with::<WatertightTest>(ray),
         }
     }
 
@@ -102,13 +124,21 @@ impl KdTree {
     /// [`KdTree::intersect_scalar_leaves`]).
     pub fn occluded_scalar_leaves(&self, ray: &Ray) -> bool {
         match self.intersector {
-            Intersector::Wald => {
-                traverse::<_, _, true, false>(self, &self.wald4, &self.wald, ray, &mut NoCounters).is_some()
-            }
-            Intersector::Watertight => {
-                traverse::<_, _, true, false>(self, &self.watertight4, &self.watertight, ray, &mut NoCounters).is_some()
-            }
+            Intersector::Wald => self.occluded_scalar_leaves_with::<WaldTest>(ray),
+            Intersector::Watertight => self.occluded_scalar_leaves_with::<WatertightTest>(ray),
         }
+    }
+
+    /// [`KdTree::intersect_scalar_leaves`] with the triangle test `I` (see
+    /// [`KdTree::intersect_with`]).
+    pub fn intersect_scalar_leaves_with<I: TreeTest>(&self, ray: &Ray) -> Option<Hit> {
+        traverse::<I::Group, _, false, false>(self, I::groups(self), I::records(self), ray, &mut NoCounters)
+    }
+
+    /// [`KdTree::occluded_scalar_leaves`] with the triangle test `I` (see
+    /// [`KdTree::intersect_with`]).
+    pub fn occluded_scalar_leaves_with<I: TreeTest>(&self, ray: &Ray) -> bool {
+        traverse::<I::Group, _, true, false>(self, I::groups(self), I::records(self), ray, &mut NoCounters).is_some()
     }
 }
 

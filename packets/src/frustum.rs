@@ -50,6 +50,7 @@ use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
+use kdtree::{TreeTest, WaldTest, WatertightTest};
 
 use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
 use crate::packet::{mask_of, max_where, widen_down};
@@ -74,7 +75,16 @@ impl TileTracer {
     /// whose `near` and `far` bound the ray parameters of its rays inside the root box.
     /// Follow it with [`TileTracer::trace_frusta`].
     pub fn prepare(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
-        self.reset(tree, true);
+        match tree.intersector() {
+            Intersector::Wald => self.prepare_with::<WaldTest>(tree),
+            Intersector::Watertight => self.prepare_with::<WatertightTest>(tree),
+        }
+    }
+
+    /// [`TileTracer::prepare`] with the tree's triangle test `I`, chosen once by the caller
+    /// (see [`TreeTest`]).
+    pub fn prepare_with<I: TreeTest>(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
+        self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
         quadrants.map(|range| bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range]))
     }
@@ -84,7 +94,15 @@ impl TileTracer {
     /// parameters inside it (what a cone needs, thesis 4.1.7; its per-ray cost is the box
     /// clip alone).
     pub fn prepare_intervals(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
-        self.reset(tree, true);
+        match tree.intersector() {
+            Intersector::Wald => self.prepare_intervals_with::<WaldTest>(tree),
+            Intersector::Watertight => self.prepare_intervals_with::<WatertightTest>(tree),
+        }
+    }
+
+    /// [`TileTracer::prepare_intervals`] with the tree's triangle test `I` (see [`TreeTest`]).
+    pub fn prepare_intervals_with<I: TreeTest>(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
+        self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
         quadrants.map(|range| bound::root_interval(tree, &self.packets[range.clone()], &mut self.done[range]))
     }
@@ -104,18 +122,32 @@ impl TileTracer {
     /// ([`TileTracer::pyramid`], or [`bound::pyramid`] of the whole tile for
     /// [`Frusta::One`]), so the hits are still exactly the single rays'.
     pub fn trace_frusta<C: Counters>(&mut self, tree: &KdTree, frusta: &Frusta, counters: &mut C) {
+        match tree.intersector() {
+            Intersector::Wald => self.trace_frusta_with::<WaldTest, C>(tree, frusta, counters),
+            Intersector::Watertight => self.trace_frusta_with::<WatertightTest, C>(tree, frusta, counters),
+        }
+    }
+
+    /// [`TileTracer::trace_frusta`] with the tree's triangle test `I`, the one the tile was
+    /// prepared with ([`TileTracer::prepare_with`]; see [`TreeTest`]).
+    pub fn trace_frusta_with<I: TreeTest<Record: PacketTest>, C: Counters>(
+        &mut self,
+        tree: &KdTree,
+        frusta: &Frusta,
+        counters: &mut C,
+    ) {
         match frusta {
             Frusta::One(f) if f.has_nan() => {
                 let f = bound::pyramid(tree, &self.packets, &mut self.done);
-                intersect(tree, self, &Bounds::one(&f), counters)
+                intersect::<I, _, C>(tree, self, &Bounds::one(&f), counters)
             }
-            Frusta::One(f) => intersect(tree, self, &Bounds::one(f), counters),
+            Frusta::One(f) => intersect::<I, _, C>(tree, self, &Bounds::one(f), counters),
             Frusta::Four(bounds) if bounds.iter().any(FrustumBound::has_nan) => {
                 let bounds: [FrustumBound; 4] =
                     std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
-                intersect(tree, self, &Bounds::four(&bounds), counters)
+                intersect::<I, _, C>(tree, self, &Bounds::four(&bounds), counters)
             }
-            Frusta::Four(bounds) => intersect(tree, self, &Bounds::four(bounds), counters),
+            Frusta::Four(bounds) => intersect::<I, _, C>(tree, self, &Bounds::four(bounds), counters),
         }
     }
 }
@@ -471,17 +503,14 @@ impl<L: Lanes, T: PacketTest> Descent for FrustaWalk<'_, L, T> {
 }
 
 /// Traces the loaded (and reset) tile with the frusta `f`: one over the whole tile, or four,
-/// quadrant `q` in lane `q`.
-pub(crate) fn intersect<L: Lanes, C: Counters>(
+/// quadrant `q` in lane `q`, with the tree's triangle test `I` (chosen once by the caller).
+pub(crate) fn intersect<I: TreeTest<Record: PacketTest>, L: Lanes, C: Counters>(
     tree: &KdTree,
     tracer: &mut TileTracer,
     f: &Bounds<L>,
     counters: &mut C,
 ) {
-    match tree.intersector() {
-        Intersector::Wald => traverse(tree, tree.wald_records(), tracer, f, counters),
-        Intersector::Watertight => traverse(tree, tree.watertight_records(), tracer, f, counters),
-    }
+    traverse(tree, I::records(tree), tracer, f, counters)
 }
 
 #[inline(always)]

@@ -51,7 +51,7 @@
 use glam::{BVec4A, Vec3};
 use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::triangle::Intersector;
-use kdtree::{Aabb, Counters, KdNode, KdTree, Ray};
+use kdtree::{Aabb, Counters, KdNode, KdTree, Ray, TreeTest, WaldTest, WatertightTest};
 
 use crate::packet::{PacketHit, RayPacket};
 use crate::shadow_frustum::{SweptAxis, nearer_first, pad, swept_axes};
@@ -201,32 +201,42 @@ impl LaneFrusta {
     /// a group's steps as nodes, its leaves, 4-ray packet-triangle tests as tests, and
     /// lane-triangle pairs at leaves as packets considered, those culled as culled.
     pub fn trace<C: Counters>(&mut self, tree: &KdTree, width: LaneWidth, counters: &mut C) {
+        match tree.intersector() {
+            Intersector::Wald => self.trace_with::<WaldTest, C>(tree, width, counters),
+            Intersector::Watertight => self.trace_with::<WatertightTest, C>(tree, width, counters),
+        }
+    }
+
+    /// [`LaneFrusta::trace`] with the tree's triangle test `I`, chosen once by the caller
+    /// (see [`TreeTest`]).
+    pub fn trace_with<I: TreeTest<Record: PacketTest>, C: Counters>(
+        &mut self,
+        tree: &KdTree,
+        width: LaneWidth,
+        counters: &mut C,
+    ) {
         let n = self.frusta.len();
         self.blocked.clear();
         self.blocked.resize(n, 0);
-        match tree.intersector() {
-            Intersector::Wald => self.at_width(tree, tree.wald_records(), width, counters),
-            Intersector::Watertight => self.at_width(tree, tree.watertight_records(), width, counters),
-        }
+        self.at_width::<I, C>(tree, width, counters);
     }
 
     /// [`LaneFrusta::batches`] with the lanes of `width` (eight only where the CPU has AVX2,
     /// else four).
-    fn at_width<T: PacketTest, C: Counters>(
+    fn at_width<I: TreeTest<Record: PacketTest>, C: Counters>(
         &mut self,
         tree: &KdTree,
-        records: &[T],
         width: LaneWidth,
         counters: &mut C,
     ) {
         match width {
-            LaneWidth::Scalar => self.batches::<T, C, 1>(tree, records, counters),
+            LaneWidth::Scalar => self.batches::<I, C, 1>(tree, counters),
             #[cfg(target_arch = "x86_64")]
             LaneWidth::Eight if avx2() => {
                 // SAFETY: the CPU has AVX2 and FMA (the guard).
-                unsafe { self.batches_avx2::<T, C>(tree, records, counters) }
+                unsafe { self.batches_avx2::<I, C>(tree, counters) }
             }
-            LaneWidth::Four | LaneWidth::Eight => self.batches::<T, C, 4>(tree, records, counters),
+            LaneWidth::Four | LaneWidth::Eight => self.batches::<I, C, 4>(tree, counters),
         }
     }
 
@@ -236,42 +246,47 @@ impl LaneFrusta {
     /// The CPU must have AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn batches_avx2<T: PacketTest, C: Counters>(&mut self, tree: &KdTree, records: &[T], counters: &mut C) {
-        self.batches::<T, C, 8>(tree, records, counters);
+    unsafe fn batches_avx2<I: TreeTest<Record: PacketTest>, C: Counters>(&mut self, tree: &KdTree, counters: &mut C) {
+        self.batches::<I, C, 8>(tree, counters);
     }
 
     /// Every frustum, `L` at a time; those that cannot be bounded ray by ray.
     #[inline(always)]
-    fn batches<T: PacketTest, C: Counters, const L: usize>(&mut self, tree: &KdTree, records: &[T], counters: &mut C) {
+    fn batches<I: TreeTest<Record: PacketTest>, C: Counters, const L: usize>(
+        &mut self,
+        tree: &KdTree,
+        counters: &mut C,
+    ) {
+        let records = I::records(tree);
         let bounds = tree.bounds();
         let mut lanes = Lanes::<L>::empty();
         let mut which: [usize; L] = [0; L];
         let mut filled = 0;
         for f in 0..self.frusta.len() {
             let Some(lane) = Lane::new(&self.frusta[f], &bounds) else {
-                self.single(tree, f, counters);
+                self.single::<I, C>(tree, f, counters);
                 continue;
             };
             lanes.set(filled, &lane, self.frusta[f].count);
             which[filled] = f;
             filled += 1;
             if filled == L {
-                self.group::<T, C, L>(tree, records, &mut lanes, &which[..filled], counters);
+                self.group::<I::Record, C, L>(tree, records, &mut lanes, &which[..filled], counters);
                 lanes = Lanes::empty();
                 filled = 0;
             }
         }
         if filled > 0 {
-            self.group::<T, C, L>(tree, records, &mut lanes, &which[..filled], counters);
+            self.group::<I::Record, C, L>(tree, records, &mut lanes, &which[..filled], counters);
         }
     }
 
     /// Frustum `f`'s rays one by one.
-    fn single<C: Counters>(&mut self, tree: &KdTree, f: usize, counters: &mut C) {
+    fn single<I: TreeTest, C: Counters>(&mut self, tree: &KdTree, f: usize, counters: &mut C) {
         let s = &self.frusta[f];
         for k in 0..s.count {
             let ray = Ray::segment(s.starts[k], s.ends[k]);
-            self.blocked[f] |= u16::from(tree.occluded_counted(&ray, counters)) << k;
+            self.blocked[f] |= u16::from(tree.occluded_with_counted::<I, C>(&ray, counters)) << k;
             self.stats.single += 1;
         }
     }

@@ -63,3 +63,4 @@ pub use lane_frusta::{LaneFrusta, LaneWidth};
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use shadow_frustum::ShadowFrustum;
 pub use tile::TileTracer;
+pub use triangle4::PacketTreeTest;

@@ -28,7 +28,7 @@
 use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::stack::Stack;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{Counters, KdNode, KdTree};
+use kdtree::{Counters, KdNode, KdTree, TreeTest, WaldTest, WatertightTest};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, widen_down, widen_up};
 use crate::simd::{SimdF32, SimdMask};
@@ -38,7 +38,21 @@ use crate::triangle4::PacketTest;
 /// infinite components, see [`crate::RayPacket::new`]) get no hit.
 #[inline]
 pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>, counters: &mut C) -> PacketHit<V> {
-    trace::<V, C, false>(tree, packet, counters)
+    match tree.intersector() {
+        Intersector::Wald => trace::<WaldTest, V, C, false>(tree, packet, counters),
+        Intersector::Watertight => trace::<WatertightTest, V, C, false>(tree, packet, counters),
+    }
+}
+
+/// [`intersect`] with the tree's triangle test `I`, chosen once by the caller (see
+/// [`TreeTest`]).
+#[inline]
+pub fn intersect_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    packet: &OmniPacket<V>,
+    counters: &mut C,
+) -> PacketHit<V> {
+    trace::<I, V, C, false>(tree, packet, counters)
 }
 
 /// Which of the packet's rays are blocked (any hit: the shadow query). The returned hit's
@@ -46,23 +60,31 @@ pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>,
 /// Invalid lanes are never blocked.
 #[inline]
 pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>, counters: &mut C) -> PacketHit<V> {
-    trace::<V, C, true>(tree, packet, counters)
+    match tree.intersector() {
+        Intersector::Wald => trace::<WaldTest, V, C, true>(tree, packet, counters),
+        Intersector::Watertight => trace::<WatertightTest, V, C, true>(tree, packet, counters),
+    }
 }
 
-/// [`intersect`] (or [`occluded`], with `ANY_HIT`) with the tree's triangle test.
+/// [`occluded`] with the tree's triangle test `I` (see [`TreeTest`]).
+#[inline]
+pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    packet: &OmniPacket<V>,
+    counters: &mut C,
+) -> PacketHit<V> {
+    trace::<I, V, C, true>(tree, packet, counters)
+}
+
+/// [`intersect`] (or [`occluded`], with `ANY_HIT`) with the tree's triangle test `I`.
 #[inline(always)]
-fn trace<V: SimdF32, C: Counters, const ANY_HIT: bool>(
+fn trace<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     packet: &OmniPacket<V>,
     counters: &mut C,
 ) -> PacketHit<V> {
     let order = Omni(packet.origin);
-    match tree.intersector() {
-        Intersector::Wald => traverse::<V, _, _, C, ANY_HIT>(tree, tree.wald_records(), &packet.rays, &order, counters),
-        Intersector::Watertight => {
-            traverse::<V, _, _, C, ANY_HIT>(tree, tree.watertight_records(), &packet.rays, &order, counters)
-        }
-    }
+    traverse::<V, _, _, C, ANY_HIT>(tree, I::records(tree), &packet.rays, &order, counters)
 }
 
 /// The lanes' intervals inside the tree's root box (`near > far` where a lane misses it).

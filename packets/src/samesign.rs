@@ -19,7 +19,7 @@
 
 use glam::Vec3;
 use kdtree::triangle::{Intersector, TriangleTest};
-use kdtree::{Counters, KdNode, KdTree};
+use kdtree::{Counters, KdNode, KdTree, TreeTest, WaldTest, WatertightTest};
 
 use crate::omni::{self, ChildOrder, Step};
 use crate::packet::{PacketHit, RayPacket, widen_down, widen_up};
@@ -31,7 +31,21 @@ use crate::triangle4::PacketTest;
 /// hit.
 #[inline]
 pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, counters: &mut C) -> PacketHit<V> {
-    split_by_signs::<V, C, false>(tree, packet, None, counters)
+    match tree.intersector() {
+        Intersector::Wald => split_by_signs::<WaldTest, V, C, false>(tree, packet, None, counters),
+        Intersector::Watertight => split_by_signs::<WatertightTest, V, C, false>(tree, packet, None, counters),
+    }
+}
+
+/// [`intersect`] with the tree's triangle test `I`, chosen once by the caller (see
+/// [`TreeTest`]).
+#[inline]
+pub fn intersect_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    packet: &RayPacket<V>,
+    counters: &mut C,
+) -> PacketHit<V> {
+    split_by_signs::<I, V, C, false>(tree, packet, None, counters)
 }
 
 /// Which of the packet's rays are blocked (any hit, the shadow query), splitting it by
@@ -39,7 +53,20 @@ pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, 
 /// hit. Invalid lanes are never blocked.
 #[inline]
 pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, counters: &mut C) -> PacketHit<V> {
-    split_by_signs::<V, C, true>(tree, packet, None, counters)
+    match tree.intersector() {
+        Intersector::Wald => split_by_signs::<WaldTest, V, C, true>(tree, packet, None, counters),
+        Intersector::Watertight => split_by_signs::<WatertightTest, V, C, true>(tree, packet, None, counters),
+    }
+}
+
+/// [`occluded`] with the tree's triangle test `I` (see [`TreeTest`]).
+#[inline]
+pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    packet: &RayPacket<V>,
+    counters: &mut C,
+) -> PacketHit<V> {
+    split_by_signs::<I, V, C, true>(tree, packet, None, counters)
 }
 
 /// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::new(start, end - start, 0,
@@ -54,9 +81,23 @@ pub fn occluded_segments<C: Counters>(
     blocked: &mut Vec<bool>,
     counters: &mut C,
 ) {
+    match tree.intersector() {
+        Intersector::Wald => occluded_segments_with::<WaldTest, C>(tree, starts, ends, blocked, counters),
+        Intersector::Watertight => occluded_segments_with::<WatertightTest, C>(tree, starts, ends, blocked, counters),
+    }
+}
+
+/// [`occluded_segments`] with the tree's triangle test `I` (see [`TreeTest`]).
+pub fn occluded_segments_with<I: TreeTest<Record: PacketTest>, C: Counters>(
+    tree: &KdTree,
+    starts: &[Vec3],
+    ends: &[Vec3],
+    blocked: &mut Vec<bool>,
+    counters: &mut C,
+) {
     blocked.clear();
     for (starts, ends) in starts.chunks(4).zip(ends.chunks(4)) {
-        let found = occluded(tree, &RayPacket::segments(starts, ends), counters).found.bitmask();
+        let found = occluded_with::<I, _, C>(tree, &RayPacket::segments(starts, ends), counters).found.bitmask();
         blocked.extend((0..starts.len().min(ends.len())).map(|lane| found >> lane & 1 != 0));
     }
 }
@@ -71,22 +112,35 @@ pub fn occluded_in<V: SimdF32, C: Counters>(
     from: (usize, (V, V)),
     counters: &mut C,
 ) -> PacketHit<V> {
-    split_by_signs::<V, C, true>(tree, packet, Some(from), counters)
+    match tree.intersector() {
+        Intersector::Wald => split_by_signs::<WaldTest, V, C, true>(tree, packet, Some(from), counters),
+        Intersector::Watertight => split_by_signs::<WatertightTest, V, C, true>(tree, packet, Some(from), counters),
+    }
+}
+
+/// [`occluded_in`] with the tree's triangle test `I` (see [`TreeTest`]).
+#[inline]
+pub fn occluded_in_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    packet: &RayPacket<V>,
+    from: (usize, (V, V)),
+    counters: &mut C,
+) -> PacketHit<V> {
+    split_by_signs::<I, V, C, true>(tree, packet, Some(from), counters)
 }
 
 /// [`intersect`] or, with `ANY_HIT`, [`occluded`]; from the root, or from `from` as
 /// [`occluded_in`].
 #[inline(always)]
-fn split_by_signs<V: SimdF32, C: Counters, const ANY_HIT: bool>(
+fn split_by_signs<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters, const ANY_HIT: bool>(
     tree: &KdTree,
     packet: &RayPacket<V>,
     from: Option<(usize, (V, V))>,
     counters: &mut C,
 ) -> PacketHit<V> {
-    let traverse_group = |sub: &RayPacket<V>, counters: &mut C| match tree.intersector() {
-        Intersector::Wald => traverse::<V, _, C, ANY_HIT>(tree, tree.wald_records(), sub, from, counters),
-        Intersector::Watertight => traverse::<V, _, C, ANY_HIT>(tree, tree.watertight_records(), sub, from, counters),
-    };
+    let records = I::records(tree);
+    let traverse_group =
+        |sub: &RayPacket<V>, counters: &mut C| traverse::<V, _, C, ANY_HIT>(tree, records, sub, from, counters);
     // The common case (neighbouring rays to one light): every valid lane in one sign group.
     // The group is then the packet itself, and so is its hit (invalid lanes hold empty
     // intervals and keep `PacketHit::new`'s values either way).

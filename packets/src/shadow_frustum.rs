@@ -44,10 +44,11 @@ use glam::{BVec4A, Vec3};
 use kdtree::descent::{Descent, Entry, Flow, Visit, descend};
 use kdtree::leaf::{LANES, LeafGroup};
 use kdtree::triangle::Intersector;
-use kdtree::{Aabb, Counters, KdNode, KdTree, Ray};
+use kdtree::{Aabb, Counters, KdNode, KdTree, PreparedRays, Ray, TreeTest, WaldTest, WatertightTest};
 
 use crate::packet::RayPacket;
 use crate::samesign;
+use crate::triangle4::PacketTest;
 
 /// The padding of the start and end boxes and of the voxel boxes at leaves: `2^-16` of the
 /// largest coordinate magnitude of the tree's bounds and the boxes (plus the smallest normal
@@ -160,8 +161,8 @@ pub struct ShadowFrustum {
     /// Per 4 rays, the lanes not finished yet (bit `i`: ray `4c + i`).
     open: Vec<u8>,
     blocked: Vec<bool>,
-    wald: Vec<<kdtree::leaf::Wald4 as LeafGroup>::RayData>,
-    watertight: Vec<<kdtree::leaf::Watertight4 as LeafGroup>::RayData>,
+    /// The rays prepared for the tree test's SIMD leaf groups.
+    prepared: PreparedRays,
     blocks: Vec<Block>,
     boxes: Vec<(Aabb, Aabb)>,
     stack: Vec<Entry<Span>>,
@@ -211,6 +212,15 @@ impl ShadowFrustum {
     /// frustum leaves as leaves, ray-triangle tests as tests and rays culled at leaves as
     /// culled packets. Then [`ShadowFrustum::blocked`] holds the answers.
     pub fn trace<C: Counters>(&mut self, tree: &KdTree, counters: &mut C) {
+        match tree.intersector() {
+            Intersector::Wald => self.trace_with::<WaldTest, C>(tree, counters),
+            Intersector::Watertight => self.trace_with::<WatertightTest, C>(tree, counters),
+        }
+    }
+
+    /// [`ShadowFrustum::trace`] with the tree's triangle test `I`, chosen once by the caller
+    /// (see [`TreeTest`]).
+    pub fn trace_with<I: TreeTest<Record: PacketTest>, C: Counters>(&mut self, tree: &KdTree, counters: &mut C) {
         self.stats = FrustumStats::default();
         let n = self.rays.len();
         self.blocked.clear();
@@ -219,7 +229,7 @@ impl ShadowFrustum {
         let grouped = self.rays.iter().filter(|r| is_segment(r)).count();
         for (ray, blocked) in self.rays.iter().zip(&mut self.blocked) {
             if grouped <= Self::FEW || !is_segment(ray) {
-                *blocked = tree.occluded_counted(ray, counters);
+                *blocked = tree.occluded_with_counted::<I, C>(ray, counters);
                 self.stats.single += 1;
             }
         }
@@ -227,22 +237,11 @@ impl ShadowFrustum {
             return;
         }
         self.load(&tree.bounds());
-        match tree.intersector() {
-            Intersector::Wald => {
-                let mut data = std::mem::take(&mut self.wald);
-                data.clear();
-                data.extend(self.rays.iter().map(kdtree::leaf::Wald4::prepare));
-                self.run(tree, tree.wald_groups(), &data, counters);
-                self.wald = data;
-            }
-            Intersector::Watertight => {
-                let mut data = std::mem::take(&mut self.watertight);
-                data.clear();
-                data.extend(self.rays.iter().map(kdtree::leaf::Watertight4::prepare));
-                self.run(tree, tree.watertight_groups(), &data, counters);
-                self.watertight = data;
-            }
-        }
+        let mut data = std::mem::take(I::prepared(&mut self.prepared));
+        data.clear();
+        data.extend(self.rays.iter().map(I::Group::prepare));
+        self.run::<I, C>(tree, &data, counters);
+        *I::prepared(&mut self.prepared) = data;
     }
 
     /// Fills the structure-of-arrays copy, the open lanes (the finite segments) and the
@@ -314,9 +313,15 @@ impl ShadowFrustum {
         }
     }
 
-    /// The traversal with the leaf groups `groups` and the rays' prepared data `data`.
+    /// The traversal with the tree test `I`'s leaf groups and the rays' prepared data `data`.
     #[inline(always)]
-    fn run<G: LeafGroup, C: Counters>(&mut self, tree: &KdTree, groups: &[G], data: &[G::RayData], counters: &mut C) {
+    fn run<I: TreeTest<Record: PacketTest>, C: Counters>(
+        &mut self,
+        tree: &KdTree,
+        data: &[<I::Group as LeafGroup>::RayData],
+        counters: &mut C,
+    ) {
+        let groups = I::groups(tree);
         let bounds = tree.bounds();
         let (root_a, root_b) = self.boxes[self.boxes.len() - 1];
         let pad = pad(&bounds, &root_a, &root_b);
@@ -329,7 +334,7 @@ impl ShadowFrustum {
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
         let span = Span { block: root as u32, s0, s1, lo: bounds.min, hi: bounds.max };
-        let mut walk = BlockWalk { frustum: self, tree, groups, data, pad, root, few: false };
+        let mut walk = BlockWalk::<I> { frustum: self, tree, groups, data, pad, root, few: false };
         descend(tree, &mut walk, (0, span), &mut stack, counters);
         let few = walk.few;
         self.stack = stack;
@@ -343,7 +348,7 @@ impl ShadowFrustum {
                 let lane = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
                 let i = c * LANES + lane;
-                self.blocked[i] = tree.occluded_counted(&self.rays[i], counters);
+                self.blocked[i] = tree.occluded_with_counted::<I, C>(&self.rays[i], counters);
                 self.stats.single += 1;
             }
             self.open[c] = 0;
@@ -355,11 +360,11 @@ impl ShadowFrustum {
 /// of four rays goes on as a 2x2 packet and a block much wider than the voxel splits into its
 /// children; otherwise the swept-box interval step, the culling leaf visitor (which stops
 /// the walk when few rays are left), and a pop rule that drops the voxels of finished blocks.
-struct BlockWalk<'a, G: LeafGroup> {
+struct BlockWalk<'a, I: TreeTest> {
     frustum: &'a mut ShadowFrustum,
     tree: &'a KdTree,
-    groups: &'a [G],
-    data: &'a [G::RayData],
+    groups: &'a [I::Group],
+    data: &'a [<I::Group as LeafGroup>::RayData],
     pad: f32,
     /// The block of the whole group.
     root: usize,
@@ -367,7 +372,7 @@ struct BlockWalk<'a, G: LeafGroup> {
     few: bool,
 }
 
-impl<G: LeafGroup> Descent for BlockWalk<'_, G> {
+impl<I: TreeTest<Record: PacketTest>> Descent for BlockWalk<'_, I> {
     type Span = Span;
     type Deferred = Span;
     type Stack = Vec<Entry<Span>>;
@@ -385,7 +390,8 @@ impl<G: LeafGroup> Descent for BlockWalk<'_, G> {
             packet.valid &= lane_mask(open);
             let (lo, hi) = (span.lo - Vec3::splat(self.pad), span.hi + Vec3::splat(self.pad));
             let from = (index, packet.clip(lo.extend(0.0).to_array(), hi.extend(0.0).to_array()));
-            let found = open & samesign::occluded_in(self.tree, &packet, from, counters).found.bitmask() as u8;
+            let found =
+                open & samesign::occluded_in_with::<I, _, C>(self.tree, &packet, from, counters).found.bitmask() as u8;
             f.finish(c, found);
             false
         } else if wider_than(&block.axes, span, SPLIT_RATIO * (span.hi - span.lo).max_element()) {

@@ -15,8 +15,9 @@
 use std::ops::Range;
 
 use glam::{BVec4A, Vec4};
+use kdtree::Hit;
+use kdtree::TreeTest;
 use kdtree::triangle::{Intersector, WatertightTriangle};
-use kdtree::{Hit, KdTree};
 use scenes::{Camera, Tile};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, directions};
@@ -228,10 +229,11 @@ impl TileTracer {
     }
 
     /// Resets the hits and finished lanes before a trace, and makes the watertight shear
-    /// table when a frustum method traces a watertight tree.
-    pub(crate) fn reset(&mut self, tree: &KdTree, frustum: bool) {
+    /// table when a frustum method traces a watertight tree (`I`, the tree's test, chosen
+    /// once by the caller: the check is a constant).
+    pub(crate) fn reset<I: TreeTest>(&mut self, frustum: bool) {
         self.sheared.clear();
-        if frustum && tree.intersector() == Intersector::Watertight {
+        if frustum && I::INTERSECTOR == Intersector::Watertight {
             self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
         }
         self.hits.clear();

@@ -19,6 +19,7 @@
 //! at every width.
 
 use glam::Vec4;
+use kdtree::TreeTest;
 use kdtree::triangle::{ShearedRay, TriangleTest, WaldTriangle, WatertightTriangle};
 
 use crate::packet::{PacketHit, RayPacket};
@@ -46,6 +47,13 @@ pub trait PacketTest<V: SimdF32 = Vec4>: TriangleTest {
         prim: u32,
     ) -> V::Mask;
 }
+
+/// A tree's triangle test ([`TreeTest`]) whose records also test 4-ray packets: what a
+/// kernel of this crate (or one composed of them) is generic over. Both of `kdtree`'s tests
+/// are ([`kdtree::WaldTest`], [`kdtree::WatertightTest`]).
+pub trait PacketTreeTest: TreeTest<Record: PacketTest> {}
+
+impl<I: TreeTest<Record: PacketTest>> PacketTreeTest for I {}
 
 impl<V: SimdF32> PacketTest<V> for WaldTriangle {
     type PacketData = ();

@@ -15,13 +15,13 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use edgewidth::packet::{EdgeScratch4, edge_width4};
+use edgewidth::packet::{EdgeScratch4, edge_width4_with};
 use edgewidth::{LeakRemedies, occlusion_factor, width_from_light};
 use glam::Vec3;
 use kdtree::Counts;
 use kdtree::surface::Surfaces;
-use kdtree::{Hit, KdTree};
-use packets::RayPacket;
+use kdtree::{Hit, Intersector, KdTree, WaldTest, WatertightTest};
+use packets::{PacketTreeTest, RayPacket};
 use rayon::prelude::*;
 use scenes::PointLight;
 use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
@@ -281,6 +281,20 @@ impl<'a> Renderer<'a> {
     /// `hits` into `visible` (tile order), in parallel over tiles, each tile's pixels four at
     /// a time in tile order. Returns the rays traced and those with a width above 0.
     fn edge_width_pass(&self, tree: &KdTree, hits: &[Option<Hit>], visible: &mut [f32]) -> (u64, u64) {
+        // The tree's triangle test, chosen once for the pass (not per packet).
+        match tree.intersector() {
+            Intersector::Wald => self.edge_width_pass_with::<WaldTest>(tree, hits, visible),
+            Intersector::Watertight => self.edge_width_pass_with::<WatertightTest>(tree, hits, visible),
+        }
+    }
+
+    /// [`Renderer::edge_width_pass`] with the tree's triangle test `I`.
+    fn edge_width_pass_with<I: PacketTreeTest>(
+        &self,
+        tree: &KdTree,
+        hits: &[Option<Hit>],
+        visible: &mut [f32],
+    ) -> (u64, u64) {
         let surfaces = self.surfaces();
         let center = PointLight { position: self.light.center, intensity: self.light.intensity };
         let remedies = LeakRemedies::default();
@@ -306,7 +320,7 @@ impl<'a> Renderer<'a> {
                         r[lane] = width_from_light(self.light.radius, (self.light.center - p).length(), 1.0);
                         lanes[lane] = Some(ray);
                     }
-                    let widths = edge_width4(tree, &RayPacket::from_lanes(lanes), r, &remedies, scratch);
+                    let widths = edge_width4_with::<I>(tree, &RayPacket::from_lanes(lanes), r, &remedies, scratch);
                     for (lane, slot) in out.iter_mut().enumerate() {
                         *slot = match lanes[lane] {
                             Some(_) => {

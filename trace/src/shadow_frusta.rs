@@ -28,7 +28,7 @@
 use cones::shadows::SAMPLES;
 use glam::Vec3;
 use kdtree::KdTree;
-use packets::{LaneFrusta, LaneWidth};
+use packets::{LaneFrusta, LaneWidth, PacketTreeTest};
 use scenes::Tile;
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
@@ -40,8 +40,9 @@ pub trait Grouping: Sync {
     type Scratch: Default + Send;
 
     /// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::segment(starts[i],
-    /// ends[i])`) is blocked, appended to `blocked` (empty on entry), in order.
-    fn occluded<C: TileCounters>(
+    /// ends[i])`) is blocked, appended to `blocked` (empty on entry), in order, with the
+    /// tree's triangle test `I` (bound once with the method, `crate::kernel::bind`).
+    fn occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -97,9 +98,14 @@ impl<S> ShadowScratch<S> {
     }
 
     /// Traces the group with `grouping`, the answers into `blocked`.
-    fn trace<G: Grouping<Scratch = S>, C: TileCounters>(&mut self, tree: &KdTree, grouping: &G, counters: &mut C) {
+    fn trace<I: PacketTreeTest, G: Grouping<Scratch = S>, C: TileCounters>(
+        &mut self,
+        tree: &KdTree,
+        grouping: &G,
+        counters: &mut C,
+    ) {
         self.blocked.clear();
-        grouping.occluded(tree, &mut self.group, &self.starts, &self.ends, &mut self.blocked, counters);
+        grouping.occluded::<I, C>(tree, &mut self.group, &self.starts, &self.ends, &mut self.blocked, counters);
     }
 
     /// Each point of `job` (per pixel, row-major) as its rays' origin and light samples, and
@@ -143,8 +149,9 @@ fn morton(x: u32, y: u32) -> u64 {
 }
 
 /// The hard shadow rays of `job`, in Morton order, traced by `grouping`, into `out`; returns
-/// (rays traced, rays blocked) as [`crate::method::Method::shadow_tile`].
-pub fn hard<G: Grouping, C: TileCounters>(
+/// (rays traced, rays blocked) as [`crate::method::Method::shadow_tile`]; `I` is the tree's
+/// triangle test.
+pub fn hard<I: PacketTreeTest, G: Grouping, C: TileCounters>(
     tree: &KdTree,
     grouping: &G,
     scratch: &mut ShadowScratch<G::Scratch>,
@@ -164,7 +171,7 @@ pub fn hard<G: Grouping, C: TileCounters>(
             slots.push(i);
         }
     }
-    scratch.trace(tree, grouping, counters);
+    scratch.trace::<I, G, C>(tree, grouping, counters);
     out.fill(false);
     let mut blocked = 0;
     for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
@@ -176,8 +183,9 @@ pub fn hard<G: Grouping, C: TileCounters>(
 
 /// The 16-sample soft shadows of `job`, the tile's rays to each light stratum traced together
 /// by `grouping` (Benthin & Wald's multi-frusta for shadow frusta), the visible fraction per
-/// pixel into `visible`, as [`crate::method::Method::soft_tile`].
-pub fn soft_strata<G: Grouping, C: TileCounters>(
+/// pixel into `visible`, as [`crate::method::Method::soft_tile`]; `I` is the tree's triangle
+/// test.
+pub fn soft_strata<I: PacketTreeTest, G: Grouping, C: TileCounters>(
     tree: &KdTree,
     grouping: &G,
     scratch: &mut ShadowScratch<G::Scratch>,
@@ -197,7 +205,7 @@ pub fn soft_strata<G: Grouping, C: TileCounters>(
                 slots.push(i);
             }
         }
-        scratch.trace(tree, grouping, counters);
+        scratch.trace::<I, G, C>(tree, grouping, counters);
         for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
             scratch.masks[slot as usize] |= u16::from(b) << k;
         }
@@ -208,8 +216,8 @@ pub fn soft_strata<G: Grouping, C: TileCounters>(
 /// The 16-sample soft shadows of `job` with each point's 16 rays, which share its origin, as
 /// one frustum of `packets::lane_frusta`, `width` of them at once, the points in Morton
 /// order; the visible fraction per pixel into `visible`, as
-/// [`crate::method::Method::soft_tile`].
-pub fn soft_lanes<C: TileCounters>(
+/// [`crate::method::Method::soft_tile`]; `I` is the tree's triangle test.
+pub fn soft_lanes<I: PacketTreeTest, C: TileCounters>(
     tree: &KdTree,
     width: LaneWidth,
     scratch: &mut ShadowScratch<LaneFrusta>,
@@ -227,7 +235,7 @@ pub fn soft_lanes<C: TileCounters>(
             slots.push(i);
         }
     }
-    lanes.trace(tree, width, counters);
+    lanes.trace_with::<I, C>(tree, width, counters);
     for (&slot, &mask) in slots.iter().zip(lanes.blocked()) {
         masks[slot as usize] = mask;
     }

@@ -25,14 +25,47 @@ pub mod shadow;
 pub mod soft;
 pub mod stream;
 
+use std::marker::PhantomData;
+
 use cones::Cone;
 use cones::shadows::SAMPLES;
-use kdtree::{Hit, KdTree, Ray};
+use kdtree::{Hit, Intersector, KdTree, Ray, WaldTest, WatertightTest};
+use packets::PacketTreeTest;
 use scenes::{Camera, Tile};
 
 use crate::error::Error;
-use crate::method::{Method, ShadowJob, SoftJob, SoftStats, TileCounters};
+use crate::method::{Method, ShadowJob, SoftJob, SoftStats, TileCounters, Tracer};
 use crate::registry::{Binding, KernelNames, Options, Structures};
+
+/// Our kd-tree with its triangle test `I` bound (`I` the tree's own, [`bind`] picks it): the
+/// single-ray [`Tracer`] of the kernels, which calls [`KdTree::intersect_with_counted`] and
+/// so matches on no intersector per ray.
+#[derive(Debug)]
+pub struct TreeWith<'t, I> {
+    tree: &'t KdTree,
+    test: PhantomData<fn() -> I>,
+}
+
+impl<'t, I: PacketTreeTest> TreeWith<'t, I> {
+    /// `tree` traced with the test `I`, which must be the tree's own (`tree.intersector()`).
+    #[inline]
+    pub fn new(tree: &'t KdTree) -> Self {
+        debug_assert_eq!(tree.intersector(), I::INTERSECTOR, "a kernel bound with another tree's test");
+        TreeWith { tree, test: PhantomData }
+    }
+}
+
+impl<I: PacketTreeTest> Tracer for TreeWith<'_, I> {
+    #[inline]
+    fn intersect_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> Option<Hit> {
+        self.tree.intersect_with_counted::<I, C>(ray, counters)
+    }
+
+    #[inline]
+    fn occluded_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> bool {
+        self.tree.occluded_with_counted::<I, C>(ray, counters)
+    }
+}
 
 /// A kernel made from the options of a method's selection, reading only its own fields
 /// (tile, culling, lane width). An option it cannot take is an error.
@@ -66,8 +99,8 @@ pub trait Primary: FromOptions + Sync {
     fn name(&self) -> String;
     /// Fresh scratch.
     fn scratch(&self) -> Self::Scratch;
-    /// [`Method::primary_tile`] on `tree`.
-    fn primary_tile<C: TileCounters>(
+    /// [`Method::primary_tile`] on `tree`, whose triangle test is `I` (bound once, [`bind`]).
+    fn primary_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -86,8 +119,8 @@ pub trait HardShadow: FromOptions + Sync {
     fn name(&self) -> String;
     /// Fresh scratch.
     fn scratch(&self) -> Self::Scratch;
-    /// [`Method::shadow_tile`] on `tree`.
-    fn shadow_tile<C: TileCounters>(
+    /// [`Method::shadow_tile`] on `tree`, whose triangle test is `I`.
+    fn shadow_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -107,8 +140,8 @@ pub trait SoftShadow: FromOptions + Sync {
     fn name(&self) -> String;
     /// Fresh scratch.
     fn scratch(&self) -> Self::Scratch;
-    /// [`Method::soft_tile`] on `tree`.
-    fn soft_tile<C: TileCounters>(
+    /// [`Method::soft_tile`] on `tree`, whose triangle test is `I`.
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -117,7 +150,7 @@ pub trait SoftShadow: FromOptions + Sync {
         counters: &mut C,
     ) -> SoftStats;
     /// [`Method::soft_point`] on `tree`: the 16 rays of one point, bit `i` for ray `i`.
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -136,8 +169,8 @@ pub trait Stream: FromOptions + Sync {
     fn name(&self) -> String;
     /// Fresh scratch.
     fn scratch(&self) -> Self::Scratch;
-    /// [`Method::stream`] on `tree`.
-    fn stream<C: TileCounters>(
+    /// [`Method::stream`] on `tree`, whose triangle test is `I`.
+    fn stream<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -145,8 +178,8 @@ pub trait Stream: FromOptions + Sync {
         out: &mut [Option<Hit>],
         counters: &mut C,
     );
-    /// [`Method::stream_occluded`] on `tree`.
-    fn stream_occluded<C: TileCounters>(
+    /// [`Method::stream_occluded`] on `tree`, whose triangle test is `I`.
+    fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -158,11 +191,15 @@ pub trait Stream: FromOptions + Sync {
 
 /// A method of ours: four kernels on our kd-tree, each pass delegated to its kernel. The
 /// delegation is static (one monomorphic type per registry line), so the frame driver's
-/// loops are those of the kernels themselves.
+/// loops are those of the kernels themselves. `I` is the tree's triangle test, chosen once
+/// when the method is bound ([`bind`]) and handed to every kernel call as a type, so no
+/// kernel matches on the intersector per tile or per packet.
 #[derive(Debug)]
-pub struct Composed<'t, P, H, S, R> {
+pub struct Composed<'t, I, P, H, S, R> {
     /// The tree every kernel traces.
     pub tree: &'t KdTree,
+    /// The tree's triangle test.
+    test: PhantomData<fn() -> I>,
     /// The primary-ray kernel.
     pub primary: P,
     /// The hard-shadow kernel.
@@ -173,11 +210,20 @@ pub struct Composed<'t, P, H, S, R> {
     pub stream: R,
 }
 
-impl<'t, P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Composed<'t, P, H, S, R> {
-    /// The four kernels of `options` on `tree`.
+impl<'t, I: PacketTreeTest, P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Composed<'t, I, P, H, S, R> {
+    /// The four kernels of `options` on `tree`, whose triangle test must be `I`: an error
+    /// otherwise (a tree holds only its own test's records).
     pub fn new(tree: &'t KdTree, options: &Options) -> Result<Self, Error> {
+        if tree.intersector() != I::INTERSECTOR {
+            return Err(Error::Usage(format!(
+                "a method bound with the {} test on a tree built for the {} test",
+                I::INTERSECTOR.name(),
+                tree.intersector().name()
+            )));
+        }
         Ok(Composed {
             tree,
+            test: PhantomData,
             primary: P::from_options(options)?,
             shadow: H::from_options(options)?,
             soft: S::from_options(options)?,
@@ -196,7 +242,7 @@ impl<'t, P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Composed<'t, P, H,
     }
 }
 
-impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_, P, H, S, R> {
+impl<I: PacketTreeTest, P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_, I, P, H, S, R> {
     type Scratch = (P::Scratch, H::Scratch, S::Scratch, R::Scratch);
 
     fn scratch(&self) -> Self::Scratch {
@@ -212,7 +258,7 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         out: &mut [Option<Hit>],
         counters: &mut C,
     ) {
-        self.primary.primary_tile(self.tree, &mut scratch.0, camera, tile, out, counters);
+        self.primary.primary_tile::<I, C>(self.tree, &mut scratch.0, camera, tile, out, counters);
     }
 
     #[inline]
@@ -223,7 +269,7 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         out: &mut [bool],
         counters: &mut C,
     ) -> (u64, u64) {
-        self.shadow.shadow_tile(self.tree, &mut scratch.1, job, out, counters)
+        self.shadow.shadow_tile::<I, C>(self.tree, &mut scratch.1, job, out, counters)
     }
 
     #[inline]
@@ -234,7 +280,7 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        self.soft.soft_tile(self.tree, &mut scratch.2, job, visible, counters)
+        self.soft.soft_tile::<I, C>(self.tree, &mut scratch.2, job, visible, counters)
     }
 
     #[inline]
@@ -245,7 +291,7 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         cone: &Cone,
         counters: &mut C,
     ) -> u16 {
-        self.soft.soft_point(self.tree, &mut scratch.2, rays, cone, counters)
+        self.soft.soft_point::<I, C>(self.tree, &mut scratch.2, rays, cone, counters)
     }
 
     #[inline]
@@ -256,7 +302,7 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         out: &mut [Option<Hit>],
         counters: &mut C,
     ) {
-        self.stream.stream(self.tree, &mut scratch.3, rays, out, counters);
+        self.stream.stream::<I, C>(self.tree, &mut scratch.3, rays, out, counters);
     }
 
     #[inline]
@@ -267,13 +313,14 @@ impl<P: Primary, H: HardShadow, S: SoftShadow, R: Stream> Method for Composed<'_
         out: &mut [bool],
         counters: &mut C,
     ) {
-        self.stream.stream_occluded(self.tree, &mut scratch.3, rays, out, counters);
+        self.stream.stream_occluded::<I, C>(self.tree, &mut scratch.3, rays, out, counters);
     }
 }
 
 /// Binds the composition of `P`, `H`, `S` and `R` to our kd-tree of `structures` with
 /// `options`: what a registry line of ours binds (`crate::registry::Bind`), its kernels named
-/// from the bound kernels.
+/// from the bound kernels. The tree's triangle test is matched here, once, and is a type
+/// parameter of the composition ([`Composed`]) from then on.
 pub fn bind<'s, P, H, S, R>(structures: &'s Structures<'_>, options: &Options) -> Result<Binding<'s>, Error>
 where
     P: Primary + 'static,
@@ -281,7 +328,77 @@ where
     S: SoftShadow + 'static,
     R: Stream + 'static,
 {
-    let composed = Composed::<P, H, S, R>::new(structures.kdtree(), options)?;
+    let tree = structures.kdtree();
+    match tree.intersector() {
+        Intersector::Wald => bind_with::<WaldTest, P, H, S, R>(tree, options),
+        Intersector::Watertight => bind_with::<WatertightTest, P, H, S, R>(tree, options),
+    }
+}
+
+/// [`bind`] with the tree's triangle test `I`.
+fn bind_with<'s, I, P, H, S, R>(tree: &'s KdTree, options: &Options) -> Result<Binding<'s>, Error>
+where
+    I: PacketTreeTest,
+    P: Primary + 'static,
+    H: HardShadow + 'static,
+    S: SoftShadow + 'static,
+    R: Stream + 'static,
+{
+    let composed = Composed::<I, P, H, S, R>::new(tree, options)?;
     let names = composed.names();
     Ok(Binding::method(composed).named(names))
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use kdtree::BuildConfig;
+
+    use super::*;
+
+    fn tree(intersector: Intersector) -> KdTree {
+        let tris = [[Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]];
+        KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).expect("one triangle builds")
+    }
+
+    type Singles = Composed<'static, WaldTest, primary::Single, shadow::Single, soft::Single, stream::Single>;
+    type WatertightSingles =
+        Composed<'static, WatertightTest, primary::Single, shadow::Single, soft::Single, stream::Single>;
+
+    /// A composition is made only with its tree's own triangle test (what [`bind`] picks):
+    /// the other test is refused, never traced over the other test's empty records.
+    #[test]
+    fn a_composition_takes_only_its_trees_test() {
+        let (wald, watertight) = (Box::leak(Box::new(tree(Intersector::Wald))), tree(Intersector::Watertight));
+        let watertight: &'static KdTree = Box::leak(Box::new(watertight));
+        let options = Options::default();
+        assert!(Singles::new(wald, &options).is_ok());
+        assert!(WatertightSingles::new(watertight, &options).is_ok());
+        assert!(matches!(Singles::new(watertight, &options), Err(Error::Usage(_))));
+        assert!(matches!(WatertightSingles::new(wald, &options), Err(Error::Usage(_))));
+    }
+
+    /// The single-ray tracer of a bound tree answers as the tree's own entry points, for both
+    /// tests.
+    #[test]
+    fn a_bound_tree_traces_as_the_tree() {
+        let ray = Ray::new(Vec3::new(0.2, 0.2, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        let miss = Ray::new(Vec3::new(2.0, 2.0, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let tree = tree(intersector);
+            let (hit, blocked) = match intersector {
+                Intersector::Wald => {
+                    let bound = TreeWith::<WaldTest>::new(&tree);
+                    (bound.intersect(&ray), bound.occluded(&miss))
+                }
+                Intersector::Watertight => {
+                    let bound = TreeWith::<WatertightTest>::new(&tree);
+                    (bound.intersect(&ray), bound.occluded(&miss))
+                }
+            };
+            assert!(hit.is_some());
+            assert_eq!(hit, tree.intersect(&ray), "{intersector:?}");
+            assert!(!blocked && !tree.occluded(&miss), "{intersector:?}");
+        }
+    }
 }

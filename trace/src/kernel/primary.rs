@@ -14,10 +14,11 @@
 
 use cones::traverse;
 use kdtree::{Counters, Hit, KdTree};
+use packets::PacketTreeTest;
 use packets::TileTracer;
 use scenes::{Camera, Tile};
 
-use super::{FromOptions, NoOptions, Primary};
+use super::{FromOptions, NoOptions, Primary, TreeWith};
 use crate::error::Error;
 use crate::method::{Method, SingleRays, TileCounters};
 use crate::registry::Options;
@@ -40,7 +41,7 @@ impl Primary for Single {
     fn scratch(&self) {}
 
     #[inline]
-    fn primary_tile<C: TileCounters>(
+    fn primary_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -49,7 +50,7 @@ impl Primary for Single {
         out: &mut [Option<Hit>],
         counters: &mut C,
     ) {
-        SingleRays(tree).primary_tile(&mut (), camera, tile, out, counters);
+        SingleRays(TreeWith::<I>::new(tree)).primary_tile(&mut (), camera, tile, out, counters);
     }
 }
 
@@ -62,7 +63,7 @@ pub trait TileKernel: Primary {
 
     /// Traces the tile loaded in `tracer`: the closest hits (any hits in the tracer's any-hit
     /// mode, for the frustum and cone kernels), exactly those of single rays.
-    fn trace_loaded<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C);
+    fn trace_loaded<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C);
 }
 
 /// The options a tile kernel reads: its tile (a multiple of 4 in `4..=64`, checked) and
@@ -75,7 +76,7 @@ fn tile_options(options: &Options) -> Result<(u32, bool), Error> {
 /// [`Primary::primary_tile`] of the tile kernel `K` with tiles of `size` and `culling`.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn primary_tile<K: TileKernel, C: TileCounters>(
+fn primary_tile<I: PacketTreeTest, K: TileKernel, C: TileCounters>(
     size: u32,
     culling: bool,
     tree: &KdTree,
@@ -93,7 +94,7 @@ fn primary_tile<K: TileKernel, C: TileCounters>(
     });
     // The frame driver's tiles fit the tracer (same size, inside the image).
     tracer.load_primary(camera, tile).expect("tile fits the tracer");
-    K::trace_loaded(tree, tracer, counters);
+    K::trace_loaded::<I, C>(tree, tracer, counters);
     tracer.write_hits(out);
 }
 
@@ -122,7 +123,7 @@ macro_rules! tile_kernel {
             const NAME: &'static str = $name;
 
             #[inline]
-            fn trace_loaded<C: Counters>($tree: &KdTree, $tracer: &mut TileTracer, $counters: &mut C) {
+            fn trace_loaded<I: PacketTreeTest, C: Counters>($tree: &KdTree, $tracer: &mut TileTracer, $counters: &mut C) {
                 $trace
             }
         }
@@ -141,7 +142,7 @@ macro_rules! tile_kernel {
             }
 
             #[inline]
-            fn primary_tile<C: TileCounters>(
+            fn primary_tile<I: PacketTreeTest, C: TileCounters>(
                 &self,
                 tree: &KdTree,
                 scratch: &mut Option<TileTracer>,
@@ -150,7 +151,7 @@ macro_rules! tile_kernel {
                 out: &mut [Option<Hit>],
                 counters: &mut C,
             ) {
-                primary_tile::<Self, C>(self.tile, self.culling, tree, scratch, camera, tile, out, counters);
+                primary_tile::<I, Self, C>(self.tile, self.culling, tree, scratch, camera, tile, out, counters);
             }
         }
     };
@@ -159,37 +160,37 @@ macro_rules! tile_kernel {
 tile_kernel!(
     /// Each 2x2 packet of the tile on its own, omni-directional (thesis 4.1.2).
     Packet, "omni-packets", tiled: false,
-    |tree, tracer, counters| tracer.trace_packets(tree, counters)
+    |tree, tracer, counters| tracer.trace_packets_with::<I, C>(tree, counters)
 );
 
 tile_kernel!(
     /// Each 2x2 packet of the tile on its own, standard same-sign traversal split where
     /// signs differ (thesis 2.3.1).
     SameSign, "samesign-packets", tiled: false,
-    |tree, tracer, counters| tracer.trace_samesign(tree, counters)
+    |tree, tracer, counters| tracer.trace_samesign_with::<I, C>(tree, counters)
 );
 
 tile_kernel!(
     /// The tile as one frustum interval with packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4).
     Frustum, "frustum", tiled: true,
-    |tree, tracer, counters| tracer.trace_frustum(tree, counters)
+    |tree, tracer, counters| tracer.trace_frustum_with::<I, C>(tree, counters)
 );
 
 tile_kernel!(
     /// Multiple Frustum Traversal: the tile's four quadrants as four frusta in SSE lanes
     /// (thesis 4.1.5).
     Mft, "mft", tiled: true,
-    |tree, tracer, counters| tracer.trace_mft(tree, counters)
+    |tree, tracer, counters| tracer.trace_mft_with::<I, C>(tree, counters)
 );
 
 tile_kernel!(
     /// One cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8).
     Cone, "cone", tiled: true,
-    |tree, tracer, counters| traverse::trace_cone(tree, tracer, counters)
+    |tree, tracer, counters| traverse::trace_cone_with::<I, C>(tree, tracer, counters)
 );
 
 tile_kernel!(
     /// Four quadrant cones per tile in the lanes of a `Vec4` (thesis 4.1.9).
     MftCone, "mft-cone", tiled: true,
-    |tree, tracer, counters| traverse::trace_mft_cone(tree, tracer, counters)
+    |tree, tracer, counters| traverse::trace_mft_cone_with::<I, C>(tree, tracer, counters)
 );

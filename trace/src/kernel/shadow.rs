@@ -16,10 +16,11 @@
 
 use glam::Vec3;
 use kdtree::{KdTree, Ray};
+use packets::PacketTreeTest;
 use packets::lane_frusta::FRUSTUM_RAYS;
 use packets::{LaneFrusta, LaneWidth, ShadowFrustum, samesign};
 
-use super::{FromOptions, HardShadow, NoOptions};
+use super::{FromOptions, HardShadow, NoOptions, TreeWith};
 use crate::error::Error;
 use crate::method::{Method, ShadowJob, SingleRays, TileCounters};
 use crate::registry::Options;
@@ -41,7 +42,7 @@ impl HardShadow for Single {
     fn scratch(&self) {}
 
     #[inline]
-    fn shadow_tile<C: TileCounters>(
+    fn shadow_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -49,7 +50,7 @@ impl HardShadow for Single {
         out: &mut [bool],
         counters: &mut C,
     ) -> (u64, u64) {
-        SingleRays(tree).shadow_tile(&mut (), job, out, counters)
+        SingleRays(TreeWith::<I>::new(tree)).shadow_tile(&mut (), job, out, counters)
     }
 }
 
@@ -64,7 +65,7 @@ impl Grouping for Packets {
     type Scratch = ();
 
     #[inline]
-    fn occluded<C: TileCounters>(
+    fn occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -73,7 +74,7 @@ impl Grouping for Packets {
         blocked: &mut Vec<bool>,
         counters: &mut C,
     ) {
-        samesign::occluded_segments(tree, starts, ends, blocked, counters);
+        samesign::occluded_segments_with::<I, C>(tree, starts, ends, blocked, counters);
     }
 }
 
@@ -95,7 +96,7 @@ impl Grouping for Frusta {
     type Scratch = ShadowFrustum;
 
     #[inline]
-    fn occluded<C: TileCounters>(
+    fn occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         frustum: &mut ShadowFrustum,
@@ -108,7 +109,7 @@ impl Grouping for Frusta {
         for (&start, &end) in starts.iter().zip(ends) {
             frustum.push(Ray::segment(start, end));
         }
-        frustum.trace(tree, counters);
+        frustum.trace_with::<I, C>(tree, counters);
         blocked.extend_from_slice(frustum.blocked());
     }
 }
@@ -132,7 +133,7 @@ impl Grouping for Lanes {
     type Scratch = LaneFrusta;
 
     #[inline]
-    fn occluded<C: TileCounters>(
+    fn occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         lanes: &mut LaneFrusta,
@@ -146,7 +147,7 @@ impl Grouping for Lanes {
         for (starts, ends) in starts.chunks(FRUSTUM_RAYS).zip(ends.chunks(FRUSTUM_RAYS)) {
             lanes.push(starts, ends);
         }
-        lanes.trace(tree, self.width, counters);
+        lanes.trace_with::<I, C>(tree, self.width, counters);
         for (&mask, run) in lanes.blocked().iter().zip(starts.chunks(FRUSTUM_RAYS)) {
             blocked.extend((0..run.len()).map(|k| mask >> k & 1 != 0));
         }
@@ -170,7 +171,7 @@ macro_rules! grouped {
             }
 
             #[inline]
-            fn shadow_tile<C: TileCounters>(
+            fn shadow_tile<I: PacketTreeTest, C: TileCounters>(
                 &self,
                 tree: &KdTree,
                 scratch: &mut Self::Scratch,
@@ -178,7 +179,7 @@ macro_rules! grouped {
                 out: &mut [bool],
                 counters: &mut C,
             ) -> (u64, u64) {
-                shadow_frusta::hard(tree, self, scratch, job, out, counters)
+                shadow_frusta::hard::<I, _, C>(tree, self, scratch, job, out, counters)
             }
         }
     };

@@ -17,10 +17,11 @@
 use cones::shadows::SAMPLES;
 use cones::{ShadowMethod, SoftShadowTracer};
 use kdtree::{KdTree, Ray};
+use packets::PacketTreeTest;
 use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, omni, samesign};
 
 use super::shadow;
-use super::{FromOptions, NoOptions, SoftShadow};
+use super::{FromOptions, NoOptions, SoftShadow, TreeWith};
 use crate::error::Error;
 use crate::method::{Method, SingleRays, SoftJob, SoftStats, TileCounters, soft_by_points, soft_points};
 use crate::registry::Options;
@@ -42,7 +43,7 @@ impl SoftShadow for Single {
     fn scratch(&self) {}
 
     #[inline]
-    fn soft_tile<C: TileCounters>(
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -50,11 +51,11 @@ impl SoftShadow for Single {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        soft_by_points(&SingleRays(tree), &mut (), job, visible, counters)
+        soft_by_points(&SingleRays(TreeWith::<I>::new(tree)), &mut (), job, visible, counters)
     }
 
     #[inline]
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -62,7 +63,7 @@ impl SoftShadow for Single {
         cone: &cones::Cone,
         counters: &mut C,
     ) -> u16 {
-        SingleRays(tree).soft_point(&mut (), rays, cone, counters)
+        SingleRays(TreeWith::<I>::new(tree)).soft_point(&mut (), rays, cone, counters)
     }
 }
 
@@ -88,7 +89,7 @@ macro_rules! per_point {
             }
 
             #[inline]
-            fn soft_tile<C: TileCounters>(
+            fn soft_tile<I: PacketTreeTest, C: TileCounters>(
                 &self,
                 tree: &KdTree,
                 scratch: &mut Option<SoftShadowTracer>,
@@ -96,11 +97,11 @@ macro_rules! per_point {
                 visible: &mut [f32],
                 counters: &mut C,
             ) -> SoftStats {
-                soft_points(job, visible, |rays, cone| self.soft_point(tree, scratch, rays, cone, counters))
+                soft_points(job, visible, |rays, cone| self.soft_point::<I, C>(tree, scratch, rays, cone, counters))
             }
 
             #[inline]
-            fn soft_point<C: TileCounters>(
+            fn soft_point<I: PacketTreeTest, C: TileCounters>(
                 &self,
                 tree: &KdTree,
                 scratch: &mut Option<SoftShadowTracer>,
@@ -109,7 +110,7 @@ macro_rules! per_point {
                 counters: &mut C,
             ) -> u16 {
                 let tracer = scratch.get_or_insert_with(SoftShadowTracer::new);
-                tracer.occluded(tree, rays, cone, $method, counters)
+                tracer.occluded_with::<I, C>(tree, rays, cone, $method, counters)
             }
         }
     };
@@ -129,10 +130,10 @@ per_point!(
 
 /// A point's 16 rays as four same-sign 2x2 packets (rays `4i .. 4i + 4` the packet `i`):
 /// the per-point query of the kernels that group rays across points.
-fn four_packets<C: TileCounters>(tree: &KdTree, rays: &[Ray; SAMPLES], counters: &mut C) -> u16 {
+fn four_packets<I: PacketTreeTest, C: TileCounters>(tree: &KdTree, rays: &[Ray; SAMPLES], counters: &mut C) -> u16 {
     let mut mask = 0u16;
     for (i, four) in rays.chunks(4).enumerate() {
-        let found = samesign::occluded(tree, &RayPacket::new(four), counters).found.bitmask() as u16;
+        let found = samesign::occluded_with::<I, _, C>(tree, &RayPacket::new(four), counters).found.bitmask() as u16;
         mask |= (found & 0xF) << (4 * i);
     }
     mask
@@ -159,7 +160,7 @@ impl SoftShadow for OmniPoints {
     fn scratch(&self) {}
 
     #[inline]
-    fn soft_tile<C: TileCounters>(
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -167,11 +168,11 @@ impl SoftShadow for OmniPoints {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        soft_points(job, visible, |rays, cone| self.soft_point(tree, &mut (), rays, cone, counters))
+        soft_points(job, visible, |rays, cone| self.soft_point::<I, C>(tree, &mut (), rays, cone, counters))
     }
 
     #[inline]
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut (),
@@ -183,8 +184,8 @@ impl SoftShadow for OmniPoints {
         for (i, four) in rays.chunks(4).enumerate() {
             let packet = RayPacket::new(four);
             let found = match OmniPacket::new(packet) {
-                Some(omni_packet) => omni::occluded(tree, &omni_packet, counters).found,
-                None => samesign::occluded(tree, &packet, counters).found,
+                Some(omni_packet) => omni::occluded_with::<I, _, C>(tree, &omni_packet, counters).found,
+                None => samesign::occluded_with::<I, _, C>(tree, &packet, counters).found,
             };
             mask |= (found.bitmask() as u16 & 0xF) << (4 * i);
         }
@@ -214,7 +215,7 @@ impl SoftShadow for StratumPackets {
     }
 
     #[inline]
-    fn soft_tile<C: TileCounters>(
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -222,11 +223,11 @@ impl SoftShadow for StratumPackets {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        shadow_frusta::soft_strata(tree, &shadow::Packets, scratch, job, visible, counters)
+        shadow_frusta::soft_strata::<I, _, C>(tree, &shadow::Packets, scratch, job, visible, counters)
     }
 
     #[inline]
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut Self::Scratch,
@@ -234,7 +235,7 @@ impl SoftShadow for StratumPackets {
         _: &cones::Cone,
         counters: &mut C,
     ) -> u16 {
-        four_packets(tree, rays, counters)
+        four_packets::<I, C>(tree, rays, counters)
     }
 }
 
@@ -265,7 +266,7 @@ impl SoftShadow for Frusta {
     }
 
     #[inline]
-    fn soft_tile<C: TileCounters>(
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -273,10 +274,17 @@ impl SoftShadow for Frusta {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        shadow_frusta::soft_strata(tree, &shadow::Frusta { tile: self.tile }, scratch, job, visible, counters)
+        shadow_frusta::soft_strata::<I, _, C>(
+            tree,
+            &shadow::Frusta { tile: self.tile },
+            scratch,
+            job,
+            visible,
+            counters,
+        )
     }
 
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -289,7 +297,7 @@ impl SoftShadow for Frusta {
         for &ray in rays {
             frustum.push(ray);
         }
-        frustum.trace(tree, counters);
+        frustum.trace_with::<I, C>(tree, counters);
         frustum.blocked().iter().enumerate().fold(0, |mask, (i, &b)| mask | u16::from(b) << i)
     }
 }
@@ -321,7 +329,7 @@ impl SoftShadow for Lanes {
     }
 
     #[inline]
-    fn soft_tile<C: TileCounters>(
+    fn soft_tile<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut Self::Scratch,
@@ -329,10 +337,10 @@ impl SoftShadow for Lanes {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        shadow_frusta::soft_lanes(tree, self.width, scratch, job, visible, counters)
+        shadow_frusta::soft_lanes::<I, C>(tree, self.width, scratch, job, visible, counters)
     }
 
-    fn soft_point<C: TileCounters>(
+    fn soft_point<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         _: &mut Self::Scratch,
@@ -340,12 +348,14 @@ impl SoftShadow for Lanes {
         _: &cones::Cone,
         counters: &mut C,
     ) -> u16 {
-        four_packets(tree, rays, counters)
+        four_packets::<I, C>(tree, rays, counters)
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use kdtree::WaldTest;
+
     use super::*;
     use crate::method::{ShadowJob, primary_ray};
     use crate::setup::load_and_build;
@@ -357,6 +367,8 @@ mod tests {
     #[test]
     fn every_soft_kernel_gives_single_rays_answers() {
         let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        // The default build is for Wald's test: the kernels are called with it.
+        assert_eq!(tree.intersector(), kdtree::Intersector::Wald);
         let camera = scene.default_view().camera(24, 16).unwrap();
         let tile = Tile { x0: 0, y0: 0, x1: 24, y1: 16 };
         let hits: Vec<_> = tile.pixels().map(|(x, y)| tree.intersect(&primary_ray(&camera, x, y))).collect();
@@ -370,11 +382,11 @@ mod tests {
         assert!(points.len() > 100);
         let want: Vec<u16> = points
             .iter()
-            .map(|(rays, cone)| Single.soft_point(&tree, &mut (), rays, cone, &mut kdtree::NoCounters))
+            .map(|(rays, cone)| Single.soft_point::<WaldTest, _>(&tree, &mut (), rays, cone, &mut kdtree::NoCounters))
             .collect();
         assert!(want.iter().any(|&m| m != 0) && want.iter().any(|&m| m != u16::MAX), "some rays blocked, some not");
         let mut visible = vec![0.0; hits.len()];
-        let want_stats = Single.soft_tile(&tree, &mut (), &job, &mut visible, &mut kdtree::NoCounters);
+        let want_stats = Single.soft_tile::<WaldTest, _>(&tree, &mut (), &job, &mut visible, &mut kdtree::NoCounters);
         fn check<S: SoftShadow>(
             kernel: S,
             tree: &KdTree,
@@ -386,7 +398,7 @@ mod tests {
             let mut scratch = kernel.scratch();
             for ((rays, cone), &w) in points.iter().zip(want) {
                 assert_eq!(
-                    kernel.soft_point(tree, &mut scratch, rays, cone, &mut kdtree::NoCounters),
+                    kernel.soft_point::<WaldTest, _>(tree, &mut scratch, rays, cone, &mut kdtree::NoCounters),
                     w,
                     "{}",
                     kernel.name()
@@ -394,7 +406,7 @@ mod tests {
             }
             let mut visible = vec![0.0; tile.0.len()];
             assert_eq!(
-                kernel.soft_tile(tree, &mut scratch, job, &mut visible, &mut kdtree::NoCounters),
+                kernel.soft_tile::<WaldTest, _>(tree, &mut scratch, job, &mut visible, &mut kdtree::NoCounters),
                 tile.1,
                 "{}",
                 kernel.name()

@@ -13,10 +13,11 @@
 use std::marker::PhantomData;
 
 use kdtree::{Hit, KdTree, Ray};
+use packets::PacketTreeTest;
 use packets::{OmniPacket, RayPacket, TileTracer, omni, samesign};
 
 use super::primary::TileKernel;
-use super::{NoOptions, Stream};
+use super::{NoOptions, Stream, TreeWith};
 use crate::method::{Method, SingleRays, TileCounters};
 
 /// Rays per frustum of a ray stream: up to 16 packets.
@@ -38,24 +39,38 @@ impl Stream for Single {
     fn scratch(&self) {}
 
     #[inline]
-    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
-        SingleRays(tree).stream(&mut (), rays, out, c);
+    fn stream<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        c: &mut C,
+    ) {
+        SingleRays(TreeWith::<I>::new(tree)).stream(&mut (), rays, out, c);
     }
 
     #[inline]
-    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
-        SingleRays(tree).stream_occluded(&mut (), rays, out, c);
+    fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray],
+        out: &mut [bool],
+        c: &mut C,
+    ) {
+        SingleRays(TreeWith::<I>::new(tree)).stream_occluded(&mut (), rays, out, c);
     }
 }
 
 /// Rays `rays` (at most four) as one omni-directional packet if they share an origin (and
 /// start at it), else as a same-sign packet: their closest hits into `out`.
 #[inline]
-fn four<C: TileCounters>(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
+fn four<I: PacketTreeTest, C: TileCounters>(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
     let packet = RayPacket::new(rays);
     let hits = match OmniPacket::new(packet) {
-        Some(omni_packet) => omni::intersect(tree, &omni_packet, counters),
-        None => samesign::intersect(tree, &packet, counters),
+        Some(omni_packet) => omni::intersect_with::<I, _, C>(tree, &omni_packet, counters),
+        None => samesign::intersect_with::<I, _, C>(tree, &packet, counters),
     };
     for (lane, slot) in out.iter_mut().enumerate() {
         *slot = hits.get(lane);
@@ -97,18 +112,32 @@ impl Stream for Packets {
 
     fn scratch(&self) {}
 
-    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+    fn stream<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        c: &mut C,
+    ) {
         for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
-            four(tree, rays, out, c);
+            four::<I, C>(tree, rays, out, c);
         }
     }
 
-    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
+    fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray],
+        out: &mut [bool],
+        c: &mut C,
+    ) {
         for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
             let packet = RayPacket::new(rays);
             let found = match OmniPacket::new(packet) {
-                Some(p) => omni::occluded(tree, &p, c).found,
-                None => samesign::intersect(tree, &packet, c).found,
+                Some(p) => omni::occluded_with::<I, _, C>(tree, &p, c).found,
+                None => samesign::intersect_with::<I, _, C>(tree, &packet, c).found,
             };
             for (lane, slot) in out.iter_mut().enumerate() {
                 *slot = found.bitmask() >> lane & 1 != 0;
@@ -132,17 +161,31 @@ impl Stream for SameSign {
 
     fn scratch(&self) {}
 
-    fn stream<C: TileCounters>(&self, tree: &KdTree, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], c: &mut C) {
+    fn stream<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        _: &mut (),
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        c: &mut C,
+    ) {
         for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
-            let hits = samesign::intersect(tree, &RayPacket::new(rays), c);
+            let hits = samesign::intersect_with::<I, _, C>(tree, &RayPacket::new(rays), c);
             for (lane, slot) in out.iter_mut().enumerate() {
                 *slot = hits.get(lane);
             }
         }
     }
 
-    fn stream_occluded<C: TileCounters>(&self, tree: &KdTree, s: &mut (), rays: &[Ray], out: &mut [bool], c: &mut C) {
-        any_by_closest(rays, out, c, |rays, hits, c| self.stream(tree, s, rays, hits, c));
+    fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
+        &self,
+        tree: &KdTree,
+        s: &mut (),
+        rays: &[Ray],
+        out: &mut [bool],
+        c: &mut C,
+    ) {
+        any_by_closest(rays, out, c, |rays, hits, c| self.stream::<I, C>(tree, s, rays, hits, c));
     }
 }
 
@@ -185,7 +228,7 @@ impl<K: TileKernel> Stream for Runs<K> {
         RunScratch::default()
     }
 
-    fn stream<C: TileCounters>(
+    fn stream<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut RunScratch,
@@ -208,7 +251,7 @@ impl<K: TileKernel> Stream for Runs<K> {
                     group.push(OmniPacket::new(RayPacket::new(four)).expect("run shares its origin"));
                 }
                 tracer.load_packets(group).expect("run shares its origin");
-                K::trace_loaded(tree, tracer, counters);
+                K::trace_loaded::<I, C>(tree, tracer, counters);
                 for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
                     for (lane, slot) in slots.iter_mut().enumerate() {
                         *slot = hits.get(lane);
@@ -218,12 +261,12 @@ impl<K: TileKernel> Stream for Runs<K> {
                 continue;
             }
             let end = (start + 4).min(rays.len());
-            four(tree, &rays[start..end], &mut out[start..end], counters);
+            four::<I, C>(tree, &rays[start..end], &mut out[start..end], counters);
             start = end;
         }
     }
 
-    fn stream_occluded<C: TileCounters>(
+    fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
         &self,
         tree: &KdTree,
         scratch: &mut RunScratch,
@@ -231,6 +274,6 @@ impl<K: TileKernel> Stream for Runs<K> {
         out: &mut [bool],
         counters: &mut C,
     ) {
-        any_by_closest(rays, out, counters, |rays, hits, c| self.stream(tree, scratch, rays, hits, c));
+        any_by_closest(rays, out, counters, |rays, hits, c| self.stream::<I, C>(tree, scratch, rays, hits, c));
     }
 }
