@@ -29,6 +29,7 @@ pub mod build;
 pub mod counters;
 pub mod descent;
 pub mod intersect;
+pub mod isa;
 pub mod leaf;
 pub mod node;
 pub mod oracle;

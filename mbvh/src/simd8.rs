@@ -76,11 +76,12 @@ pub struct Avx2 {
 }
 
 impl Avx2 {
-    /// The token if this CPU has AVX2 (`is_x86_feature_detected!`), else `None` (always on
-    /// architectures other than x86-64). Call it once, when a traversal is set up.
+    /// The token if this CPU has AVX2 (`is_x86_feature_detected!`) and the SIMD level is not
+    /// capped below it (`kdtree::isa::SimdLevel::active`, `rttest --simd`), else `None`
+    /// (always on architectures other than x86-64). Call it once, when a traversal is set up.
     pub fn detect() -> Option<Avx2> {
         #[cfg(target_arch = "x86_64")]
-        if is_x86_feature_detected!("avx2") {
+        if kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx2) && is_x86_feature_detected!("avx2") {
             return Some(Avx2 { _detected: () });
         }
         None

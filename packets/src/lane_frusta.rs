@@ -74,7 +74,8 @@ pub enum LaneWidth {
 }
 
 impl LaneWidth {
-    /// The widest width this CPU runs natively: [`LaneWidth::Eight`] with AVX2, else
+    /// The widest width this CPU runs natively: [`LaneWidth::Eight`] with AVX2 (unless the
+    /// SIMD level is capped below it, `kdtree::isa::SimdLevel::active`), else
     /// [`LaneWidth::Four`].
     pub fn widest() -> LaneWidth {
         if avx2() { LaneWidth::Eight } else { LaneWidth::Four }
@@ -90,11 +91,14 @@ impl LaneWidth {
     }
 }
 
-/// Whether this CPU has AVX2 (and FMA, which Zen 1 and every AVX2 Intel core have).
+/// Whether this CPU has AVX2 and FMA and the SIMD level is not capped below them
+/// (`rttest --simd`).
 fn avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+        kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx2)
+            && is_x86_feature_detected!("avx2")
+            && is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

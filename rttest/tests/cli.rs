@@ -439,3 +439,54 @@ fn soft_grouping_picks_the_kernel_and_keeps_the_answers() {
         "{stderr}"
     );
 }
+
+/// `--simd` caps the level every kernel binds to, and the machine line reports the level
+/// the run used; a level this CPU lacks is a usage error naming both levels. The images of
+/// every level are identical (every width gives the single rays' answers).
+#[test]
+fn simd_caps_the_level_and_keeps_the_image() {
+    let dir = scratch("simd");
+    let widest =
+        json(&rttest(&dir, &["build", "--scene", "cube", "--json"]))["simd"].as_str().expect("simd").to_string();
+    let order = ["sse2", "sse4.1", "avx2", "avx512"];
+    let rank = |s: &str| order.iter().position(|l| *l == s);
+    let mut images = Vec::new();
+    for (arg, level) in [("sse", "sse4.1"), ("avx2", "avx2"), ("avx512", "avx512")] {
+        let out_png = dir.join(format!("mft-{arg}.png"));
+        let args = [
+            "--simd",
+            arg,
+            "--json",
+            "render",
+            "--scene",
+            "arena",
+            "--method",
+            "mft-16",
+            "--size",
+            "64x48",
+            "--frames",
+            "1",
+            "--shadows",
+            "hard",
+            "--out",
+            out_png.to_str().unwrap(),
+        ];
+        let out = rttest(&dir, &args);
+        if rank(level) > rank(&widest) {
+            assert!(!out.status.success(), "{arg} on a {widest} CPU");
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(err.contains("--simd") && err.contains(&widest) && err.contains(level), "{err}");
+            continue;
+        }
+        assert!(out.status.success(), "{arg}: {}", String::from_utf8_lossy(&out.stderr));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        for line in stdout.lines() {
+            let v: serde_json::Value = serde_json::from_str(line).expect("JSON lines");
+            assert_eq!(v["simd"], level, "{line}");
+        }
+        images.push((arg, std::fs::read(&out_png).expect("the image")));
+    }
+    for (arg, image) in &images[1..] {
+        assert!(image == &images[0].1, "--simd {arg} changed the image");
+    }
+}

@@ -14,64 +14,7 @@
 use std::fmt;
 use std::sync::OnceLock;
 
-/// The widest SIMD instruction set the CPU offers this process, as run-time dispatch
-/// (`is_x86_feature_detected!`) sees it. Ordered from narrowest to widest.
-///
-/// The kernels choose their own widths (`packets::LaneWidth::widest`, `mbvh::Avx2::detect`);
-/// this is the level reported beside every measurement.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum SimdLevel {
-    /// No x86 SIMD (another architecture): the portable code paths.
-    Scalar,
-    /// SSE2 only, the x86-64 baseline (glam's `Vec4` lanes).
-    Sse2,
-    /// SSE4.1 (4-wide `f32` lanes with blends and rounding).
-    Sse41,
-    /// AVX2 and FMA (8-wide `f32` lanes).
-    Avx2,
-    /// AVX-512 F and VL (16-wide `f32` lanes, and masks on 4- and 8-wide ones).
-    Avx512,
-}
-
-impl SimdLevel {
-    /// The level's short name: `scalar`, `sse2`, `sse4.1`, `avx2` or `avx512`.
-    pub fn name(self) -> &'static str {
-        match self {
-            SimdLevel::Scalar => "scalar",
-            SimdLevel::Sse2 => "sse2",
-            SimdLevel::Sse41 => "sse4.1",
-            SimdLevel::Avx2 => "avx2",
-            SimdLevel::Avx512 => "avx512",
-        }
-    }
-
-    /// The widest level this CPU runs: `avx512` with `avx512f` and `avx512vl`, `avx2` with
-    /// `avx2` and `fma`, `sse4.1` with `sse4.1`, else `sse2` on x86-64 and `scalar` elsewhere.
-    pub fn detect() -> SimdLevel {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl") {
-                SimdLevel::Avx512
-            } else if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
-                SimdLevel::Avx2
-            } else if is_x86_feature_detected!("sse4.1") {
-                SimdLevel::Sse41
-            } else {
-                SimdLevel::Sse2
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            SimdLevel::Scalar
-        }
-    }
-}
-
-impl fmt::Display for SimdLevel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
+pub use kdtree::isa::SimdLevel;
 
 /// The CPU as its vendor names it: the model string and, where known, the family and model
 /// numbers (AMD's EPYC 9004, Zen 4, is family 25 model 17; its EPYC 7001, Zen 1, family 23
@@ -185,7 +128,8 @@ fn squeeze(s: &str) -> String {
 pub struct Machine {
     /// The CPU.
     pub cpu: Cpu,
-    /// The widest SIMD level run-time dispatch can choose ([`SimdLevel::detect`]).
+    /// The SIMD level the kernels bind to: the widest the CPU has, capped by `--simd`
+    /// ([`SimdLevel::active`]).
     pub simd: SimdLevel,
     /// Logical CPUs (hardware threads) this process may run on
     /// (`std::thread::available_parallelism`, 1 if unknown).
@@ -193,14 +137,13 @@ pub struct Machine {
 }
 
 impl Machine {
-    /// This machine, detected on the first call and cached for the process.
-    pub fn detect() -> &'static Machine {
-        static MACHINE: OnceLock<Machine> = OnceLock::new();
-        MACHINE.get_or_init(|| Machine {
-            cpu: Cpu::detect(),
-            simd: SimdLevel::detect(),
-            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        })
+    /// This machine: its CPU and threads detected on the first call and cached for the
+    /// process, its SIMD level the active one now ([`SimdLevel::active`]).
+    pub fn detect() -> Machine {
+        static MACHINE: OnceLock<(Cpu, usize)> = OnceLock::new();
+        let (cpu, threads) =
+            MACHINE.get_or_init(|| (Cpu::detect(), std::thread::available_parallelism().map_or(1, |n| n.get())));
+        Machine { cpu: cpu.clone(), simd: SimdLevel::active(), threads: *threads }
     }
 }
 
@@ -253,27 +196,10 @@ mod tests {
     #[test]
     fn the_detected_machine_is_cached_and_named() {
         let machine = Machine::detect();
-        assert!(std::ptr::eq(machine, Machine::detect()), "detected once");
+        assert_eq!(machine, Machine::detect(), "detected once");
         assert!(!machine.cpu.name.is_empty() && machine.threads >= 1);
         let line = machine.to_string();
         assert!(line.starts_with("cpu: ") && line.contains(&format!("simd: {}, ", machine.simd.name())), "{line}");
-    }
-
-    #[test]
-    fn the_simd_level_agrees_with_feature_detection() {
-        let level = SimdLevel::detect();
-        #[cfg(target_arch = "x86_64")]
-        {
-            let avx512 = is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl");
-            let avx2 = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
-            let sse41 = is_x86_feature_detected!("sse4.1");
-            assert_eq!(level == SimdLevel::Avx512, avx512);
-            assert_eq!(level >= SimdLevel::Avx2, avx512 || avx2, "{level}");
-            assert_eq!(level >= SimdLevel::Sse41, avx512 || avx2 || sse41, "{level}");
-            assert!(level >= SimdLevel::Sse2);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        assert_eq!(level, SimdLevel::Scalar);
     }
 
     #[test]

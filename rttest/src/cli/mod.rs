@@ -22,7 +22,9 @@ use trace::registry::{KDTREE, Selected, TILE_SIZE};
 use trace::report::{BuildReport, RenderReport, TraversalReport, TreeSummary, WorkloadReport};
 use trace::timing::mrays_per_s;
 use trace::workload::{self, Incoherent};
-use trace::{Error, FrameBuffers, FrameStats, Machine, Options, Registry, Renderer, Shadows, SoftGrouping, Structures};
+use trace::{
+    Error, FrameBuffers, FrameStats, Machine, Options, Registry, Renderer, Shadows, SimdLevel, SoftGrouping, Structures,
+};
 
 use crate::progress::{self, Bar};
 
@@ -68,6 +70,36 @@ pub struct GlobalArgs {
     /// Print one JSON object per result on stdout, and nothing else there.
     #[arg(long, global = true)]
     pub json: bool,
+    /// The widest SIMD instruction set the kernels may use: `auto` (the CPU's widest), or
+    /// `sse` (4 lanes), `avx2` (8) or `avx512` (16) to measure a narrower width on this CPU
+    /// (the width ladder). A level the CPU lacks is an error.
+    #[arg(long, global = true, value_enum, default_value_t = SimdArg::Auto)]
+    pub simd: SimdArg,
+}
+
+/// `--simd` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SimdArg {
+    /// The widest level this CPU runs.
+    Auto,
+    /// SSE 4.1: 4-wide packets.
+    Sse,
+    /// AVX2 and FMA: 8-wide packets and nodes.
+    Avx2,
+    /// AVX-512 F and VL: 16-wide packets.
+    Avx512,
+}
+
+impl SimdArg {
+    /// The cap this value sets (`None` for `auto`).
+    pub fn level(self) -> Option<SimdLevel> {
+        match self {
+            SimdArg::Auto => None,
+            SimdArg::Sse => Some(SimdLevel::Sse41),
+            SimdArg::Avx2 => Some(SimdLevel::Avx2),
+            SimdArg::Avx512 => Some(SimdLevel::Avx512),
+        }
+    }
 }
 
 /// The commands.
@@ -595,6 +627,7 @@ pub fn render_args(args: &[&str]) -> Result<RenderArgs, Error> {
 
 /// Runs the command line `cli`, writing reports to stdout.
 pub fn run(cli: Cli) -> Result<(), Error> {
+    SimdLevel::limit(cli.global.simd.level()).map_err(|e| Error::Usage(format!("--simd: {e}")))?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(cli.global.threads.unwrap_or(0) as usize).build()?;
     let global = cli.global;
     pool.install(|| match cli.command {
