@@ -154,7 +154,8 @@ pub struct CompareRow {
 }
 
 /// The methods `config.methods` selects from `registry`, in registry order, `mono` always
-/// first (the reference).
+/// first (the reference); then those named at a SIMD level (`mft-16@avx2`, the width
+/// ladder's rows), in the order given.
 pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec<Selected>, Error> {
     for &t in &config.tiles {
         if t % 4 != 0 || !(4..=64).contains(&t) {
@@ -166,10 +167,19 @@ pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec
         all.iter().map(|n| registry.select(n, Options::default())).collect::<Result<_, _>>()?;
     let family = |i: usize| registry.entry(selected[i].entry).family;
     let mut wanted = vec![false; all.len()];
+    let mut at_levels = Vec::new();
     for token in &config.methods {
         let token = token.trim();
         if let Some(hint) = baselines::feature_hint(token) {
             return Err(Error::Usage(format!("--methods {token}: {hint}")));
+        }
+        if token.contains('@') {
+            // A method at a capped SIMD level (`mft-16@avx2`): the width ladder's rows.
+            at_levels.push(registry.select(token, Options::default()).map_err(|e| match e {
+                Error::Usage(m) => Error::Usage(format!("--methods: {m}")),
+                e => e,
+            })?);
+            continue;
         }
         let matched: Vec<usize> = match token {
             "all" => (0..all.len()).collect(),
@@ -188,7 +198,9 @@ pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec
         }
     }
     wanted[0] = true;
-    Ok(selected.into_iter().zip(wanted).filter(|(_, w)| *w).map(|(s, _)| s).collect())
+    let mut methods: Vec<Selected> = selected.into_iter().zip(wanted).filter(|(_, w)| *w).map(|(s, _)| s).collect();
+    methods.extend(at_levels.into_iter().filter(|s| !methods.iter().any(|m| m.name == s.name)).collect::<Vec<_>>());
+    Ok(methods)
 }
 
 /// The fixed inputs of every pass: the view, our reference hits and the light.

@@ -11,13 +11,14 @@
 //! when the method is bound ([`mbvh::Avx2::detect`]), and with the scalar 8-wide test
 //! elsewhere.
 
+use kdtree::isa::SimdLevel;
 use kdtree::{Hit, KdTree, Ray};
 use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
 use scenes::Scene;
 
 use crate::error::Error;
 use crate::method::{SingleRays, TileCounters, Tracer};
-use crate::registry::Binding;
+use crate::registry::{Binding, KernelNames};
 
 /// The registry's name of the 4-wide BVH structure.
 pub const MBVH: &str = "mbvh";
@@ -61,9 +62,19 @@ pub fn bind<'s>(bvh: &'s Mbvh, tree: &KdTree) -> Result<Binding<'s>, Error> {
 }
 
 /// `mbvh-8`: single rays through the 8-wide BVH `bvh` with the triangle test of `tree`, the
-/// node test in AVX2 if this CPU has it (checked here, once), else scalar.
-pub fn bind8<'s>(bvh: &'s Mbvh8, tree: &KdTree) -> Result<Binding<'s>, Error> {
-    match (tree.intersector(), Avx2::detect()) {
+/// node test in AVX2 if this CPU has it and `simd` allows it (checked here, once), else
+/// scalar (the kernel then named `mbvh-8-scalar-nodes`).
+pub fn bind8<'s>(bvh: &'s Mbvh8, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
+    let avx2 = Avx2::detect().filter(|_| simd >= SimdLevel::Avx2);
+    if avx2.is_none() {
+        return Ok(bind8_nodes(bvh, tree, None)?.named(KernelNames::whole("mbvh-8-scalar-nodes")));
+    }
+    bind8_nodes(bvh, tree, avx2)
+}
+
+/// [`bind8`] with the node test chosen: AVX2 with the token, else scalar.
+fn bind8_nodes<'s>(bvh: &'s Mbvh8, tree: &KdTree, avx2: Option<Avx2>) -> Result<Binding<'s>, Error> {
+    match (tree.intersector(), avx2) {
         (kdtree::Intersector::Wald, Some(avx2)) => driven(bvh.wald().with_test(avx2)),
         (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
         (kdtree::Intersector::Watertight, Some(avx2)) => driven(bvh.watertight().with_test(avx2)),

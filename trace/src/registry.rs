@@ -17,6 +17,7 @@
 use std::any::Any;
 
 use kdtree::KdTree;
+use kdtree::isa::SimdLevel;
 use packets::LaneWidth;
 use scenes::Scene;
 
@@ -45,11 +46,23 @@ pub struct Options {
     /// How many shadow frusta the lane kernels trace at once (`packets::lane_frusta`): by
     /// default the widest this CPU runs natively ([`LaneWidth::widest`]).
     pub lanes: LaneWidth,
+    /// The widest SIMD level the kernels may bind to: by default the active one
+    /// ([`SimdLevel::active`], the CPU's widest unless `--simd` caps it); a method named
+    /// `NAME@LEVEL` (`mft-16@avx2`) sets it for that method alone. The packet kernels run
+    /// 4, 8 or 16 rays per instruction at `sse4.1`, `avx2` and `avx512`, and the other SIMD
+    /// kernels (lane frusta, mbvh's node test) stay at or below it.
+    pub simd: SimdLevel,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { tile: TILE_SIZE, culling: true, soft: SoftGrouping::Strata, lanes: LaneWidth::widest() }
+        Options {
+            tile: TILE_SIZE,
+            culling: true,
+            soft: SoftGrouping::Strata,
+            lanes: LaneWidth::widest(),
+            simd: SimdLevel::active(),
+        }
     }
 }
 
@@ -332,7 +345,8 @@ impl Registry {
     }
 
     /// The method `name`: an entry's name (tile from `options`) or, for a tiled method,
-    /// `NAME-TILE` (e.g. `mft-16`). An unknown name is an error listing the known ones, and
+    /// `NAME-TILE` (e.g. `mft-16`), either with an optional `@LEVEL` (`mft-16@avx2`: the
+    /// method with its SIMD level capped at `avx2`, [`Options::simd`]). An unknown name is an error listing the known ones, and
     /// so is [`SoftGrouping::PerPoint`] for a method without a per-point kernel.
     pub fn select(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let selected = self.select_name(name, options)?;
@@ -351,6 +365,17 @@ impl Registry {
     /// [`Registry::select`] without the soft-grouping check.
     fn select_name(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let name = name.trim();
+        if let Some((base, level)) = name.rsplit_once('@') {
+            let simd = SimdLevel::from_name(level).filter(|l| *l >= SimdLevel::Sse2).ok_or_else(|| {
+                Error::Usage(format!("{name}: unknown SIMD level '{level}' (known: sse, avx2, avx512)"))
+            })?;
+            let detected = SimdLevel::detect();
+            if simd > detected {
+                return Err(Error::Usage(format!("{name}: this CPU's widest SIMD level is {detected}")));
+            }
+            let selected = self.select_name(base, Options { simd, ..options })?;
+            return Ok(Selected { name: format!("{}@{level}", selected.name), ..selected });
+        }
         if let Some(entry) = self.entries.iter().position(|e| e.name == name) {
             let e = &self.entries[entry];
             let full = if e.tiled { format!("{}-{}", e.name, options.tile) } else { e.name.to_string() };

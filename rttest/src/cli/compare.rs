@@ -25,8 +25,10 @@ pub struct CompareArgs {
     /// Timed builds of each structure, interleaved; the median is reported.
     #[arg(long, default_value_t = 3, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100))]
     pub build_rounds: u32,
-    /// Methods, comma-separated: names (`mono`, `mft-16`, `embree-16`, `bvh`, ...) or groups
-    /// (`all`, `ours`, `embree`, `bvh-crates`). `all` takes the baselines this build has.
+    /// Methods, comma-separated: names (`mono`, `mft-16`, `embree-16`, `bvh`, ...), groups
+    /// (`all`, `ours`, `embree`, `bvh-crates`), or a method of ours at a capped SIMD level
+    /// (`mft-16@sse`, `mft-16@avx2`, `mft-16@avx512`: the width ladder). `all` takes the
+    /// baselines this build has.
     #[arg(long, value_delimiter = ',', default_value = "all", value_name = "LIST")]
     pub methods: Vec<String>,
     /// Tile sizes of our frustum, MFT, cone and MFT-cone methods (multiples of 4, 4 to 64).

@@ -29,7 +29,9 @@ use std::marker::PhantomData;
 
 use cones::Cone;
 use cones::shadows::SAMPLES;
+use kdtree::isa::SimdLevel;
 use kdtree::{Hit, Intersector, KdTree, Ray, WaldTest, WatertightTest};
+use packets::LaneWidth;
 use packets::PacketTreeTest;
 use scenes::{Camera, Tile};
 
@@ -64,6 +66,24 @@ impl<I: PacketTreeTest> Tracer for TreeWith<'_, I> {
     #[inline]
     fn occluded_counted<C: TileCounters>(&self, ray: &Ray, counters: &mut C) -> bool {
         self.tree.occluded_with_counted::<I, C>(ray, counters)
+    }
+}
+
+/// The lane frusta's width for `options`: `--lanes`, narrowed to four below AVX2
+/// ([`Options::simd`]).
+fn lane_width(options: &Options) -> LaneWidth {
+    match options.lanes {
+        LaneWidth::Eight if options.simd < SimdLevel::Avx2 => LaneWidth::Four,
+        width => width,
+    }
+}
+
+/// The lane frusta kernels' identity: `kd-lane-frusta` at eight lanes (AVX2, the default
+/// wherever the CPU has it), `kd-lane-frusta-x4` and `kd-lane-frusta-x1` otherwise.
+fn lane_frusta_name(width: LaneWidth) -> String {
+    match width {
+        LaneWidth::Eight => "kd-lane-frusta".into(),
+        width => format!("kd-lane-frusta-x{}", width.lanes()),
     }
 }
 

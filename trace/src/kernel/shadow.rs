@@ -125,7 +125,7 @@ pub struct Lanes {
 
 impl FromOptions for Lanes {
     fn from_options(options: &Options) -> Result<Self, Error> {
-        Ok(Lanes { width: options.lanes })
+        Ok(Lanes { width: super::lane_width(options) })
     }
 }
 
@@ -187,4 +187,4 @@ macro_rules! grouped {
 
 grouped!(Packets, |_k| "kd-packets".into());
 grouped!(Frusta, |k| format!("kd-frusta-{}", k.tile));
-grouped!(Lanes, |_k| "kd-lane-frusta".into());
+grouped!(Lanes, |k| super::lane_frusta_name(k.width));

@@ -313,7 +313,7 @@ pub struct Lanes {
 
 impl FromOptions for Lanes {
     fn from_options(options: &Options) -> Result<Self, Error> {
-        Ok(Lanes { width: options.lanes })
+        Ok(Lanes { width: super::lane_width(options) })
     }
 }
 
@@ -321,7 +321,7 @@ impl SoftShadow for Lanes {
     type Scratch = ShadowScratch<LaneFrusta>;
 
     fn name(&self) -> String {
-        "kd-lane-frusta".into()
+        super::lane_frusta_name(self.width)
     }
 
     fn scratch(&self) -> Self::Scratch {
