@@ -4,6 +4,9 @@
 //! - [`simd`]: the lane types a packet is generic over ([`simd::SimdF32`], [`simd::SimdMask`]):
 //!   glam's `Vec4` / `BVec4A` (4 lanes, SSE, the default) and the portable
 //!   [`simd::PortableF32<W>`] (any width, the scalar twin; 8 and 16 lanes).
+//! - [`simd_x86`] (x86-64): the explicit 8-lane AVX2 ([`simd_x86::F32x8`]) and 16-lane
+//!   AVX-512 ([`simd_x86::F32x16`]) lane types, bit for bit the portable twin's, with the
+//!   run-time-detected runners that compile a kernel for them.
 //! - [`packet`]: SoA packets of rays, one lane vector per coordinate (by default four rays,
 //!   one glam `Vec4`, an SSE register; the width is the lane type's), and their hits.
 //! - [`triangle4`]: the packet x 1-triangle tests, for both intersectors of `kdtree`, giving
@@ -52,6 +55,8 @@ pub mod packet;
 pub mod samesign;
 pub mod shadow_frustum;
 pub mod simd;
+#[cfg(target_arch = "x86_64")]
+pub mod simd_x86;
 #[cfg(test)]
 mod test_support;
 pub mod tile;
@@ -62,5 +67,7 @@ pub use frustum::Frusta;
 pub use lane_frusta::{LaneFrusta, LaneWidth};
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use shadow_frustum::ShadowFrustum;
+#[cfg(target_arch = "x86_64")]
+pub use simd_x86::{F32x8, F32x16, Mask8, Mask16, with_avx2, with_avx512};
 pub use tile::TileTracer;
 pub use triangle4::PacketTreeTest;
