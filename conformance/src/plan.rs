@@ -2,6 +2,7 @@
 //! [`Rule`]) and [`OracleCheck`]s (single-ray twins against the brute-force oracle).
 
 use kdtree::Intersector;
+use kdtree::isa::SimdLevel;
 use trace::registry::{KDTREE, Options, Registry, SoftGrouping};
 
 /// The tile sizes every tiled method is checked at (and the frame driver's tiles of the
@@ -91,8 +92,10 @@ pub struct Plan {
 impl Plan {
     /// Every method of `registry` on our kd-tree but `mono` itself against `mono`, exactly
     /// ([`Rule::Exact`]), at tiles 4, 8 and 16 (tiled methods also without packet/leaf
-    /// culling at 8, and those with a per-point soft-shadow kernel also with it at 8), with
-    /// both intersectors; `mono` against the oracle.
+    /// culling at 8, and those with a per-point soft-shadow kernel also with it at 8; at
+    /// tiles 8 and 16 also at each narrower SIMD level the CPU runs, `sse4.1` and `avx2`, so
+    /// that every packet width is checked), with both intersectors; `mono` against the
+    /// oracle.
     pub fn ours(registry: &Registry) -> Plan {
         let mut checks = Vec::new();
         for e in registry.entries().iter().filter(|e| e.structure == KDTREE) {
@@ -109,7 +112,20 @@ impl Plan {
                 }
                 if e.tiled && tile == 8 {
                     let options = Options { culling: false, ..options };
-                    checks.push(Check { method, options, reference: "mono".into(), rule: Rule::Exact });
+                    checks.push(Check { method: method.clone(), options, reference: "mono".into(), rule: Rule::Exact });
+                }
+                // Every narrower SIMD level this CPU runs (the default is its widest): each
+                // packet width's kernels, at tiles 8 and 16.
+                if tile >= 8 {
+                    for simd in [SimdLevel::Sse41, SimdLevel::Avx2].into_iter().filter(|l| *l < options.simd) {
+                        let options = Options { simd, ..options };
+                        checks.push(Check {
+                            method: method.clone(),
+                            options,
+                            reference: "mono".into(),
+                            rule: Rule::Exact,
+                        });
+                    }
                 }
             }
         }

@@ -171,8 +171,9 @@ fn check_case(
         let tile = m.options.tile;
         let reference = bind(registry, &check.reference, Options { tile, ..Options::default() }, structures);
         let label = format!(
-            "{} (tile {tile}{}{}) vs {} [{:?}]",
+            "{} (tile {tile}, simd {}{}{}) vs {} [{:?}]",
             check.method,
+            check.options.simd,
             if check.options.culling { "" } else { ", no culling" },
             if check.options.soft == SoftGrouping::PerPoint { ", per-point soft shadows" } else { "" },
             check.reference,

@@ -61,6 +61,7 @@ pub mod simd_x86;
 mod test_support;
 pub mod tile;
 pub mod triangle4;
+pub mod width;
 
 pub use bound::FrustumBound;
 pub use frustum::Frusta;
@@ -71,3 +72,4 @@ pub use shadow_frustum::ShadowFrustum;
 pub use simd_x86::{F32x8, F32x16, Mask8, Mask16, with_avx2, with_avx512};
 pub use tile::TileTracer;
 pub use triangle4::PacketTreeTest;
+pub use width::Width;

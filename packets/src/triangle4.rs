@@ -23,7 +23,7 @@ use kdtree::TreeTest;
 use kdtree::triangle::{ShearedRay, TriangleTest, WaldTriangle, WatertightTriangle};
 
 use crate::packet::{PacketHit, RayPacket};
-use crate::simd::{SimdF32, SimdMask};
+use crate::simd::{PortableF32, SimdF32, SimdMask};
 
 /// A ray-triangle test that also takes a packet of rays at once: `V::LANES` rays, four
 /// (`Vec4`) unless another lane type is named.
@@ -48,12 +48,42 @@ pub trait PacketTest<V: SimdF32 = Vec4>: TriangleTest {
     ) -> V::Mask;
 }
 
-/// A tree's triangle test ([`TreeTest`]) whose records also test 4-ray packets: what a
-/// kernel of this crate (or one composed of them) is generic over. Both of `kdtree`'s tests
-/// are ([`kdtree::WaldTest`], [`kdtree::WatertightTest`]).
-pub trait PacketTreeTest: TreeTest<Record: PacketTest> {}
+/// A tree's triangle test ([`TreeTest`]) whose records also test packets of every lane type
+/// a kernel runs at ([`crate::Width`]: `Vec4`, the AVX2 and AVX-512 types and their portable
+/// twins): what a kernel of this crate (or one composed of them) is generic over. Both of
+/// `kdtree`'s tests are ([`kdtree::WaldTest`], [`kdtree::WatertightTest`]).
+pub trait PacketTreeTest: TreeTest<Record: AnyWidth> {}
 
-impl<I: TreeTest<Record: PacketTest>> PacketTreeTest for I {}
+impl<I: TreeTest<Record: AnyWidth>> PacketTreeTest for I {}
+
+/// A triangle record that tests packets of every lane type [`crate::at_width!`] runs.
+#[cfg(target_arch = "x86_64")]
+pub trait AnyWidth:
+    PacketTest
+    + PacketTest<PortableF32<8>>
+    + PacketTest<PortableF32<16>>
+    + PacketTest<crate::simd_x86::F32x8>
+    + PacketTest<crate::simd_x86::F32x16>
+{
+}
+
+/// A triangle record that tests packets of every lane type [`crate::at_width!`] runs.
+#[cfg(not(target_arch = "x86_64"))]
+pub trait AnyWidth: PacketTest + PacketTest<PortableF32<8>> + PacketTest<PortableF32<16>> {}
+
+#[cfg(target_arch = "x86_64")]
+impl<
+    R: PacketTest
+        + PacketTest<PortableF32<8>>
+        + PacketTest<PortableF32<16>>
+        + PacketTest<crate::simd_x86::F32x8>
+        + PacketTest<crate::simd_x86::F32x16>,
+> AnyWidth for R
+{
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl<R: PacketTest + PacketTest<PortableF32<8>> + PacketTest<PortableF32<16>>> AnyWidth for R {}
 
 impl<V: SimdF32> PacketTest<V> for WaldTriangle {
     type PacketData = ();

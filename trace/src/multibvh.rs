@@ -81,3 +81,21 @@ fn bind8_nodes<'s>(bvh: &'s Mbvh8, tree: &KdTree, avx2: Option<Avx2>) -> Result<
         (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Below AVX2 the 8-wide tree is traced with the scalar node test, and its kernel says so.
+    #[test]
+    fn mbvh8_names_its_node_test() {
+        let scene = scenes::load_scene("cube").unwrap();
+        let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+        let bvh = build8(&scene).unwrap();
+        let names = |simd| bind8(&bvh, &tree, simd).unwrap().kernels.map(|k| k.primary);
+        assert_eq!(names(SimdLevel::Sse41).as_deref(), Some("mbvh-8-scalar-nodes"));
+        if Avx2::detect().is_some() {
+            assert_eq!(names(SimdLevel::Avx2), None, "named by its entry, mbvh-8");
+        }
+    }
+}

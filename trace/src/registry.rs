@@ -450,12 +450,16 @@ mod tests {
         let r = Registry::ours();
         let per_point = Options { soft: SoftGrouping::PerPoint, ..Options::default() };
         let soft = |method: &str, o: Options| r.bind(&r.select(method, o).unwrap(), &s).unwrap().kernels.soft;
+        // The stratum packets are as wide as the method's SIMD level: 2x2 at `sse4.1`.
+        let wide = packets::Width::for_level(Options::default().simd).suffix();
+        let sse = Options { simd: SimdLevel::Sse41, ..Options::default() };
         for (method, strata, thesis) in [
             ("packet", "kd-stratum-packets", "kd-pyramid"),
             ("mft-8", "kd-stratum-packets", "kd-pyramid"),
             ("cone-16", "kd-stratum-packets", "kd-cone"),
         ] {
-            assert_eq!(soft(method, Options::default()), strata);
+            assert_eq!(soft(method, sse), strata);
+            assert_eq!(soft(method, Options::default()), format!("{strata}{wide}"));
             assert_eq!(soft(method, per_point), thesis);
         }
         for method in ["mono", "multi-frusta-16", "mbvh-8"] {
@@ -483,11 +487,19 @@ mod tests {
         assert_eq!([k.primary, k.shadow, k.soft, k.stream], ["kd-single"; 4]);
         let k = kernels("lane-frusta-16");
         assert_eq!((k.shadow.as_str(), k.soft.as_str()), ("kd-lane-frusta", "kd-lane-frusta"));
-        let k = kernels("packet");
+        let k = kernels("packet@sse");
         assert_eq!(
             (k.primary.as_str(), k.shadow.as_str(), k.stream.as_str()),
             ("kd-omni-packets", "kd-packets", "kd-omni-packets")
         );
+        // At a wider level the shadow packets widen and say so; the lane frusta narrow.
+        let k = kernels("packet");
+        let wide = packets::Width::for_level(SimdLevel::active()).suffix();
+        assert_eq!(k.shadow, format!("kd-packets{wide}"));
+        if SimdLevel::active() >= SimdLevel::Avx2 {
+            assert_eq!(kernels("packet@avx2").shadow, "kd-packets-w8");
+            assert_eq!(kernels("lane-frusta-16@sse").shadow, "kd-lane-frusta-x4");
+        }
         let k = kernels("cone-4");
         assert_eq!((k.primary.as_str(), k.stream.as_str()), ("kd-cone-4", "kd-cone-runs"));
     }

@@ -18,7 +18,9 @@ use glam::Vec3;
 use kdtree::{KdTree, Ray};
 use packets::PacketTreeTest;
 use packets::lane_frusta::FRUSTUM_RAYS;
-use packets::{LaneFrusta, LaneWidth, ShadowFrustum, samesign};
+use packets::simd::{SimdF32, SimdMask};
+use packets::triangle4::PacketTest;
+use packets::{LaneFrusta, LaneWidth, RayPacket, ShadowFrustum, Width, samesign};
 
 use super::{FromOptions, HardShadow, NoOptions, TreeWith};
 use crate::error::Error;
@@ -54,12 +56,27 @@ impl HardShadow for Single {
     }
 }
 
-/// Same-sign 2x2 packets of neighbouring pixels' rays, four at a time in Morton order
-/// (`packets::samesign::occluded_segments`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Packets;
+/// Same-sign packets of neighbouring pixels' rays, `width` at a time in Morton order (thesis
+/// 2.3.1): 2x2 pixels at 4 lanes (`kd-packets`), 4x2 at 8 (`kd-packets-w8`, AVX2), 4x4 at 16
+/// (`kd-packets-w16`, AVX-512).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Packets {
+    /// Rays per packet, from the method's SIMD level ([`Options::simd`]).
+    pub width: Width,
+}
 
-impl NoOptions for Packets {}
+impl Default for Packets {
+    /// The thesis's 2x2 packets.
+    fn default() -> Self {
+        Packets { width: Width::Four }
+    }
+}
+
+impl FromOptions for Packets {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(Packets { width: Width::for_level(options.simd) })
+    }
+}
 
 impl Grouping for Packets {
     type Scratch = ();
@@ -74,7 +91,27 @@ impl Grouping for Packets {
         blocked: &mut Vec<bool>,
         counters: &mut C,
     ) {
-        samesign::occluded_segments_with::<I, C>(tree, starts, ends, blocked, counters);
+        blocked.clear();
+        packets::at_width!(self.width, V => occluded_runs::<I, V, C>(tree, starts, ends, blocked, counters));
+    }
+}
+
+/// Each run of `V::LANES` segments `starts[i] -> ends[i]` as one same-sign packet: whether
+/// each is blocked, appended to `blocked` in order.
+#[inline(always)]
+fn occluded_runs<I: PacketTreeTest, V: SimdF32, C: TileCounters>(
+    tree: &KdTree,
+    starts: &[Vec3],
+    ends: &[Vec3],
+    blocked: &mut Vec<bool>,
+    counters: &mut C,
+) where
+    I::Record: PacketTest<V>,
+{
+    for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
+        let packet = RayPacket::<V>::from_segments(starts, ends);
+        let found = samesign::occluded_with::<I, V, C>(tree, &packet, counters).found.bitmask();
+        blocked.extend((0..starts.len().min(ends.len())).map(|lane| found >> lane & 1 != 0));
     }
 }
 
@@ -185,6 +222,6 @@ macro_rules! grouped {
     };
 }
 
-grouped!(Packets, |_k| "kd-packets".into());
+grouped!(Packets, |k| format!("kd-packets{}", k.width.suffix()));
 grouped!(Frusta, |k| format!("kd-frusta-{}", k.tile));
 grouped!(Lanes, |k| super::lane_frusta_name(k.width));

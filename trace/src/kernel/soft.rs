@@ -199,15 +199,22 @@ impl SoftShadow for OmniPoints {
 /// single rays on Sponza, kitchen and atrium (`docs/results/coherent-shadows.md`). One
 /// point's rays alone go as four 2x2 packets.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StratumPackets;
+pub struct StratumPackets {
+    /// The packets: same-sign packets of `width` rays ([`shadow::Packets`]).
+    pub packets: shadow::Packets,
+}
 
-impl NoOptions for StratumPackets {}
+impl FromOptions for StratumPackets {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(StratumPackets { packets: shadow::Packets::from_options(options)? })
+    }
+}
 
 impl SoftShadow for StratumPackets {
     type Scratch = ShadowScratch<()>;
 
     fn name(&self) -> String {
-        "kd-stratum-packets".into()
+        format!("kd-stratum-packets{}", self.packets.width.suffix())
     }
 
     fn scratch(&self) -> Self::Scratch {
@@ -223,7 +230,7 @@ impl SoftShadow for StratumPackets {
         visible: &mut [f32],
         counters: &mut C,
     ) -> SoftStats {
-        shadow_frusta::soft_strata::<I, _, C>(tree, &shadow::Packets, scratch, job, visible, counters)
+        shadow_frusta::soft_strata::<I, _, C>(tree, &self.packets, scratch, job, visible, counters)
     }
 
     #[inline]
@@ -417,7 +424,9 @@ mod tests {
         check(Pyramid, &tree, &job, &points, &want, tile);
         check(Cone, &tree, &job, &points, &want, tile);
         check(OmniPoints, &tree, &job, &points, &want, tile);
-        check(StratumPackets, &tree, &job, &points, &want, tile);
+        for width in packets::Width::ALL {
+            check(StratumPackets { packets: shadow::Packets { width } }, &tree, &job, &points, &want, tile);
+        }
         check(Frusta { tile: 24 }, &tree, &job, &points, &want, tile);
         for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::widest()] {
             check(Lanes { width }, &tree, &job, &points, &want, tile);

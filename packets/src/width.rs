@@ -1,0 +1,184 @@
+//! The width of a packet kernel: how many rays one instruction serves, 4 (SSE), 8 (AVX2) or
+//! 16 (AVX-512), chosen once when a kernel is bound ([`Width::for_level`]), and
+//! [`at_width!`](crate::at_width), which runs a kernel's code at it.
+//!
+//! The packet code is written once, generic over its lane type ([`crate::simd::SimdF32`]);
+//! a width names the lane type it runs with:
+//! - [`Width::Four`]: glam's `Vec4` (SSE), the thesis's 2x2 packet;
+//! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside a
+//!   `#[target_feature(enable = "avx2,fma")]` function;
+//! - [`Width::Sixteen`]: [`F32x16`](crate::simd_x86::F32x16) (AVX-512 F/VL), compiled
+//!   inside a `#[target_feature(enable = "avx512f,avx512vl,...")]` function.
+//!
+//! The wide lane types use their instructions unconditionally, so [`at_width!`] checks the
+//! CPU (one cached load per call) and runs the portable twin of the same width
+//! ([`PortableF32<8>`](crate::simd::PortableF32), `<16>`) on a CPU without them: the answer
+//! is the same bit for bit either way (the lane types are tested against each other), only
+//! the speed differs. Everything the kernel calls must inline into the `target_feature`
+//! function for its lane operations to become single instructions (the packet kernels' hot
+//! functions are `#[inline(always)]`).
+
+use kdtree::isa::SimdLevel;
+
+/// How many rays a packet kernel traces per instruction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Width {
+    /// 4 lanes (SSE): 2x2 pixels, the thesis's packet.
+    Four,
+    /// 8 lanes (AVX2): 4x2 pixels.
+    Eight,
+    /// 16 lanes (AVX-512): 4x4 pixels.
+    Sixteen,
+}
+
+impl Width {
+    /// Every width, narrowest first.
+    pub const ALL: [Width; 3] = [Width::Four, Width::Eight, Width::Sixteen];
+
+    /// The widest width `level` runs natively: 16 at `avx512`, 8 at `avx2`, else 4.
+    pub fn for_level(level: SimdLevel) -> Width {
+        match level {
+            SimdLevel::Avx512 => Width::Sixteen,
+            SimdLevel::Avx2 => Width::Eight,
+            _ => Width::Four,
+        }
+    }
+
+    /// Rays per instruction: 4, 8 or 16.
+    pub fn lanes(self) -> usize {
+        match self {
+            Width::Four => 4,
+            Width::Eight => 8,
+            Width::Sixteen => 16,
+        }
+    }
+
+    /// What a kernel's name gains at this width: nothing at 4 (the thesis's packets keep
+    /// their names), `-w8` and `-w16` otherwise (`kd-mft-16-w16`).
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Width::Four => "",
+            Width::Eight => "-w8",
+            Width::Sixteen => "-w16",
+        }
+    }
+
+    /// Whether this CPU runs the width's instructions (else [`at_width!`] runs its portable
+    /// twin).
+    pub fn native(self) -> bool {
+        match self {
+            Width::Four => true,
+            Width::Eight => SimdLevel::detect() >= SimdLevel::Avx2,
+            Width::Sixteen => SimdLevel::detect() >= SimdLevel::Avx512,
+        }
+    }
+}
+
+/// Runs `f` compiled for AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[doc(hidden)]
+#[inline(never)]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+pub unsafe fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// Runs `f` compiled for AVX-512 (F, VL, BW, DQ, CD) with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX-512 F and VL (every such CPU has BW, DQ and CD too: Skylake-SP
+/// and later, Zen 4 and later), AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[doc(hidden)]
+#[inline(never)]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+pub unsafe fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// `at_width!(width, V => body)`: evaluates `body` with the type `V` the lane type of
+/// `width` ([`Width`]), compiled for its instruction set: `Vec4` at [`Width::Four`],
+/// `F32x8` under AVX2 at [`Width::Eight`], `F32x16` under AVX-512 at [`Width::Sixteen`]
+/// (the portable twins `PortableF32<8>` / `<16>` where the CPU lacks them, or off x86-64).
+/// The body is expanded once per lane type; it must call only `#[inline(always)]` kernel
+/// code for the wide lanes to become single instructions.
+#[macro_export]
+macro_rules! at_width {
+    ($width:expr, $V:ident => $body:expr) => {{
+        #[allow(unused_unsafe)]
+        match $width {
+            $crate::Width::Four => {
+                type $V = ::glam::Vec4;
+                $body
+            }
+            #[cfg(target_arch = "x86_64")]
+            $crate::Width::Eight if $crate::Width::Eight.native() => {
+                // SAFETY: the CPU has AVX2 and FMA (`Width::native`).
+                unsafe {
+                    $crate::width::run_avx2(
+                        #[inline(always)]
+                        || {
+                            type $V = $crate::simd_x86::F32x8;
+                            $body
+                        },
+                    )
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            $crate::Width::Sixteen if $crate::Width::Sixteen.native() => {
+                // SAFETY: the CPU has AVX-512 F and VL, AVX2 and FMA (`Width::native`).
+                unsafe {
+                    $crate::width::run_avx512(
+                        #[inline(always)]
+                        || {
+                            type $V = $crate::simd_x86::F32x16;
+                            $body
+                        },
+                    )
+                }
+            }
+            $crate::Width::Eight => {
+                type $V = $crate::simd::PortableF32<8>;
+                $body
+            }
+            $crate::Width::Sixteen => {
+                type $V = $crate::simd::PortableF32<16>;
+                $body
+            }
+        }
+    }};
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn widths_follow_the_levels() {
+        assert_eq!(Width::for_level(SimdLevel::Avx512), Width::Sixteen);
+        assert_eq!(Width::for_level(SimdLevel::Avx2), Width::Eight);
+        assert_eq!(Width::for_level(SimdLevel::Sse41), Width::Four);
+        assert_eq!(Width::for_level(SimdLevel::Scalar), Width::Four);
+        assert_eq!(Width::ALL.map(Width::lanes), [4, 8, 16]);
+        assert_eq!(Width::Sixteen.native(), SimdLevel::detect() == SimdLevel::Avx512);
+    }
+
+    /// The macro gives each width its lane type, natively compiled or not.
+    #[test]
+    fn at_width_picks_the_lane_type() {
+        use crate::simd::SimdF32;
+        for width in Width::ALL {
+            let lanes = at_width!(width, V => V::LANES);
+            let sum = at_width!(width, V => {
+                let v = V::from_fn(|l| l as f32);
+                (0..V::LANES).map(|l| (v + V::ONE)[l]).sum::<f32>()
+            });
+            assert_eq!(lanes, width.lanes());
+            let n = width.lanes() as f32;
+            assert_eq!(sum, n * (n + 1.0) / 2.0);
+        }
+    }
+}
