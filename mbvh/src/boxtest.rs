@@ -3,8 +3,7 @@
 //! implementation shares: the [`BoxTest`] trait, the conservative arithmetic ([`WIDEN`],
 //! [`TINY`]) and the portable scalar test written once for every width ([`Scalar<W>`],
 //! [`hit_scalar`]), which is also the scalar twin of each SIMD test ([`crate::simd4`]:
-//! SSE, 4 wide; [`crate::simd8`]: AVX2, 8 wide; the 16-wide AVX-512 test is still to come,
-//! and 16-wide trees are traversed with [`Scalar<16>`] until then).
+//! SSE, 4 wide; [`crate::simd8`]: AVX2, 8 wide; [`crate::simd16`]: AVX-512, 16 wide).
 //!
 //! The boxes are SoA (one lane array per box coordinate), so one slab test of a ray against
 //! `W` boxes is six subtractions, six multiplications and the min/max reductions, `W` lanes
@@ -24,9 +23,10 @@
 //! The one undefined product is `0 * inf`: a direction component is zero (`1 / d = ±inf`)
 //! and the origin lies exactly on the box's plane, so the ray runs inside that face's plane
 //! and the axis bounds nothing. The product is NaN; it is dropped in the reductions: each
-//! SIMD step is `max(candidate, accumulator)` (SSE `maxps` and AVX `vmaxps` return their
-//! second operand when either is NaN, and the accumulator, starting at the ray's non-NaN
-//! `t_min` / `t_max`, never is), and the scalar test says the same with an explicit test.
+//! SIMD step is `max(candidate, accumulator)` (SSE `maxps` and AVX / AVX-512 `vmaxps`
+//! return their second operand when either is NaN, and the accumulator, starting at the
+//! ray's non-NaN `t_min` / `t_max`, never is), and the scalar test says the same with an
+//! explicit test.
 //! Every SIMD test does the same operations in the same order without fused multiply-add,
 //! so it gives the scalar test's masks and entry distances bit for bit (`tests/twins.rs`).
 
@@ -160,6 +160,9 @@ pub type Scalar4 = Scalar<4>;
 
 /// The 8-wide tree's portable test and the scalar twin of [`crate::Avx2`].
 pub type Scalar8 = Scalar<8>;
+
+/// The 16-wide tree's portable test and the scalar twin of [`crate::Avx512`].
+pub type Scalar16 = Scalar<16>;
 
 impl<const W: usize> BoxTest for Scalar<W>
 where

@@ -13,16 +13,17 @@
 //! (4, 8 and 16); only the SIMD node tests are per width and instruction set.
 //!
 //! - [`node`]: [`Node<W>`], the SoA multi-node (per axis `[min, max]`, each `W` lanes
-//!   aligned for one register; [`Node4`], [`Node8`]), what each width fixes ([`NodeWidth`]:
+//!   aligned for one register; [`Node4`], [`Node8`], [`Node16`]), what each width fixes ([`NodeWidth`]:
 //!   lane alignment, stack capacity) and [`MultiNode`], the node as the build and the
 //!   traversal see it.
 //! - [`boxtest`]: the conservative slab test (section 5.2): [`BoxTest`] (a node test as a
 //!   value, with its scalar twin and the traversal's entry points) and the portable scalar
 //!   test of every width, [`Scalar<W>`], the twin of every SIMD test.
 //! - [`simd4`]: [`Simd4`], the 4-wide test in SSE (glam's `Vec4`).
-//! - [`simd8`]: [`Avx2`], the 8-wide test in AVX2, a token chosen at run time. The 16-wide
-//!   AVX-512 test is to be its sibling (`simd16`); until then 16-wide trees use
-//!   [`Scalar<16>`].
+//! - [`simd8`]: [`Avx2`], the 8-wide test in AVX2, a token chosen at run time.
+//! - [`simd16`]: [`Avx512`], the paper's 16-wide test in AVX-512 (one 512-bit register per
+//!   box coordinate, the hit mask a k-mask), a token chosen at run time like [`Avx2`];
+//!   without it 16-wide trees use [`Scalar16`].
 //! - [`build`]: binned SAH binary BVH collapsed top-down into `W`-wide multi-nodes
 //!   (section 4).
 //! - [`leaf`]: leaf blocks of up to four triangles SoA for both of `kdtree`'s intersectors,
@@ -31,22 +32,24 @@
 //!   for every width and node test, with a scalar twin.
 //!
 //! Modules import only downwards: `node` imports nothing of the crate; `boxtest` and
-//! `build` import `node`; `simd4` and `simd8` import `node` and `boxtest`; `traverse`
+//! `build` import `node`; `simd4`, `simd8` and `simd16` import `node` and `boxtest`; `traverse`
 //! imports `node`, `boxtest` and `leaf`; this root imports them all.
 //!
-//! **Where this CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
-//! and builds 16-wide nodes and leaves. This machine (AMD Zen 1) has SSE4.2 and AVX2, no
-//! 16-wide SIMD, and executes every 256-bit operation as two 128-bit halves: an 8-wide node
-//! test costs about two 4-wide ones, so 8 wide buys no arithmetic throughput, only fewer,
-//! fatter nodes (fewer traversal steps and stack operations). We build both widths over the
-//! same binary BVH: [`Mbvh`], 4 wide (one SSE register per coordinate, glam's `Vec4`), and
-//! [`Mbvh8`], 8 wide (AVX2 where the CPU has it, checked once when the traversal is made);
-//! `MultiBvh<Node<16>>` builds and traces too, with the scalar test only.
+//! **Where the CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
+//! and builds 16-wide nodes and leaves. The project's first machine (AMD Zen 1) has SSE4.2 and
+//! AVX2, no 16-wide SIMD, and executes every 256-bit operation as two 128-bit halves: an
+//! 8-wide node test costs about two 4-wide ones, so 8 wide buys no arithmetic throughput, only
+//! fewer, fatter nodes (fewer traversal steps and stack operations). We build every width over
+//! the same binary BVH: [`Mbvh`], 4 wide (one SSE register per coordinate, glam's `Vec4`),
+//! [`Mbvh8`], 8 wide (AVX2 where the CPU has it, checked once when the traversal is made),
+//! and [`Mbvh16`], the paper's 16 wide (AVX-512 where the CPU has it, [`Avx512`], checked
+//! the same way; the scalar test elsewhere).
 //! Measured here (`docs/results/incoherent-mbvh.md`), 8 wide is the faster, 1.1-1.6x on
 //! primary, shadow, AO and diffuse rays: a ray visits about a third fewer nodes, and a single
-//! ray's node step costs its latency more than its arithmetic. Leaves stay one 4-wide
-//! block of triangles in every width. With at most 16 children the paper's unsorted active list
-//! (section 5.3) is replaced by an insertion sort of the entered children onto the stack.
+//! ray's node step costs its latency more than its arithmetic (16 wide is not measured there:
+//! that CPU has no AVX-512). Leaves stay one 4-wide block of triangles in every width. With
+//! at most 16 children the paper's unsorted active list (section 5.3) is replaced by an
+//! insertion sort of the entered children onto the stack.
 //!
 //! The tree is independent of the triangle test; its leaves are stored once per intersector
 //! ([`MultiBvh::wald`], [`MultiBvh::watertight`]) so that a method can answer with the test of the
@@ -56,6 +59,7 @@ pub mod boxtest;
 pub mod build;
 pub mod leaf;
 pub mod node;
+pub mod simd16;
 pub mod simd4;
 pub mod simd8;
 pub mod traverse;
@@ -64,12 +68,13 @@ use glam::Vec3;
 use kdtree::Aabb;
 use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
 
-pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8};
+pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8, Scalar16};
 pub use build::BuildError;
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
-pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, NodeWidth, Width};
+pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, Node16, NodeWidth, Width};
 pub use simd4::Simd4;
 pub use simd8::Avx2;
+pub use simd16::Avx512;
 pub use traverse::Traversal;
 
 /// The 4-wide BVH ([`Node4`]).
@@ -77,6 +82,10 @@ pub type Mbvh = MultiBvh<Node4>;
 
 /// The 8-wide BVH ([`Node8`]), collapsed from the same binary BVH as [`Mbvh`].
 pub type Mbvh8 = MultiBvh<Node8>;
+
+/// The 16-wide BVH ([`Node16`], the paper's width), collapsed from the same binary BVH as
+/// [`Mbvh`] and [`Mbvh8`].
+pub type Mbvh16 = MultiBvh<Node16>;
 
 /// A node width's default test: the one [`MultiBvh::wald`] and [`MultiBvh::watertight`]
 /// traverse with, portable (it runs on every CPU of the architecture); a faster one that
@@ -96,23 +105,9 @@ impl DefaultTest for Node8 {
     type Test = Scalar8;
 }
 
-/// Scalar: the 16-wide AVX-512 test (a token like [`Avx2`], asked for with
-/// `Traversal::with_test`) is still to come.
-impl DefaultTest for Node<16> {
-    type Test = Scalar<16>;
-}
-
-/// Width 16 instantiates with the scalar test: its node, tree and both traversal queries
-/// type-check here (and are exercised by the tests), before its SIMD test exists.
-mod width_16 {
-    use kdtree::{Hit, NoCounters, Ray};
-
-    use super::*;
-
-    type Build = fn(&[Vec3], &[[u32; 3]]) -> Result<MultiBvh<Node<16>>, BuildError>;
-    type Closest = fn(&Traversal<'static, WaldBlock, Scalar<16>>, &Ray, &mut NoCounters) -> Option<Hit>;
-    type Any = fn(&Traversal<'static, WatertightBlock, Scalar<16>>, &Ray, &mut NoCounters) -> bool;
-    const _: (Build, Closest, Any) = (MultiBvh::build, Traversal::intersect_counted, Traversal::occluded_counted);
+/// Scalar; [`Avx512`] where [`Avx512::detect`] finds it (`Traversal::with_test`).
+impl DefaultTest for Node16 {
+    type Test = Scalar16;
 }
 
 /// A multi-branching BVH over a triangle mesh, nodes of type `N` ([`Node<W>`]), with leaf
@@ -296,7 +291,8 @@ impl<N: MultiNode> MultiBvh<N> {
 
 impl<N: DefaultTest> MultiBvh<N> {
     /// The tree with Wald's test in the leaves (thesis 4.2) and the width's default node
-    /// test ([`DefaultTest`]; `Traversal::with_test` picks another, e.g. [`Avx2`]).
+    /// test ([`DefaultTest`]; `Traversal::with_test` picks another, e.g. [`Avx2`] or
+    /// [`Avx512`]).
     pub fn wald(&self) -> Traversal<'_, WaldBlock, N::Test> {
         Traversal::new(&self.nodes, &self.wald, N::Test::default())
     }
@@ -352,7 +348,8 @@ mod tests {
     fn the_widths_give_the_same_hits() {
         let (p, t) = quad_mesh(300);
         let (b4, b8) = (Mbvh::build(&p, &t).unwrap(), Mbvh8::build(&p, &t).unwrap());
-        let avx = Avx2::detect();
+        let b16 = Mbvh16::build(&p, &t).unwrap();
+        let (avx, avx512) = (Avx2::detect(), Avx512::detect());
         for i in 0..600 {
             let x = i as f32 * 0.5 + 0.13;
             let ray = Ray::new(Vec3::new(x, 0.2, -1.0), Vec3::new(0.01 * (i % 7) as f32, 0.0, 1.0), 0.0, f32::INFINITY);
@@ -364,15 +361,33 @@ mod tests {
                 assert_eq!(tr.intersect_counted(&ray, &mut NoCounters), tr.intersect_scalar(&ray, &mut NoCounters));
                 assert_eq!(tr.occluded_counted(&ray, &mut NoCounters), want.is_some());
             }
+            assert_eq!(b16.wald().intersect_counted(&ray, &mut NoCounters), want, "{ray:?}");
+            if let Some(avx512) = avx512 {
+                let tr = b16.wald().with_test(avx512);
+                assert_eq!(tr.intersect_counted(&ray, &mut NoCounters), want, "{ray:?}");
+                assert_eq!(tr.occluded_counted(&ray, &mut NoCounters), want.is_some());
+            }
         }
     }
 
-    /// Width 16 with the scalar test (its SIMD test is still to come): the tree collapsed
-    /// from the same binary BVH, traced against `BruteForce` and its scalar twin.
+    /// Width 16 with the scalar test and, where the CPU has it, the AVX-512 test: the tree
+    /// collapsed from the same binary BVH, traced against `BruteForce` and its scalar twin.
     #[test]
     fn a_16_wide_tree_traces_like_brute_force() {
-        use kdtree::{BruteForce, Intersector};
+        use kdtree::{BruteForce, Hit, Intersector};
         use scenes::builtin::shapes::Rng;
+
+        /// `tr`'s closest hit of `ray`, checked against the oracle (closest and any hit) and
+        /// against its scalar twin bit for bit.
+        fn traced<B: LeafBlock, K: BoxTest>(tr: Traversal<'_, B, K>, oracle: &BruteForce, ray: &Ray) -> Option<Hit> {
+            let got = tr.intersect_counted(ray, &mut NoCounters);
+            let occluded = tr.occluded_counted(ray, &mut NoCounters);
+            oracle.check(ray, got, occluded).unwrap();
+            let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+            assert_eq!(bits(got), bits(tr.intersect_scalar(ray, &mut NoCounters)), "{ray:?}");
+            assert_eq!(occluded, tr.occluded_scalar(ray, &mut NoCounters), "{ray:?}");
+            got
+        }
 
         let mut rng = Rng::new(16);
         let mut point = |s: f32| Vec3::new(rng.range(-s, s), rng.range(-s, s), rng.range(-s, s));
@@ -382,14 +397,19 @@ mod tests {
             positions.extend([c + point(0.6), c + point(0.6), c + point(0.6)]);
         }
         let triangles: Vec<[u32; 3]> = (0..400).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
-        let bvh = MultiBvh::<Node<16>>::build(&positions, &triangles).unwrap();
+        let bvh = Mbvh16::build(&positions, &triangles).unwrap();
         bvh.validate(&positions, &triangles).unwrap();
         let (s, s8) = (bvh.stats(), Mbvh8::build(&positions, &triangles).unwrap().stats());
         assert_eq!((s.leaves, s.leaf_triangles), (s8.leaves, s8.leaf_triangles));
         assert!(s.nodes < s8.nodes && s.depth <= s8.depth && s.branching > s8.branching, "{s:?} {s8:?}");
         let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
         let (w, wt) = (BruteForce::new(&tris, Intersector::Wald), BruteForce::new(&tris, Intersector::Watertight));
-        let bits = |h: Option<kdtree::Hit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+        let avx512 = Avx512::detect();
+        if avx512.is_none() {
+            eprintln!(
+                "note: no AVX-512 on this CPU (or the SIMD cap): the 16-wide tree is traced with the scalar test only"
+            );
+        }
         let mut hits = 0;
         for i in 0..600 {
             let (o, to) = (point(6.0), point(3.0));
@@ -399,13 +419,12 @@ mod tests {
                 continue;
             }
             let ray = Ray::new(o, d, 0.0, if i % 2 == 0 { f32::INFINITY } else { 1.0 });
-            let (tw, twt) = (bvh.wald(), bvh.watertight());
-            let got = tw.intersect_counted(&ray, &mut NoCounters);
-            w.check(&ray, got, tw.occluded_counted(&ray, &mut NoCounters)).unwrap();
-            let got_wt = twt.intersect_counted(&ray, &mut NoCounters);
-            wt.check(&ray, got_wt, twt.occluded_counted(&ray, &mut NoCounters)).unwrap();
-            assert_eq!(bits(got), bits(tw.intersect_scalar(&ray, &mut NoCounters)));
-            assert_eq!(bits(got_wt), bits(twt.intersect_scalar(&ray, &mut NoCounters)));
+            let got = traced(bvh.wald(), &w, &ray);
+            traced(bvh.watertight(), &wt, &ray);
+            if let Some(avx) = avx512 {
+                assert_eq!(traced(bvh.wald().with_test(avx), &w, &ray), got, "{ray:?}");
+                traced(bvh.watertight().with_test(avx), &wt, &ray);
+            }
             hits += usize::from(got.is_some());
         }
         assert!(hits > 50, "{hits} hits");
@@ -472,6 +491,12 @@ mod tests {
             if let Some(avx) = Avx2::detect() {
                 assert!(bvh8.wald().with_test(avx).intersect_counted(&ray, &mut NoCounters).is_none());
                 assert!(!bvh8.watertight().with_test(avx).occluded_counted(&ray, &mut NoCounters));
+            }
+            let bvh16 = Mbvh16::build(&p, &t).unwrap();
+            assert!(bvh16.wald().intersect_counted(&ray, &mut NoCounters).is_none());
+            if let Some(avx) = Avx512::detect() {
+                assert!(bvh16.wald().with_test(avx).intersect_counted(&ray, &mut NoCounters).is_none());
+                assert!(!bvh16.watertight().with_test(avx).occluded_counted(&ray, &mut NoCounters));
             }
         }
     }

@@ -6,13 +6,14 @@
 //! of the lane arrays (one SIMD register each, so a node test loads them aligned) and the
 //! capacity of the traversal's stack. Rust cannot compute either from `W` in a generic
 //! context, so each width names them once here: 4 (16 bytes, SSE), 8 (32 bytes, AVX2) and 16
-//! (64 bytes, the AVX-512 register, whose test is still to come). The layout is the same
-//! as when each width had a type of its own: [`Node4`] is 112 bytes (16-byte aligned),
-//! [`Node8`] 224 bytes (32-byte aligned), `Node<16>` 448 bytes (64-byte aligned); the lane
-//! arrays come first and the child words last.
+//! (64 bytes, the AVX-512 register). The layout is the same as when each width had a type of
+//! its own: [`Node4`] is 112 bytes (16-byte aligned), [`Node8`] 224 bytes (32-byte aligned),
+//! [`Node16`] 448 bytes (64-byte aligned, one cache line per box coordinate); the lane arrays
+//! come first and the child words last.
 //!
 //! The node tests live beside it: the portable scalar test of every width in
-//! [`crate::boxtest`], the SIMD tests in [`crate::simd4`] and [`crate::simd8`].
+//! [`crate::boxtest`], the SIMD tests in [`crate::simd4`],
+//! [`crate::simd8`] and [`crate::simd16`].
 
 use std::fmt::{self, Debug};
 use std::mem::MaybeUninit;
@@ -186,9 +187,13 @@ pub type Node4 = Node<4>;
 /// The 8-wide node: one AVX register per box coordinate, 224 bytes.
 pub type Node8 = Node<8>;
 
+/// The 16-wide node, the paper's (section 3): one AVX-512 register per box coordinate, 448
+/// bytes.
+pub type Node16 = Node<16>;
+
 const _: () = assert!(size_of::<Node4>() == 112 && align_of::<Node4>() == 16);
 const _: () = assert!(size_of::<Node8>() == 224 && align_of::<Node8>() == 32);
-const _: () = assert!(size_of::<Node<16>>() == 448 && align_of::<Node<16>>() == 64);
+const _: () = assert!(size_of::<Node16>() == 448 && align_of::<Node16>() == 64);
 
 impl<const W: usize> Node<W>
 where

@@ -18,9 +18,10 @@
 //! executed as two 128-bit halves, so one 8-wide node test costs about two 4-wide ones; what
 //! the wider node can save is node fetches and traversal steps, not arithmetic.
 //!
-//! A 16-wide AVX-512 test would be a sibling module of this one: a token made by
-//! `is_x86_feature_detected!("avx512f")`, the test on `Node<16>` with `_mm512_*`, and the
-//! same two entry points compiled for AVX-512.
+//! The 16-wide AVX-512 test is this module's sibling, [`crate::simd16`]: the token
+//! [`crate::Avx512`] (AVX-512 F and VL, under the same SIMD cap), the test on
+//! [`crate::Node16`] with `_mm512_*` and a k-mask, and the same two entry points compiled for
+//! AVX-512.
 
 use kdtree::{Counters, Hit, Ray};
 

@@ -6,14 +6,15 @@
 //!   `(node, entry distance)`; the children a ray enters are visited nearest first (the
 //!   others pushed farthest first), and an entry whose distance is beyond the closest hit so
 //!   far is dropped when popped. The paper keeps an unsorted active list scanned 16 wide for
-//!   the nearest entry (section 5.3); with the 4 or 8 children of our SIMD nodes the entries
-//!   are insertion-sorted straight onto the stack (two to `W` of them), which is cheaper on
-//!   this CPU than a scan and gives the same front-to-back order within a node.
+//!   the nearest entry (section 5.3); with the 4, 8 or 16 children of our SIMD nodes the
+//!   entries are taken from the hit mask bit by bit and insertion-sorted straight onto the
+//!   stack (two to `W` of them), which gives the same front-to-back order within a node
+//!   without a scan per pop.
 //! - **Any hit** ([`Traversal::occluded_counted`]): the same descent without ordering, and
 //!   the first hit ends it.
 //!
 //! Both are generic over the leaf block (the intersector), the node test ([`BoxTest`]: 4-wide
-//! SSE, 8-wide AVX2, or the scalar test of any width) and over `SIMD` leaves; the stacks are
+//! SSE, 8-wide AVX2, 16-wide AVX-512, or the scalar test of any width) and over `SIMD` leaves; the stacks are
 //! sized for the node's width (`node::stack_capacity`). A test enters the loops through its
 //! [`BoxTest::closest`] / [`BoxTest::any`] ([`TraversalLoop`]), so that a test with target
 //! features runs them compiled with those. The scalar twin ([`Traversal::intersect_scalar`])
@@ -59,7 +60,8 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
     }
 
     /// The same tree and blocks traversed with another node test of the same width (e.g.
-    /// [`crate::Avx2`] instead of the portable [`crate::Scalar8`]).
+    /// [`crate::Avx2`] instead of the portable [`crate::Scalar8`], [`crate::Avx512`] instead
+    /// of [`crate::Scalar16`]).
     pub fn with_test<T: BoxTest<Node = K::Node>>(self, test: T) -> Traversal<'a, B, T> {
         Traversal { nodes: self.nodes, blocks: self.blocks, test }
     }

@@ -3,11 +3,12 @@
 //! built-in scenes (every view, primary rays and random rays from and to surfaces,
 //! axis-parallel rays) and on random soups. Every closest hit must pass `BruteForce::check`,
 //! and every traversal (4-wide SSE, 8-wide scalar, 8-wide AVX2 where the CPU has it, 16-wide
-//! scalar) must give its scalar twin's answers bit for bit.
+//! scalar, 16-wide AVX-512 where the CPU has it) must give its scalar twin's answers bit for
+//! bit.
 
 use glam::Vec3;
 use kdtree::{BruteForce, Hit, Intersector, NoCounters, Ray};
-use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, MultiBvh, Node, Traversal};
+use mbvh::{Avx2, Avx512, BoxTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, Traversal};
 use proptest::prelude::*;
 use scenes::builtin::shapes::Rng;
 
@@ -37,7 +38,7 @@ fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) ->
     bvh.validate(positions, triangles).unwrap();
     let bvh8 = Mbvh8::build(positions, triangles).unwrap();
     bvh8.validate(positions, triangles).unwrap();
-    let bvh16 = MultiBvh::<Node<16>>::build(positions, triangles).unwrap();
+    let bvh16 = Mbvh16::build(positions, triangles).unwrap();
     bvh16.validate(positions, triangles).unwrap();
     let tris: Vec<[Vec3; 3]> = triangles.iter().map(|t| t.map(|v| positions[v as usize])).collect();
     let (w, wt) = (BruteForce::new(&tris, Intersector::Wald), BruteForce::new(&tris, Intersector::Watertight));
@@ -50,6 +51,15 @@ fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) ->
     if let Some(avx) = Avx2::detect() {
         check(&format!("{what} 8-wide avx2 wald"), bvh8.wald().with_test(avx), &w, rays);
         check(&format!("{what} 8-wide avx2 watertight"), bvh8.watertight().with_test(avx), &wt, rays);
+    }
+    if let Some(avx) = Avx512::detect() {
+        let hits16 = check(&format!("{what} 16-wide avx512 wald"), bvh16.wald().with_test(avx), &w, rays);
+        assert_eq!(hits16, hits, "{what}: hits of the 16-wide AVX-512 and the 4-wide traversals");
+        check(&format!("{what} 16-wide avx512 watertight"), bvh16.watertight().with_test(avx), &wt, rays);
+    } else {
+        eprintln!(
+            "note: no AVX-512 on this CPU (or the SIMD cap): the 16-wide tree is traced with the scalar test only"
+        );
     }
     hits
 }
