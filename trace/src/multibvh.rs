@@ -13,7 +13,7 @@
 
 use kdtree::isa::SimdLevel;
 use kdtree::{Hit, KdTree, Ray};
-use mbvh::{Avx2, BoxTest, LeafBlock, Mbvh, Mbvh8, Traversal};
+use mbvh::{Avx2, Avx512, BoxTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, Traversal};
 use scenes::Scene;
 
 use crate::error::Error;
@@ -25,6 +25,9 @@ pub const MBVH: &str = "mbvh";
 
 /// The registry's name of the 8-wide BVH structure.
 pub const MBVH8: &str = "mbvh8";
+
+/// The registry's name of the 16-wide BVH structure.
+pub const MBVH16: &str = "mbvh16";
 
 impl<B: LeafBlock, K: BoxTest> Tracer for Traversal<'_, B, K> {
     #[inline]
@@ -46,6 +49,12 @@ pub fn build(scene: &Scene) -> Result<Mbvh, Error> {
 /// Builds the 8-wide BVH of `scene` (the registry's structure [`MBVH8`]).
 pub fn build8(scene: &Scene) -> Result<Mbvh8, Error> {
     Mbvh8::build(&scene.mesh.positions, &scene.mesh.triangles).map_err(|e| Error::Usage(format!("mbvh8 build: {e}")))
+}
+
+/// Builds the 16-wide BVH of `scene` (the registry's structure [`MBVH16`]; the paper's
+/// width, Wald, Benthin & Boulos 2008).
+pub fn build16(scene: &Scene) -> Result<Mbvh16, Error> {
+    Mbvh16::build(&scene.mesh.positions, &scene.mesh.triangles).map_err(|e| Error::Usage(format!("mbvh16 build: {e}")))
 }
 
 /// A traversal's frame passes, one ray at a time.
@@ -82,6 +91,28 @@ fn bind8_nodes<'s>(bvh: &'s Mbvh8, tree: &KdTree, avx2: Option<Avx2>) -> Result<
     }
 }
 
+/// `mbvh-16`: single rays through the 16-wide BVH `bvh` with the triangle test of `tree`,
+/// one ray against 16 children per AVX-512 step (Wald, Benthin & Boulos 2008, as published)
+/// if this CPU has it and `simd` allows it, else the scalar node test (the kernel then named
+/// `mbvh-16-scalar-nodes`).
+pub fn bind16<'s>(bvh: &'s Mbvh16, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
+    let avx512 = Avx512::detect().filter(|_| simd >= SimdLevel::Avx512);
+    if avx512.is_none() {
+        return Ok(bind16_nodes(bvh, tree, None)?.named(KernelNames::whole("mbvh-16-scalar-nodes")));
+    }
+    bind16_nodes(bvh, tree, avx512)
+}
+
+/// [`bind16`] with the node test chosen: AVX-512 with the token, else scalar.
+fn bind16_nodes<'s>(bvh: &'s Mbvh16, tree: &KdTree, avx512: Option<Avx512>) -> Result<Binding<'s>, Error> {
+    match (tree.intersector(), avx512) {
+        (kdtree::Intersector::Wald, Some(t)) => driven(bvh.wald().with_test(t)),
+        (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
+        (kdtree::Intersector::Watertight, Some(t)) => driven(bvh.watertight().with_test(t)),
+        (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -96,6 +127,12 @@ mod tests {
         assert_eq!(names(SimdLevel::Sse41).as_deref(), Some("mbvh-8-scalar-nodes"));
         if Avx2::detect().is_some() {
             assert_eq!(names(SimdLevel::Avx2), None, "named by its entry, mbvh-8");
+        }
+        let bvh = build16(&scene).unwrap();
+        let names = |simd| bind16(&bvh, &tree, simd).unwrap().kernels.map(|k| k.primary);
+        assert_eq!(names(SimdLevel::Avx2).as_deref(), Some("mbvh-16-scalar-nodes"));
+        if Avx512::detect().is_some() {
+            assert_eq!(names(SimdLevel::Avx512), None, "named by its entry, mbvh-16");
         }
     }
 }

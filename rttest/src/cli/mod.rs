@@ -944,6 +944,7 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         culling: !args.no_culling,
         soft: args.soft_grouping.into(),
         lanes: args.lanes.into(),
+        ..Options::default()
     };
     // A method that exists but has no per-point kernel: name the option that asked for one.
     let strata = Options { soft: SoftGrouping::Strata, ..options };
