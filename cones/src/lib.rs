@@ -3,7 +3,7 @@
 //!
 //! - [`cone`]: the cone, Eq. 4.8 (where a cone meets an axis-aligned split plane) with the
 //!   cases the formula leaves open decided and tested, and Listing 4.4's per-cone factors.
-//! - [`traverse`]: a tile of 2x2 packets traced with one cone (Listing 4.5, corrected) or
+//! - [`traverse`]: a tile of packets (2x2, or wider: `TileTracer<V>`) traced with one cone (Listing 4.5, corrected) or
 //!   with four quadrant cones in the lanes of a `Vec4` (MFT cones). The cone is handed to
 //!   `packets`' frustum traversal, whose step has the same form, and the leaves cull and
 //!   intersect the packets exactly, so the hits are the single rays' hits.

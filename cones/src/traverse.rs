@@ -2,9 +2,11 @@
 //! (4.1.9).
 //!
 //! A cone bounds the tile's rays and goes down the kd-tree in their place, as the pyramid
-//! frustum does in `packets::frustum`; at the leaves the tile's 2x2 packets are culled
-//! against the leaf's box and intersected exactly as there, so the hits are the single rays'
-//! hits. The traversal step is Listing 4.5 with its error fixed: front and back voxels are
+//! frustum does in `packets::frustum`; at the leaves the tile's packets are culled against
+//! the leaf's box and intersected exactly as there, so the hits are the single rays' hits.
+//! The packets are the tracer's, of any width (`TileTracer<V>`: 2x2 pixels for the default
+//! `Vec4`, 4x2 and 4x4 for 8 and 16 lanes): [`trace_cone_wide_with`] and
+//! [`trace_mft_cone_wide_with`] take any, the other entry points the 4-wide one. The traversal step is Listing 4.5 with its error fixed: front and back voxels are
 //! chosen from `split_minus_o` (the listing reads an undefined `dist`), i.e. from the side of
 //! the plane the apex lies on, and an apex *on* the plane visits both children over the whole
 //! interval (the listing would compute `0 * k` and see the single point `t = 0`). Listing
@@ -26,9 +28,12 @@
 //! mean direction and the angle the widest ray's. A set of directions no cone narrower than
 //! [`crate::cone::MAX_HALF_ANGLE`] holds falls back to the pyramid.
 
+use glam::Vec4;
 use glam::{DVec3, Vec3};
-use kdtree::{Counters, Intersector, KdTree, WaldTest, WatertightTest};
+use kdtree::{Counters, Intersector, KdTree, TreeTest, WaldTest, WatertightTest};
 use packets::bound::T_UNDERFLOW;
+use packets::simd::{SimdF32, SimdMask};
+use packets::triangle4::PacketTest;
 use packets::{Frusta, FrustumBound, OmniPacket, PacketTreeTest, TileTracer};
 use scenes::{Camera, Tile};
 
@@ -81,17 +86,17 @@ fn is_empty(b: &FrustumBound) -> bool {
 }
 
 /// The valid lanes' directions of `packets`.
-fn directions(packets: &[OmniPacket]) -> impl Iterator<Item = Vec3> + '_ {
+fn directions<V: SimdF32>(packets: &[OmniPacket<V>]) -> impl Iterator<Item = Vec3> + '_ {
     packets.iter().flat_map(|p| {
         let mask = p.rays.valid.bitmask();
-        (0..4)
+        (0..V::LANES)
             .filter(move |l| mask >> l & 1 != 0)
             .map(move |l| Vec3::new(p.rays.d[0][l], p.rays.d[1][l], p.rays.d[2][l]))
     })
 }
 
 /// The cone of loaded packets (mean axis, widest ray) and their direction lengths.
-fn loaded_cone(origin: Vec3, packets: &[OmniPacket]) -> Result<(Cone, (f64, f64)), ConeError> {
+fn loaded_cone<V: SimdF32>(origin: Vec3, packets: &[OmniPacket<V>]) -> Result<(Cone, (f64, f64)), ConeError> {
     let mut sum = DVec3::ZERO;
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for d in directions(packets) {
@@ -117,7 +122,7 @@ fn loaded_cone(origin: Vec3, packets: &[OmniPacket]) -> Result<(Cone, (f64, f64)
 
 /// The cone of the loaded tile (`q = None`) or of its quadrant `q`, with the rays' direction
 /// lengths.
-fn tile_cone(tracer: &TileTracer, q: Option<usize>) -> Result<(Cone, (f64, f64)), ConeError> {
+fn tile_cone<V: SimdF32>(tracer: &TileTracer<V>, q: Option<usize>) -> Result<(Cone, (f64, f64)), ConeError> {
     if let Some((camera, tile)) = tracer.primary() {
         let tile = match q {
             None => tile,
@@ -135,7 +140,7 @@ fn tile_cone(tracer: &TileTracer, q: Option<usize>) -> Result<(Cone, (f64, f64))
 /// The frustum of one cone for the whole loaded tile (4.1.8), given its quadrants' root box
 /// intervals (from [`TileTracer::prepare_intervals`]), falling back to the quadrants'
 /// pyramids where no cone holds its rays.
-pub fn tile_cone_frusta(tree: &KdTree, tracer: &mut TileTracer, intervals: &[(f32, f32); 4]) -> Frusta {
+pub fn tile_cone_frusta<V: SimdF32>(tree: &KdTree, tracer: &mut TileTracer<V>, intervals: &[(f32, f32); 4]) -> Frusta {
     let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
     let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
     match tile_cone(tracer, None) {
@@ -146,7 +151,11 @@ pub fn tile_cone_frusta(tree: &KdTree, tracer: &mut TileTracer, intervals: &[(f3
 
 /// The frusta of the loaded tile's four quadrant cones (4.1.9), given their root box
 /// intervals, each falling back to the quadrant's pyramid where no cone holds its rays.
-pub fn quadrant_cone_frusta(tree: &KdTree, tracer: &mut TileTracer, intervals: &[(f32, f32); 4]) -> Frusta {
+pub fn quadrant_cone_frusta<V: SimdF32>(
+    tree: &KdTree,
+    tracer: &mut TileTracer<V>,
+    intervals: &[(f32, f32); 4],
+) -> Frusta {
     Frusta::Four(std::array::from_fn(|q| {
         let interval = interval_bound(intervals[q]);
         if is_empty(&interval) {
@@ -178,6 +187,17 @@ pub fn trace_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters:
 /// [`trace_cone`] with the tree's triangle test `I`, chosen once by the caller (see
 /// [`kdtree::TreeTest`]).
 pub fn trace_cone_with<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    trace_cone_wide_with::<I, Vec4, C>(tree, tracer, counters)
+}
+
+/// [`trace_cone_with`] for a tracer of packets of any width (`V::LANES` rays; 4x4 pixels for
+/// 16 lanes): the cone is the tile's, only the packets tested at the leaves are wider.
+#[inline(always)]
+pub fn trace_cone_wide_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    tracer: &mut TileTracer<V>,
+    counters: &mut C,
+) {
     let intervals = tracer.prepare_intervals_with::<I>(tree);
     let frusta = tile_cone_frusta(tree, tracer, &intervals);
     tracer.trace_frusta_with::<I, C>(tree, &frusta, counters);
@@ -194,6 +214,16 @@ pub fn trace_mft_cone<C: Counters>(tree: &KdTree, tracer: &mut TileTracer, count
 
 /// [`trace_mft_cone`] with the tree's triangle test `I` (see [`kdtree::TreeTest`]).
 pub fn trace_mft_cone_with<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C) {
+    trace_mft_cone_wide_with::<I, Vec4, C>(tree, tracer, counters)
+}
+
+/// [`trace_mft_cone_with`] for a tracer of packets of any width (`V::LANES` rays).
+#[inline(always)]
+pub fn trace_mft_cone_wide_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    tracer: &mut TileTracer<V>,
+    counters: &mut C,
+) {
     let intervals = tracer.prepare_intervals_with::<I>(tree);
     let frusta = quadrant_cone_frusta(tree, tracer, &intervals);
     tracer.trace_frusta_with::<I, C>(tree, &frusta, counters);

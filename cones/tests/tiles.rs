@@ -2,7 +2,8 @@
 //! (`conformance/tests/ours.rs`, every registered method on the built-in and shared scenes,
 //! random soups, cameras and lights, and the hard cases) does not reach: packets loaded from
 //! elsewhere in narrow and wide bundles, non-finite lanes and cameras, and cone soft shadows
-//! on two light sizes against the pyramid and single rays.
+//! on two light sizes against the pyramid and single rays; and the cone kernels with the
+//! tile's packets 8 and 16 rays wide.
 
 #[path = "../../packets/tests/common/mod.rs"]
 mod common;
@@ -11,7 +12,8 @@ use common::{arena_and_eye, build, same_hit, signed_rng};
 use cones::shadows::{SAMPLES, light_samples, sample_cone, shadow_rays};
 use cones::{ShadowMethod, SoftShadowTracer, traverse};
 use glam::Vec3;
-use kdtree::{Intersector, KdTree, NoCounters, Ray};
+use kdtree::{Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
+use packets::simd::{PortableF32, SimdF32};
 use packets::{OmniPacket, RayPacket, TileTracer};
 use scenes::{Camera, SphereLight, tiles};
 
@@ -156,4 +158,131 @@ fn non_finite_cameras_have_no_cone() {
         assert!(matches!(e, cones::ConeError::NotFinite(_)), "{e:?}");
         assert!(TileTracer::new(8).unwrap().load_primary(&camera, &tile).is_err());
     }
+}
+
+/// A cone kernel at any packet width, by the tree's test.
+fn wide_cone<V: SimdF32>(mft: bool, tree: &KdTree, tracer: &mut TileTracer<V>) {
+    match (tree.intersector(), mft) {
+        (Intersector::Wald, false) => traverse::trace_cone_wide_with::<WaldTest, V, _>(tree, tracer, &mut NoCounters),
+        (Intersector::Wald, true) => {
+            traverse::trace_mft_cone_wide_with::<WaldTest, V, _>(tree, tracer, &mut NoCounters)
+        }
+        (Intersector::Watertight, false) => {
+            traverse::trace_cone_wide_with::<WatertightTest, V, _>(tree, tracer, &mut NoCounters)
+        }
+        (Intersector::Watertight, true) => {
+            traverse::trace_mft_cone_wide_with::<WatertightTest, V, _>(tree, tracer, &mut NoCounters)
+        }
+    }
+}
+
+/// Hits as bits (`t`, `u`, `v`, triangle), so that answers compare bit for bit.
+fn bits(hits: &[Option<kdtree::Hit>]) -> Vec<Option<[u32; 4]>> {
+    hits.iter().map(|h| h.map(|h| [h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim])).collect()
+}
+
+/// Every tile of `camera`'s image at `size` with both cone kernels in packets of `V`,
+/// culling on and off, closest and any hit: the 2x2 packets' hits bit for bit, and the
+/// single rays' (by the oracle's rule; in any-hit mode exactly the blocked rays).
+fn wide_cones_match<V: SimdF32>(tree: &KdTree, camera: &Camera, size: u32) -> usize {
+    let (mut wide, mut narrow) = (TileTracer::<V>::with_size(size).unwrap(), TileTracer::new(size).unwrap());
+    let mut hits = 0;
+    for tile in tiles(camera.width, camera.height, size) {
+        for (culling, any_hit) in [(true, false), (true, true), (false, false), (false, true)] {
+            for (mft, (method, trace)) in [false, true].into_iter().zip(METHODS) {
+                let what = format!("{method} at {} lanes, tile {tile:?}, culling {culling}, any {any_hit}", V::LANES);
+                let (mut got, mut got4) = (vec![None; tile.pixel_count()], vec![None; tile.pixel_count()]);
+                wide.set_culling(culling);
+                wide.set_any_hit(any_hit);
+                wide.load_primary(camera, &tile).unwrap();
+                wide_cone(mft, tree, &mut wide);
+                wide.write_hits(&mut got);
+                narrow.set_culling(culling);
+                narrow.set_any_hit(any_hit);
+                narrow.load_primary(camera, &tile).unwrap();
+                trace(tree, &mut narrow, &mut NoCounters);
+                narrow.write_hits(&mut got4);
+                assert_eq!(bits(&got), bits(&got4), "{what}: differs from 2x2 packets");
+                for (i, (x, y)) in tile.pixels().enumerate() {
+                    let (o, d) = camera.pixel_ray(x, y);
+                    let ray = Ray::new(o, d, 0.0, f32::INFINITY);
+                    if any_hit {
+                        assert_eq!(got[i].is_some(), tree.occluded(&ray), "{what}: pixel ({x}, {y})");
+                    } else {
+                        let want = tree.intersect(&ray);
+                        assert!(
+                            same_hit(tree, &ray, got[i], want),
+                            "{what}: pixel ({x}, {y}) {:?} vs {want:?}",
+                            got[i]
+                        );
+                    }
+                    hits += usize::from(got[i].is_some());
+                }
+            }
+        }
+    }
+    hits
+}
+
+/// The cone kernels with the tile's packets 8 (4x2 pixels) and 16 rays (4x4) wide give the
+/// 2x2 packets' hits bit for bit and the single rays', on built-in scenes with both
+/// intersectors, at tile sizes 8, 16 and 32 (the image, 45 x 37, clips tiles at its right
+/// and bottom edges), culling on and off, closest and any hit.
+#[test]
+fn wide_packets_under_cones_match_single_rays() {
+    let mut hits = 0;
+    for name in ["atrium", "arena", "touching-boxes"] {
+        let scene = scenes::load_scene(name).unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let tree = build(&scene, intersector);
+            let camera = scene.default_view().camera(45, 37).unwrap();
+            for size in [8, 16, 32] {
+                hits += wide_cones_match::<PortableF32<8>>(&tree, &camera, size);
+                hits += wide_cones_match::<PortableF32<16>>(&tree, &camera, size);
+            }
+        }
+    }
+    assert!(hits > 10_000, "{hits} hits compared");
+}
+
+/// Packets of 16 rays loaded from elsewhere in narrow and wide bundles (the cone of the
+/// loaded rays, or the pyramid where none holds them), with non-finite lanes among them:
+/// the cone kernels give those no hit and the others the single rays' hits.
+#[test]
+fn wide_loaded_packets_under_cones() {
+    let (tree, origin) = arena_and_eye(Intersector::Watertight);
+    let mut rnd = signed_rng(24681357);
+    let mut tracer = TileTracer::<PortableF32<16>>::with_size(8).unwrap();
+    let is_bad = |i: usize| i % 11 == 4;
+    let mut checked = 0;
+    for spread in [0.01f32, 0.3, 3.0] {
+        for round in 0..8 {
+            let axis = Vec3::new(rnd(), rnd(), rnd());
+            let rays: Vec<Ray> = (0..64)
+                .map(|i| {
+                    let d = (axis + spread * Vec3::new(rnd(), rnd(), rnd())) * (1.0 + 4.0 * rnd().abs());
+                    let d = if is_bad(i) { Vec3::new(f32::NAN, d.y, d.z) } else { d };
+                    Ray::new(origin, d, 0.0, f32::INFINITY)
+                })
+                .collect();
+            let packets: Vec<OmniPacket<PortableF32<16>>> =
+                rays.chunks(16).map(|r| OmniPacket::new(RayPacket::from_rays(r)).unwrap()).collect();
+            for mft in [false, true] {
+                tracer.load_packets(&packets).unwrap();
+                wide_cone(mft, &tree, &mut tracer);
+                for (i, ray) in rays.iter().enumerate() {
+                    let got = tracer.packet_hits()[i / 16].get(i % 16);
+                    let what = format!("spread {spread} round {round} ray {i} mft {mft}");
+                    if is_bad(i) {
+                        assert_eq!(got, None, "{what}");
+                    } else {
+                        let want = tree.intersect(ray);
+                        assert!(same_hit(&tree, ray, got, want), "{what}: {got:?} vs {want:?}");
+                        checked += usize::from(want.is_some());
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 500, "{checked} hits compared");
 }

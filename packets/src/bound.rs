@@ -16,7 +16,8 @@
 use glam::Vec4;
 use kdtree::KdTree;
 
-use crate::packet::{OmniPacket, mask_of, widen_down, widen_down1, widen_up, widen_up1};
+use crate::packet::{OmniPacket, all_lanes, mask_of, max_lane, min_lane, widen_down, widen_down1, widen_up, widen_up1};
+use crate::simd::{SimdF32, SimdMask};
 
 /// The bound a frustum of rays sharing one origin goes down the tree with: at a split plane
 /// `dist = split - o[axis]` away from the origin, every ray of the frustum that crosses the
@@ -79,56 +80,58 @@ pub fn distance_up(t: f32, scale: f32) -> f32 {
 }
 
 /// Marks the lanes of `packets` that miss the tree's root box as finished in `done` (one
-/// 4-bit mask per packet, no hit), and returns the pyramid bound of the others (thesis 2.3.2,
-/// Listing 4.2's extremal rays): per axis the reciprocals of the smallest and largest
-/// direction component, and the interval that holds every unfinished ray's clip to the root
-/// box.
-pub fn pyramid(tree: &KdTree, packets: &[OmniPacket], done: &mut [u8]) -> FrustumBound {
-    bound_of::<true>(tree, packets, done)
+/// lane bitmask per packet, bit `l` for lane `l`, no hit), and returns the pyramid bound of
+/// the others (thesis 2.3.2, Listing 4.2's extremal rays): per axis the reciprocals of the
+/// smallest and largest direction component, and the interval that holds every unfinished
+/// ray's clip to the root box. Packets of any width (`V::LANES` rays).
+#[inline(always)]
+pub fn pyramid<V: SimdF32>(tree: &KdTree, packets: &[OmniPacket<V>], done: &mut [u32]) -> FrustumBound {
+    bound_of::<V, true>(tree, packets, done)
 }
 
 /// [`pyramid`] without the direction extremes: finishes the lanes of `packets` that miss the
 /// root box and returns the interval `(near, far)` of the others' clips to it. What a bound
 /// made elsewhere (a cone, thesis 4.1.7) needs from the rays.
-pub fn root_interval(tree: &KdTree, packets: &[OmniPacket], done: &mut [u8]) -> (f32, f32) {
-    let b = bound_of::<false>(tree, packets, done);
+#[inline(always)]
+pub fn root_interval<V: SimdF32>(tree: &KdTree, packets: &[OmniPacket<V>], done: &mut [u32]) -> (f32, f32) {
+    let b = bound_of::<V, false>(tree, packets, done);
     (b.near, b.far)
 }
 
 /// [`pyramid`], with the direction extremes only when `DIRS` (else the factors are left 0).
 #[inline(always)]
-fn bound_of<const DIRS: bool>(tree: &KdTree, packets: &[OmniPacket], done: &mut [u8]) -> FrustumBound {
+fn bound_of<V: SimdF32, const DIRS: bool>(tree: &KdTree, packets: &[OmniPacket<V>], done: &mut [u32]) -> FrustumBound {
     let b = tree.bounds();
     let (lo_box, hi_box) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
-    let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
-    let (mut near4, mut far4) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
+    let (mut lo, mut hi) = ([V::INFINITY; 3], [V::NEG_INFINITY; 3]);
+    let (mut near_lanes, mut far_lanes) = (V::INFINITY, V::NEG_INFINITY);
     for (packet, done) in packets.iter().zip(done) {
         let rays = &packet.rays;
         let (enter, exit) = rays.clip(lo_box, hi_box);
-        let inside = enter.cmple(exit) & !mask_of(*done);
-        *done |= (!inside.bitmask() & 0xF) as u8;
+        let inside = enter.cmple(exit) & !mask_of::<V>(*done);
+        *done |= !inside.bitmask() & all_lanes::<V>();
         if !inside.any() {
             continue;
         }
         // Lane-wise accumulation; the horizontal reductions come once at the end.
-        near4 = near4.min(Vec4::select(inside, enter, Vec4::INFINITY));
-        far4 = far4.max(Vec4::select(inside, exit, Vec4::NEG_INFINITY));
+        near_lanes = near_lanes.min(V::select(inside, enter, V::INFINITY));
+        far_lanes = far_lanes.max(V::select(inside, exit, V::NEG_INFINITY));
         if !DIRS {
             continue;
         }
         for a in 0..3 {
-            lo[a] = lo[a].min(Vec4::select(inside, rays.d[a], Vec4::INFINITY));
-            hi[a] = hi[a].max(Vec4::select(inside, rays.d[a], Vec4::NEG_INFINITY));
+            lo[a] = lo[a].min(V::select(inside, rays.d[a], V::INFINITY));
+            hi[a] = hi[a].max(V::select(inside, rays.d[a], V::NEG_INFINITY));
         }
     }
     let (k0, k1) = if DIRS {
-        let lo = Vec4::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element(), 0.0);
-        let hi = Vec4::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element(), 0.0);
+        let lo = Vec4::new(min_lane(lo[0]), min_lane(lo[1]), min_lane(lo[2]), 0.0);
+        let hi = Vec4::new(max_lane(hi[0]), max_lane(hi[1]), max_lane(hi[2]), 0.0);
         (lo.recip().to_array(), hi.recip().to_array())
     } else {
         ([0.0; 4], [0.0; 4])
     };
-    FrustumBound { k0, k1, near: near4.min_element(), far: far4.max_element(), hit_scale: 1.0 }
+    FrustumBound { k0, k1, near: min_lane(near_lanes), far: max_lane(far_lanes), hit_scale: 1.0 }
 }
 
 /// The plane distances bounding a frustum at a split plane `dist` away from the origin along

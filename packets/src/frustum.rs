@@ -1,18 +1,19 @@
-//! Frustum interval traversal of a tile of 2x2 packets, with one frustum (thesis 2.3.2,
+//! Frustum interval traversal of a tile of packets, with one frustum (thesis 2.3.2,
 //! 4.1.3-4.1.4, Listing 4.2 with the omni-directional modification) or four (Multiple Frustum
 //! Traversal, 4.1.5), written once with the number of frusta as a parameter (`Lanes`:
 //! `f32` for one frustum, `Vec4` for four, as a 2x2 packet traces four rays), the way
 //! Embree's frustum kernel takes its width as a parameter. Both are monomorphic: each width
 //! gets its own code, with no dispatch and no allocation inside the traversal.
 //!
-//! A tile of 2x2 packets sharing one origin goes down the tree as **one interval**
+//! A tile of packets (2x2 by default, `V::LANES` rays each: [`crate::tile`]) sharing one
+//! origin goes down the tree as **one interval**
 //! `[near, far]` per frustum that bounds every ray's interval, computed from the frustum's
 //! [`FrustumBound`] (the pyramid of the extremal rays or a cone, see [`crate::bound`]).
 //! Front and back voxels come from the origin's side of the plane alone (modification 2).
 //! At an inner node the front voxel gets `[near, min(far, dmax)]` and the back voxel
 //! `[max(near, dmin), far]`; a child in which no frustum's interval is left is skipped. At
-//! a leaf each unfinished 2x2 packet of an active frustum is first **culled** against the
-//! leaf's box (4.1.4): the exact slab test of its four rays, clipped to each ray's closest
+//! a leaf each unfinished packet of an active frustum is first **culled** against the
+//! leaf's box (4.1.4): the exact slab test of its `W` rays, clipped to each ray's closest
 //! hit so far; only the lanes that pass are tested against the leaf's triangles. The voxel
 //! box is carried down the traversal and on the stack.
 //!
@@ -53,7 +54,8 @@ use kdtree::{Counters, KdNode, KdTree};
 use kdtree::{TreeTest, WaldTest, WatertightTest};
 
 use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
-use crate::packet::{mask_of, max_where, widen_down};
+use crate::packet::{all_lanes, mask_of, max_where, widen_down};
+use crate::simd::{SimdF32, SimdMask};
 use crate::tile::TileTracer;
 use crate::triangle4::PacketTest;
 
@@ -68,7 +70,7 @@ pub enum Frusta {
     Four([FrustumBound; 4]),
 }
 
-impl TileTracer {
+impl<V: SimdF32> TileTracer<V> {
     /// Starts a frustum trace of the loaded tile with frusta made elsewhere (the cones of
     /// the `cones` crate, thesis 4.1.7-4.1.9): resets the hits, finishes the lanes that miss
     /// the tree's root box and returns each quadrant's pyramid bound ([`bound::pyramid`]),
@@ -83,6 +85,7 @@ impl TileTracer {
 
     /// [`TileTracer::prepare`] with the tree's triangle test `I`, chosen once by the caller
     /// (see [`TreeTest`]).
+    #[inline(always)]
     pub fn prepare_with<I: TreeTest>(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
         self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
@@ -101,6 +104,7 @@ impl TileTracer {
     }
 
     /// [`TileTracer::prepare_intervals`] with the tree's triangle test `I` (see [`TreeTest`]).
+    #[inline(always)]
     pub fn prepare_intervals_with<I: TreeTest>(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
         self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
@@ -109,6 +113,7 @@ impl TileTracer {
 
     /// The pyramid bound (thesis 2.3.2) of quadrant `q` of a prepared tile
     /// ([`bound::pyramid`]), for a cone that cannot be made.
+    #[inline(always)]
     pub fn pyramid(&mut self, tree: &KdTree, q: usize) -> FrustumBound {
         let range = self.quadrants[q & 3].clone();
         bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
@@ -130,24 +135,24 @@ impl TileTracer {
 
     /// [`TileTracer::trace_frusta`] with the tree's triangle test `I`, the one the tile was
     /// prepared with ([`TileTracer::prepare_with`]; see [`TreeTest`]).
-    pub fn trace_frusta_with<I: TreeTest<Record: PacketTest>, C: Counters>(
+    #[inline(always)]
+    pub fn trace_frusta_with<I: TreeTest<Record: PacketTest<V>>, C: Counters>(
         &mut self,
         tree: &KdTree,
         frusta: &Frusta,
         counters: &mut C,
     ) {
+        // One traversal per number of frusta (the NaN fallback only changes the bound).
         match frusta {
-            Frusta::One(f) if f.has_nan() => {
-                let f = bound::pyramid(tree, &self.packets, &mut self.done);
-                intersect::<I, _, C>(tree, self, &Bounds::one(&f), counters)
+            Frusta::One(f) => {
+                let f = if f.has_nan() { bound::pyramid(tree, &self.packets, &mut self.done) } else { *f };
+                intersect::<I, V, _, C>(tree, self, &Bounds::one(&f), counters)
             }
-            Frusta::One(f) => intersect::<I, _, C>(tree, self, &Bounds::one(f), counters),
-            Frusta::Four(bounds) if bounds.iter().any(FrustumBound::has_nan) => {
+            Frusta::Four(bounds) => {
                 let bounds: [FrustumBound; 4] =
                     std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
-                intersect::<I, _, C>(tree, self, &Bounds::four(&bounds), counters)
+                intersect::<I, V, _, C>(tree, self, &Bounds::four(&bounds), counters)
             }
-            Frusta::Four(bounds) => intersect::<I, _, C>(tree, self, &Bounds::four(bounds), counters),
         }
     }
 }
@@ -303,10 +308,10 @@ impl Bounds<Vec4> {
 /// unfinished lane is tested.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn leaf<T: PacketTest, C: Counters>(
+fn leaf<V: SimdF32, T: PacketTest<V>, C: Counters>(
     records: &[T],
     prims: &[u32],
-    tracer: &mut TileTracer,
+    tracer: &mut TileTracer<V>,
     quadrants: std::ops::Range<usize>,
     rect: Option<[f32; 4]>,
     lo: [f32; 4],
@@ -316,12 +321,13 @@ fn leaf<T: PacketTest, C: Counters>(
     counters: &mut C,
 ) -> f32 {
     let culling = tracer.culling;
+    let all = all_lanes::<V>();
     let (mut tested, mut closed) = (0u64, 0u64);
     for q in quadrants.clone() {
         let range = tracer.quadrants[q].clone();
         let grid = tracer.grids[q];
         let (cols, rows) = match rect {
-            Some(rect) if culling && tracer.camera.is_some() => grid.within(rect),
+            Some(rect) if culling && tracer.camera.is_some() => grid.within(rect, TileTracer::<V>::PACKET_SHAPE),
             _ if tracer.camera.is_some() => (0..grid.cols, 0..grid.rows),
             // Loaded packets: one row of all of them.
             _ => (0..range.len() as u32, 0..1),
@@ -331,12 +337,12 @@ fn leaf<T: PacketTest, C: Counters>(
             let first = range.start + row as usize * width;
             for i in first + cols.start as usize..first + cols.end as usize {
                 let done = tracer.done[i];
-                if done == 0xF {
+                if done == all {
                     continue;
                 }
                 let rays = &tracer.packets[i].rays;
                 let hit = &mut tracer.hits[i];
-                let open = !mask_of(done);
+                let open = !mask_of::<V>(done);
                 let (enter, exit) = rays.clip(lo, hi);
                 let through = open & enter.cmple(exit) & enter.cmple(hit.t);
                 if culling && !through.any() {
@@ -351,9 +357,9 @@ fn leaf<T: PacketTest, C: Counters>(
                 }
                 if tracer.any_hit {
                     // Any hit finishes a lane, wherever it lies.
-                    let now = done | (through & hit.found).bitmask() as u8;
+                    let now = done | (through & hit.found).bitmask();
                     tracer.done[i] = now;
-                    closed += u64::from(now == 0xF);
+                    closed += u64::from(now == all);
                 } else if !unordered {
                     // Against the exit moved *inwards* (about 16 ulps below its exact value,
                     // past the rounding of the clip and of the triangle test's t): a hit at
@@ -361,9 +367,9 @@ fn leaf<T: PacketTest, C: Counters>(
                     // voxel.
                     let exit_inside = widen_down(widen_down(widen_down(exit)));
                     let finished = through & hit.found & hit.t.cmple(exit_inside);
-                    let now = done | finished.bitmask() as u8;
+                    let now = done | finished.bitmask();
                     tracer.done[i] = now;
-                    closed += u64::from(now == 0xF);
+                    closed += u64::from(now == all);
                 }
             }
         }
@@ -378,9 +384,9 @@ fn leaf<T: PacketTest, C: Counters>(
     for q in quadrants {
         for i in tracer.quadrants[q].clone() {
             let done = tracer.done[i];
-            if done != 0xF {
+            if done != all {
                 open_packets += 1;
-                limit = limit.max(max_where(!mask_of(done), tracer.hits[i].t));
+                limit = limit.max(max_where(!mask_of::<V>(done), tracer.hits[i].t));
             }
         }
     }
@@ -428,10 +434,10 @@ struct Span<L> {
 /// The frusta of a loaded tile walking the tree ([`kdtree::descent`]): the frustum interval
 /// step (Listing 4.2 with the omni-directional modification), the culling leaf visitor, and
 /// the pop rule clamping each frustum to the furthest hit of its unfinished lanes.
-struct FrustaWalk<'a, L: Lanes, T: PacketTest> {
+struct FrustaWalk<'a, L: Lanes, V: SimdF32, T: PacketTest<V>> {
     records: &'a [T],
     refs: &'a [u32],
-    tracer: &'a mut TileTracer,
+    tracer: &'a mut TileTracer<V>,
     origin: [f32; 4],
     f: &'a Bounds<L>,
     // Per frustum, the furthest hit of its unfinished lanes (-inf once it is complete):
@@ -439,7 +445,7 @@ struct FrustaWalk<'a, L: Lanes, T: PacketTest> {
     limit: L,
 }
 
-impl<L: Lanes, T: PacketTest> Descent for FrustaWalk<'_, L, T> {
+impl<L: Lanes, V: SimdF32, T: PacketTest<V>> Descent for FrustaWalk<'_, L, V, T> {
     type Span = Span<L>;
     type Deferred = Span<L>;
     type Stack = Stack<Entry<Span<L>>>;
@@ -504,9 +510,10 @@ impl<L: Lanes, T: PacketTest> Descent for FrustaWalk<'_, L, T> {
 
 /// Traces the loaded (and reset) tile with the frusta `f`: one over the whole tile, or four,
 /// quadrant `q` in lane `q`, with the tree's triangle test `I` (chosen once by the caller).
-pub(crate) fn intersect<I: TreeTest<Record: PacketTest>, L: Lanes, C: Counters>(
+#[inline(always)]
+pub(crate) fn intersect<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, L: Lanes, C: Counters>(
     tree: &KdTree,
-    tracer: &mut TileTracer,
+    tracer: &mut TileTracer<V>,
     f: &Bounds<L>,
     counters: &mut C,
 ) {
@@ -514,10 +521,10 @@ pub(crate) fn intersect<I: TreeTest<Record: PacketTest>, L: Lanes, C: Counters>(
 }
 
 #[inline(always)]
-fn traverse<L: Lanes, T: TriangleTest + PacketTest, C: Counters>(
+fn traverse<L: Lanes, V: SimdF32, T: TriangleTest + PacketTest<V>, C: Counters>(
     tree: &KdTree,
     records: &[T],
-    tracer: &mut TileTracer,
+    tracer: &mut TileTracer<V>,
     f: &Bounds<L>,
     counters: &mut C,
 ) {

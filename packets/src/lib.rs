@@ -20,7 +20,8 @@
 //!   of its extremal rays (2.3.2) or a cone (4.1.7, made by the `cones` crate), and the plane
 //!   intervals and distance conversions the traversal does with it.
 //! - [`frustum`]: frustum interval traversal (2.3.2, Listing 4.2 with the omni modification)
-//!   of a tile of 2x2 packets, with packet/leaf culling (4.1.4), written once for one frustum
+//!   of a tile of packets (2x2, or 4x2 and 4x4 pixels at 8 and 16 lanes), with packet/leaf
+//!   culling (4.1.4), written once for one frustum
 //!   and for Multiple Frustum Traversal (4.1.5: the tile's four quadrant frusta in the four
 //!   lanes of a `Vec4`, masked when inactive or complete).
 //! - [`shadow_frustum`]: groups of shadow rays that share no origin (a tile's rays to a
@@ -30,8 +31,9 @@
 //!   point's 16 soft-shadow rays, a 4x4 block's hard ones), 4 or 8 of them in SIMD lanes,
 //!   with plane and edge culling of each leaf triangle before any ray is made.
 //! - [`mirror`]: mirror reflections as omni-directional packets from the mirrored eye.
-//! - [`tile`]: a tile of primary rays laid out as 2x2 packets, quadrant by quadrant: the
-//!   scratch state of a trace.
+//! - [`tile`]: a tile of primary rays laid out as packets of any width (2x2 pixels for the
+//!   default `Vec4`, 4x2 for 8 lanes, 4x4 for 16), quadrant by quadrant: the scratch state
+//!   of a trace.
 //! - [`method`]: the per-tile entry points the renderer's kernels call:
 //!   [`TileTracer::trace_packets`], [`TileTracer::trace_samesign`],
 //!   [`TileTracer::trace_frustum`], [`TileTracer::trace_mft`].

@@ -12,7 +12,7 @@
 //! *invalid*: they carry an empty interval (`t_min = +inf`, `t_max = -inf`) and take part in
 //! no test.
 
-use glam::{BVec4A, Vec3, Vec4};
+use glam::{Vec3, Vec4};
 use kdtree::traverse::WIDEN;
 use kdtree::{Hit, Ray};
 
@@ -315,16 +315,58 @@ pub fn widen_down1(t: f32) -> f32 {
     if t.is_finite() { t - t.abs() * WIDEN } else { t }
 }
 
-/// The lanes of a 4-bit mask as a `BVec4A` (bit `l` for lane `l`, as `BVec4A::bitmask`).
+/// The lanes of a lane bitmask as a mask (bit `l` for lane `l`, as [`SimdMask::bitmask`]):
+/// a tile's finished lanes (`TileTracer`'s `done`). At `V = Vec4` the `BVec4A` of the four
+/// bits, as before the parameter.
 #[inline(always)]
-pub(crate) fn mask_of(bits: u8) -> BVec4A {
-    BVec4A::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
+pub(crate) fn mask_of<V: SimdF32>(bits: u32) -> V::Mask {
+    V::Mask::from_fn(|lane| bits >> lane & 1 != 0)
+}
+
+/// Every lane of a packet of `V` as a bitmask (`0xF` for four lanes).
+#[inline(always)]
+pub(crate) const fn all_lanes<V: SimdF32>() -> u32 {
+    if V::LANES >= 32 { u32::MAX } else { (1 << V::LANES) - 1 }
 }
 
 /// The largest lane of `v` among `mask`, `-inf` if none.
 #[inline(always)]
-pub(crate) fn max_where(mask: BVec4A, v: Vec4) -> f32 {
-    Vec4::select(mask, v, Vec4::NEG_INFINITY).max_element()
+pub(crate) fn max_where<V: SimdF32>(mask: V::Mask, v: V) -> f32 {
+    max_lane(V::select(mask, v, V::NEG_INFINITY))
+}
+
+/// The lanes of `v` four at a time as `Vec4`s folded with `f` (SSE's `minps` / `maxps`),
+/// then reduced by `reduce`: at `V = Vec4` exactly `reduce(v)` (the one chunk is `v`). Missing
+/// lanes (a width that is not a multiple of four) repeat lane 0.
+#[inline(always)]
+fn fold_lanes<V: SimdF32>(v: V, f: impl Fn(Vec4, Vec4) -> Vec4, reduce: impl Fn(Vec4) -> f32) -> f32 {
+    let lanes = v.to_array();
+    let lanes = lanes.as_ref();
+    if lanes.len() < 4 {
+        return reduce(Vec4::from_array(std::array::from_fn(|l| lanes[if l < lanes.len() { l } else { 0 }])));
+    }
+    let mut acc = Vec4::from_slice(&lanes[..4]);
+    let chunks = lanes[4..].chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        acc = f(acc, Vec4::from_slice(chunk));
+    }
+    if !rest.is_empty() {
+        acc = f(acc, Vec4::from_array(std::array::from_fn(|l| rest.get(l).copied().unwrap_or(lanes[0]))));
+    }
+    reduce(acc)
+}
+
+/// The largest lane of `v` (`Vec4::max_element` at `V = Vec4`).
+#[inline(always)]
+pub(crate) fn max_lane<V: SimdF32>(v: V) -> f32 {
+    fold_lanes(v, Vec4::max, Vec4::max_element)
+}
+
+/// The smallest lane of `v` (`Vec4::min_element` at `V = Vec4`).
+#[inline(always)]
+pub(crate) fn min_lane<V: SimdF32>(v: V) -> f32 {
+    fold_lanes(v, Vec4::min, Vec4::min_element)
 }
 
 #[cfg(test)]
@@ -332,6 +374,7 @@ mod tests {
     use super::*;
     use crate::simd::{PortableF32, PortableMask};
     use crate::test_support::{packet_hit_bits, ray_packet_bits};
+    use glam::BVec4A;
     use kdtree::Aabb;
     use kdtree::traverse::clip_to_box;
 

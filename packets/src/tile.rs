@@ -1,12 +1,16 @@
-//! A tile of primary rays as 2x2 packets (thesis 4.1.1-4.1.5): the state a tile is traced
-//! in, not the tracing (the entry points are [`TileTracer::trace`] in [`crate::method`] and
-//! [`TileTracer::trace_frusta`] in [`crate::frustum`]).
+//! A tile of primary rays as packets (thesis 4.1.1-4.1.5): the state a tile is traced in,
+//! not the tracing (the entry points are [`TileTracer::trace_mft`] and its siblings in
+//! [`crate::method`] and [`TileTracer::trace_frusta`] in [`crate::frustum`]).
 //!
-//! A tile of `N x N` pixels (`N` a multiple of 4, the thesis uses 4 to 32) is stored as
-//! `(N/2)^2` [`OmniPacket`]s, **quadrant by quadrant** (top-left, top-right, bottom-left,
+//! The packets are `V::LANES` rays wide ([`SimdF32`]; `Vec4`, the default, is the thesis's
+//! 2x2 packet) and cover a rectangle of `pw x ph` pixels ([`TileTracer::PACKET_SHAPE`]): 2x2
+//! for 4 lanes, 4 wide x 2 tall for 8, 4x4 for 16 (the thesis's 2x2 packet at the register's
+//! width). A tile of `N x N` pixels (`N` a multiple of 4, the thesis uses 4 to 32; of 8 for
+//! 8 and 16 lanes, so that a quadrant holds whole packets) is stored as `N^2 / W` packets
+//! ([`OmniPacket`]), **quadrant by quadrant** (top-left, top-right, bottom-left,
 //! bottom-right; row-major inside each), so that each of the four MFT frusta owns one
 //! contiguous run of packets and the single frustum owns them all. Lane `l` of the packet
-//! whose top-left pixel is `(x, y)` is pixel `(x + (l & 1), y + (l >> 1))`. Pixels outside the
+//! whose top-left pixel is `(x, y)` is pixel `(x + l % pw, y + l / pw)`. Pixels outside the
 //! image (tiles clipped at its right and bottom edges) are invalid lanes.
 //!
 //! A [`TileTracer`] is scratch space for one thread: loading and tracing a tile reuses its
@@ -14,21 +18,33 @@
 
 use std::ops::Range;
 
-use glam::{BVec4A, Vec4};
+use glam::Vec4;
 use kdtree::Hit;
 use kdtree::TreeTest;
 use kdtree::triangle::{Intersector, WatertightTriangle};
 use scenes::{Camera, Tile};
 
-use crate::packet::{OmniPacket, PacketHit, RayPacket, directions};
+use crate::packet::{OmniPacket, PacketHit, RayPacket, all_lanes, directions};
+use crate::simd::{SimdF32, SimdMask};
 use crate::triangle4::{PacketTest, ShearedPacket};
 
 /// Why a tile could not be loaded.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum TileError {
-    /// The tile size is not a multiple of 4 in `4..=64`.
+    /// The tile size is not a multiple of 4 in `4..=64` (packets of up to four rays).
     #[error("tile size {0} must be a multiple of 4 from 4 to 64")]
     BadSize(u32),
+    /// The tile size is not a multiple of `multiple` in `multiple..=64`, the sizes whose
+    /// quadrants hold whole packets of `lanes` rays (8 for 8 and 16 lanes).
+    #[error("tile size {size} must be a multiple of {multiple} from {multiple} to 64 for packets of {lanes} rays")]
+    BadSizeForWidth {
+        /// The size asked for.
+        size: u32,
+        /// The packets' width in rays.
+        lanes: usize,
+        /// What the size must be a multiple of.
+        multiple: u32,
+    },
     /// The tile is larger than the tile size, or lies outside the camera's image.
     #[error("tile {0:?} does not fit a {1} x {1} tile of the image")]
     BadTile(Tile, u32),
@@ -41,20 +57,22 @@ pub enum TileError {
 /// The largest tile side.
 pub const MAX_TILE: u32 = 64;
 
-/// Scratch space and state for tracing one tile of 2x2 packets at a time.
+/// Scratch space and state for tracing one tile of packets of `V::LANES` rays at a time
+/// (2x2 pixels for the default `Vec4`; see the module for the other shapes).
 #[derive(Clone, Debug)]
-pub struct TileTracer {
+pub struct TileTracer<V: SimdF32 = Vec4> {
     size: u32,
     tile: Tile,
     /// The packets, quadrant by quadrant.
-    pub(crate) packets: Vec<OmniPacket>,
+    pub(crate) packets: Vec<OmniPacket<V>>,
     /// Each packet's top-left pixel.
     corners: Vec<(u32, u32)>,
     /// Each packet's hits.
-    pub(crate) hits: Vec<PacketHit>,
-    /// Each packet's finished lanes as a 4-bit mask (invalid lanes are finished from the
-    /// start; a frustum finishes a lane when its hit is known to be the closest).
-    pub(crate) done: Vec<u8>,
+    pub(crate) hits: Vec<PacketHit<V>>,
+    /// Each packet's finished lanes as a lane bitmask (bit `l` for lane `l`; invalid lanes
+    /// are finished from the start; a frustum finishes a lane when its hit is known to be the
+    /// closest). Every lane finished is [`all_lanes`].
+    pub(crate) done: Vec<u32>,
     /// The packets of each quadrant.
     pub(crate) quadrants: [Range<usize>; 4],
     /// Each quadrant's packets as a grid on the image (primary tiles only).
@@ -65,23 +83,67 @@ pub struct TileTracer {
     pub(crate) origin: [f32; 4],
     /// Each packet's watertight shear, made once per trace for the frustum methods on a
     /// watertight tree (empty otherwise).
-    pub(crate) sheared: Vec<ShearedPacket>,
+    pub(crate) sheared: Vec<ShearedPacket<V>>,
     /// Packet/leaf culling on (the default) or off (Table 4.2).
     pub(crate) culling: bool,
     /// Any-hit mode (shadow rays): the frustum methods finish a lane at its first hit.
     pub(crate) any_hit: bool,
 }
 
+/// The 4-wide tracer's constructors, by the names the workspace calls them (each the generic
+/// function of its line at `V = Vec4`, so that `TileTracer::new(size)` needs no annotation).
 impl TileTracer {
-    /// Whether a tracer can take tiles of `size` pixels: a multiple of 4 in `4..=64`.
+    /// Whether a tracer of 2x2 packets can take tiles of `size` pixels: a multiple of 4 in
+    /// `4..=64` ([`TileTracer::check_tile_size`]).
     pub fn check_size(size: u32) -> Result<(), TileError> {
-        if (4..=MAX_TILE).contains(&size) && size.is_multiple_of(4) { Ok(()) } else { Err(TileError::BadSize(size)) }
+        TileTracer::<Vec4>::check_tile_size(size)
     }
 
-    /// A tracer for tiles of `size x size` pixels (a multiple of 4 in `4..=64`).
+    /// A tracer of 2x2 packets for tiles of `size x size` pixels (a multiple of 4 in
+    /// `4..=64`; [`TileTracer::with_size`]).
     pub fn new(size: u32) -> Result<TileTracer, TileError> {
-        TileTracer::check_size(size)?;
-        let packets = (size as usize / 2).pow(2);
+        TileTracer::<Vec4>::with_size(size)
+    }
+}
+
+/// The shape `(pw, ph)` in pixels of a packet of `lanes` rays: as square as a power of two
+/// allows, wider than tall (2x2 for 4, 4x2 for 8, 4x4 for 16). Only powers of two up to 32
+/// tile a square (a compile-time error otherwise, where a tracer of such lanes is made).
+const fn packet_shape(lanes: usize) -> (u32, u32) {
+    assert!(lanes.is_power_of_two() && lanes <= 32, "a tile's packets must have a power of two of lanes, up to 32");
+    let pw = 1u32 << lanes.trailing_zeros().div_ceil(2);
+    (pw, lanes as u32 / pw)
+}
+
+impl<V: SimdF32> TileTracer<V> {
+    /// The pixels a packet covers, `(pw, ph)`: 2x2 for 4 lanes, 4 wide x 2 tall for 8, 4x4
+    /// for 16. Lane `l` of the packet whose top-left pixel is `(x, y)` is pixel
+    /// `(x + l % pw, y + l / pw)`.
+    pub const PACKET_SHAPE: (u32, u32) = packet_shape(V::LANES);
+
+    /// What a tile size must be a multiple of (and the smallest size): 4, or twice the
+    /// packet's width in pixels where that is more (8 for 8 and 16 lanes), so that each
+    /// quadrant holds whole packets.
+    pub const SIZE_MULTIPLE: u32 = if 2 * Self::PACKET_SHAPE.0 > 4 { 2 * Self::PACKET_SHAPE.0 } else { 4 };
+
+    /// Whether a tracer of these packets can take tiles of `size` pixels: a multiple of
+    /// [`TileTracer::SIZE_MULTIPLE`] from it to 64 (4 for 4 lanes, 8 for 8 and 16).
+    pub fn check_tile_size(size: u32) -> Result<(), TileError> {
+        let multiple = Self::SIZE_MULTIPLE;
+        if (multiple..=MAX_TILE).contains(&size) && size.is_multiple_of(multiple) {
+            Ok(())
+        } else if multiple == 4 {
+            Err(TileError::BadSize(size))
+        } else {
+            Err(TileError::BadSizeForWidth { size, lanes: V::LANES, multiple })
+        }
+    }
+
+    /// A tracer for tiles of `size x size` pixels ([`TileTracer::check_tile_size`]) in
+    /// packets of `V::LANES` rays: `TileTracer::<PortableF32<16>>::with_size(16)`.
+    pub fn with_size(size: u32) -> Result<TileTracer<V>, TileError> {
+        Self::check_tile_size(size)?;
+        let packets = (size as usize).pow(2) / V::LANES;
         Ok(TileTracer {
             size,
             tile: Tile { x0: 0, y0: 0, x1: 0, y1: 0 },
@@ -116,7 +178,7 @@ impl TileTracer {
         self.any_hit = on;
     }
 
-    /// Number of 2x2 packets in the loaded tile (the denominator of N and I).
+    /// Number of packets in the loaded tile (the denominator of N and I).
     pub fn packet_count(&self) -> usize {
         self.packets.len()
     }
@@ -144,6 +206,7 @@ impl TileTracer {
         self.packets.clear();
         self.corners.clear();
         let half = self.size / 2;
+        let (pw, ph) = Self::PACKET_SHAPE;
         let (xm, ym) = ((tile.x0 + half).min(tile.x1), (tile.y0 + half).min(tile.y1));
         let quads = [
             (tile.x0, xm, tile.y0, ym),
@@ -155,9 +218,9 @@ impl TileTracer {
         let rays = PrimaryRays::new(camera);
         for (q, &(qx0, qx1, qy0, qy1)) in quads.iter().enumerate() {
             let first = self.packets.len();
-            let (cols, rows) = (qx1.saturating_sub(qx0).div_ceil(2), qy1.saturating_sub(qy0).div_ceil(2));
-            for y in (qy0..qy1.max(qy0)).step_by(2) {
-                for x in (qx0..qx1.max(qx0)).step_by(2) {
+            let (cols, rows) = (qx1.saturating_sub(qx0).div_ceil(pw), qy1.saturating_sub(qy0).div_ceil(ph));
+            for y in (qy0..qy1.max(qy0)).step_by(ph as usize) {
+                for x in (qx0..qx1.max(qx0)).step_by(pw as usize) {
                     self.packets.push(OmniPacket { rays: rays.packet(x, y, tile), origin });
                     self.corners.push((x, y));
                 }
@@ -210,7 +273,7 @@ impl TileTracer {
     /// packets do not share one origin. Only valid lanes count: a packet with none (e.g. of
     /// rays with NaN or infinite components, see [`RayPacket::new`]) may have any origin and
     /// gets no hit.
-    pub fn load_packets(&mut self, packets: &[OmniPacket]) -> Option<()> {
+    pub fn load_packets(&mut self, packets: &[OmniPacket<V>]) -> Option<()> {
         let origin = packets.iter().find(|p| p.rays.valid.any()).map_or([0.0; 4], |p| p.origin);
         if packets.iter().any(|p| p.rays.valid.any() && p.origin != origin) {
             return None;
@@ -231,15 +294,16 @@ impl TileTracer {
     /// Resets the hits and finished lanes before a trace, and makes the watertight shear
     /// table when a frustum method traces a watertight tree (`I`, the tree's test, chosen
     /// once by the caller: the check is a constant).
+    #[inline(always)]
     pub(crate) fn reset<I: TreeTest>(&mut self, frustum: bool) {
         self.sheared.clear();
         if frustum && I::INTERSECTOR == Intersector::Watertight {
-            self.sheared.extend(self.packets.iter().map(|p| WatertightTriangle::prepare4(&p.rays)));
+            self.sheared.extend(self.packets.iter().map(|p| <WatertightTriangle as PacketTest<V>>::prepare4(&p.rays)));
         }
         self.hits.clear();
         self.hits.extend(self.packets.iter().map(|p| PacketHit::new(&p.rays)));
         self.done.clear();
-        self.done.extend(self.packets.iter().map(|p| (!p.rays.valid.bitmask() & 0xF) as u8));
+        self.done.extend(self.packets.iter().map(|p| !p.rays.valid.bitmask() & all_lanes::<V>()));
     }
 
     /// The camera and tile of a primary tile ([`TileTracer::load_primary`]); `None` for
@@ -250,7 +314,7 @@ impl TileTracer {
 
     /// The packets of quadrant `q` (0 to 3: top-left, top-right, bottom-left, bottom-right
     /// for a primary tile, quarters by packet order otherwise).
-    pub fn quadrant(&self, q: usize) -> &[OmniPacket] {
+    pub fn quadrant(&self, q: usize) -> &[OmniPacket<V>] {
         &self.packets[self.quadrants[q & 3].clone()]
     }
 
@@ -259,7 +323,8 @@ impl TileTracer {
     pub fn quadrant_tile(&self, q: usize) -> Option<Tile> {
         self.camera?;
         let g = self.grids[q & 3];
-        let (x1, y1) = ((g.x0 + 2 * g.cols).min(self.tile.x1), (g.y0 + 2 * g.rows).min(self.tile.y1));
+        let (pw, ph) = Self::PACKET_SHAPE;
+        let (x1, y1) = ((g.x0 + pw * g.cols).min(self.tile.x1), (g.y0 + ph * g.rows).min(self.tile.y1));
         (g.cols > 0 && g.rows > 0).then_some(Tile { x0: g.x0, y0: g.y0, x1, y1 })
     }
 
@@ -268,13 +333,13 @@ impl TileTracer {
         glam::Vec3::from_slice(&self.origin[..3])
     }
 
-    /// The hits of the packets, in packet order (after [`TileTracer::trace`]).
-    pub fn packet_hits(&self) -> &[PacketHit] {
+    /// The hits of the packets, in packet order (after a trace, e.g. [`TileTracer::trace_mft`]).
+    pub fn packet_hits(&self) -> &[PacketHit<V>] {
         &self.hits
     }
 
     /// The loaded packets.
-    pub fn packets(&self) -> &[OmniPacket] {
+    pub fn packets(&self) -> &[OmniPacket<V>] {
         &self.packets
     }
 
@@ -282,9 +347,10 @@ impl TileTracer {
     /// row), as single-ray traversal would.
     pub fn write_hits(&self, out: &mut [Option<Hit>]) {
         let (t, w) = (self.tile, self.tile.width() as usize);
+        let pw = Self::PACKET_SHAPE.0;
         for (&(x, y), hit) in self.corners.iter().zip(&self.hits) {
-            for lane in 0..4u32 {
-                let (px, py) = (x + (lane & 1), y + (lane >> 1));
+            for lane in 0..V::LANES as u32 {
+                let (px, py) = (x + lane % pw, y + lane / pw);
                 if px < t.x1 && py < t.y1 {
                     out[(py - t.y0) as usize * w + (px - t.x0) as usize] = hit.get(lane as usize);
                 }
@@ -294,8 +360,9 @@ impl TileTracer {
 }
 
 /// A quadrant's packets as a grid: the packet in column `c`, row `r` is number
-/// `r * cols + c` of the quadrant and covers pixels `(x0 + 2c, y0 + 2r)` to
-/// `(x0 + 2c + 1, y0 + 2r + 1)`.
+/// `r * cols + c` of the quadrant and covers pixels `(x0 + pw c, y0 + ph r)` to
+/// `(x0 + pw c + pw - 1, y0 + ph r + ph - 1)` for packets of `pw x ph` pixels
+/// ([`TileTracer::PACKET_SHAPE`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Grid {
     pub(crate) x0: u32,
@@ -305,21 +372,23 @@ pub(crate) struct Grid {
 }
 
 impl Grid {
-    /// The columns and rows of the packets with a pixel centre inside `rect` (see
-    /// [`TileTracer::screen_rect`]).
+    /// The columns and rows of the packets of `(pw, ph)` pixels with a pixel centre inside
+    /// `rect` (see [`TileTracer::screen_rect`]).
     #[inline]
-    pub(crate) fn within(&self, rect: [f32; 4]) -> (Range<u32>, Range<u32>) {
-        // Packet column c has centres x0 + 2c + 0.5 and x0 + 2c + 1.5.
-        let span = |lo: f32, hi: f32, origin: u32, n: u32| {
-            let first = ((lo - 1.5 - origin as f32) * 0.5).ceil().clamp(0.0, n as f32) as u32;
-            let end = (((hi - 0.5 - origin as f32) * 0.5).floor() + 1.0).clamp(0.0, n as f32) as u32;
+    pub(crate) fn within(&self, rect: [f32; 4], (pw, ph): (u32, u32)) -> (Range<u32>, Range<u32>) {
+        // Packet column c has centres x0 + pw c + 0.5 to x0 + pw c + pw - 0.5. The sides are
+        // powers of two: `* (1 / p)` is the division, exactly.
+        let span = |lo: f32, hi: f32, origin: u32, n: u32, p: u32| {
+            let (last_centre, scale) = (p as f32 - 0.5, 1.0 / p as f32);
+            let first = ((lo - last_centre - origin as f32) * scale).ceil().clamp(0.0, n as f32) as u32;
+            let end = (((hi - 0.5 - origin as f32) * scale).floor() + 1.0).clamp(0.0, n as f32) as u32;
             first..end.max(first)
         };
-        (span(rect[0], rect[1], self.x0, self.cols), span(rect[2], rect[3], self.y0, self.rows))
+        (span(rect[0], rect[1], self.x0, self.cols, pw), span(rect[2], rect[3], self.y0, self.rows, ph))
     }
 }
 
-/// Primary-ray packets of one camera, generated four rays at a time with exactly the
+/// Primary-ray packets of one camera, generated `V::LANES` rays at a time with exactly the
 /// operations of [`Camera::pixel_ray`] and [`Ray::new`] (so every lane equals the single
 /// ray bit for bit, which the tests check).
 struct PrimaryRays {
@@ -332,30 +401,34 @@ impl PrimaryRays {
         PrimaryRays { camera: *camera, aspect: camera.width as f32 / camera.height as f32 }
     }
 
-    /// The packet of the 2x2 pixels whose top-left pixel is `(x, y)`; pixels outside `tile`
+    /// The packet of the `pw x ph` pixels ([`TileTracer::PACKET_SHAPE`]) whose top-left
+    /// pixel is `(x, y)`, lane `l` pixel `(x + l % pw, y + l / pw)`; pixels outside `tile`
     /// are invalid lanes.
     #[inline]
-    fn packet(&self, x: u32, y: u32, tile: &Tile) -> RayPacket {
+    fn packet<V: SimdF32>(&self, x: u32, y: u32, tile: &Tile) -> RayPacket<V> {
         let c = &self.camera;
         let (w, h) = (c.width as f32, c.height as f32);
-        let px = Vec4::new(x as f32 + 0.5, (x + 1) as f32 + 0.5, x as f32 + 0.5, (x + 1) as f32 + 0.5);
-        let py = Vec4::new(y as f32 + 0.5, y as f32 + 0.5, (y + 1) as f32 + 0.5, (y + 1) as f32 + 0.5);
-        // Camera::direction, per lane.
-        let sx = (Vec4::splat(2.0) * px / Vec4::splat(w) - Vec4::ONE) * c.tan_half_fovy * self.aspect;
-        let sy = (Vec4::ONE - Vec4::splat(2.0) * py / Vec4::splat(h)) * c.tan_half_fovy;
-        let comp = |a: usize| Vec4::splat(c.forward[a]) + sx * c.right[a] + sy * c.up[a];
+        let pw = TileTracer::<V>::PACKET_SHAPE.0;
+        let px = V::from_fn(|l| (x + l as u32 % pw) as f32 + 0.5);
+        let py = V::from_fn(|l| (y + l as u32 / pw) as f32 + 0.5);
+        // Camera::direction, per lane (a vector times a scalar is the splat's product).
+        let (tan, aspect) = (V::splat(c.tan_half_fovy), V::splat(self.aspect));
+        let sx = (V::splat(2.0) * px / V::splat(w) - V::ONE) * tan * aspect;
+        let sy = (V::ONE - V::splat(2.0) * py / V::splat(h)) * tan;
+        let comp = |a: usize| V::splat(c.forward[a]) + sx * V::splat(c.right[a]) + sy * V::splat(c.up[a]);
         let (dx, dy, dz) = (comp(0), comp(1), comp(2));
         // Vec3::normalize: d * (1 / sqrt(d . d)).
-        let len_recip = Vec4::ONE / Vec4::from_array((dx * dx + dy * dy + dz * dz).to_array().map(f32::sqrt));
+        let squares = (dx * dx + dy * dy + dz * dz).to_array();
+        let len_recip = V::ONE / V::from_fn(|l| squares[l].sqrt());
         // Ray::new: reciprocals, and components whose reciprocal overflows flushed to zeros.
         let (d, inv) = directions([dx * len_recip, dy * len_recip, dz * len_recip]);
-        let inside = BVec4A::new(true, x + 1 < tile.x1, y + 1 < tile.y1, x + 1 < tile.x1 && y + 1 < tile.y1);
+        let inside = V::Mask::from_fn(|l| x + l as u32 % pw < tile.x1 && y + l as u32 / pw < tile.y1);
         RayPacket {
-            o: [Vec4::splat(c.eye.x), Vec4::splat(c.eye.y), Vec4::splat(c.eye.z), Vec4::ZERO],
-            d: [d[0], d[1], d[2], Vec4::ZERO],
-            inv: [inv[0], inv[1], inv[2], Vec4::ZERO],
-            t_min: Vec4::select(inside, Vec4::ZERO, Vec4::INFINITY),
-            t_max: Vec4::select(inside, Vec4::INFINITY, Vec4::NEG_INFINITY),
+            o: [V::splat(c.eye.x), V::splat(c.eye.y), V::splat(c.eye.z), V::ZERO],
+            d: [d[0], d[1], d[2], V::ZERO],
+            inv: [inv[0], inv[1], inv[2], V::ZERO],
+            t_min: V::select(inside, V::ZERO, V::INFINITY),
+            t_max: V::select(inside, V::INFINITY, V::NEG_INFINITY),
             valid: inside,
         }
     }
@@ -364,22 +437,31 @@ impl PrimaryRays {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::PortableF32;
     use kdtree::Ray;
 
     /// Every lane of a loaded primary tile is the single camera ray, bit for bit, and the
-    /// lanes outside the image are invalid.
+    /// lanes outside the image are invalid; at every packet width.
     #[test]
     fn primary_lanes_are_the_camera_rays() {
+        primary_lanes::<Vec4>();
+        primary_lanes::<PortableF32<4>>();
+        primary_lanes::<PortableF32<8>>();
+        primary_lanes::<PortableF32<16>>();
+    }
+
+    fn primary_lanes<V: SimdF32>() {
+        let pw = TileTracer::<V>::PACKET_SHAPE.0;
         for (w, h, fovy) in [(37u32, 21u32, 70.0f32), (64, 64, 150.0), (5, 9, 1.0)] {
             let camera =
                 Camera::look_at(glam::Vec3::new(1.0, 2.0, 3.0), glam::Vec3::new(-4.0, 0.5, 7.0), fovy, w, h).unwrap();
-            let mut tracer = TileTracer::new(16).unwrap();
+            let mut tracer = TileTracer::<V>::with_size(16).unwrap();
             for tile in scenes::tiles(w, h, 16) {
                 tracer.load_primary(&camera, &tile).unwrap();
                 let mut seen = 0;
                 for (p, &(x, y)) in tracer.packets.iter().zip(&tracer.corners) {
-                    for lane in 0..4u32 {
-                        let (px, py) = (x + (lane & 1), y + (lane >> 1));
+                    for lane in 0..V::LANES as u32 {
+                        let (px, py) = (x + lane % pw, y + lane / pw);
                         let valid = p.rays.valid.bitmask() >> lane & 1 != 0;
                         assert_eq!(valid, px < tile.x1 && py < tile.y1);
                         if valid {
@@ -402,10 +484,47 @@ mod tests {
         let g = Grid { x0: 8, y0: 0, cols: 4, rows: 4 };
         // Centres 8.5 .. 15.5; a rectangle over 10.2 .. 11.0 touches columns 10 and 11
         // (packet 1 covers columns 10 and 11).
-        assert_eq!(g.within([10.2, 11.0, -100.0, 100.0]), (1..2, 0..4));
-        assert_eq!(g.within([0.0, 8.4, 0.0, 1.0]), (0..0, 0..1));
-        assert_eq!(g.within([-1e30, 1e30, 3.4, 3.7]), (0..4, 1..2));
+        assert_eq!(g.within([10.2, 11.0, -100.0, 100.0], (2, 2)), (1..2, 0..4));
+        assert_eq!(g.within([0.0, 8.4, 0.0, 1.0], (2, 2)), (0..0, 0..1));
+        assert_eq!(g.within([-1e30, 1e30, 3.4, 3.7], (2, 2)), (0..4, 1..2));
         // Between two rows of pixel centres: no packet.
-        assert_eq!(g.within([-1e30, 1e30, 3.6, 3.7]).1.len(), 0);
+        assert_eq!(g.within([-1e30, 1e30, 3.6, 3.7], (2, 2)).1.len(), 0);
+        // Packets of 4x2 and 4x4 pixels: packet column c covers pixels 8 + 4c to 11 + 4c.
+        let g = Grid { x0: 8, y0: 0, cols: 2, rows: 2 };
+        assert_eq!(g.within([11.4, 11.6, -100.0, 100.0], (4, 2)), (0..1, 0..2));
+        // Between the centres 11.5 and 12.5 of two packets: none.
+        assert_eq!(g.within([11.6, 12.4, -100.0, 100.0], (4, 2)).0.len(), 0);
+        assert_eq!(g.within([11.4, 12.6, 1.4, 2.6], (4, 2)), (0..2, 0..2));
+        // Inside one packet's span of centres (0.5 to 3.5): that packet; between two: none.
+        assert_eq!(g.within([11.4, 12.6, 1.6, 2.4], (4, 4)).1, 0..1);
+        assert_eq!(g.within([11.4, 12.6, 3.6, 4.4], (4, 4)).1.len(), 0);
+        assert_eq!(g.within([-1e30, 1e30, 3.4, 4.6], (4, 4)), (0..2, 0..2));
+        assert_eq!(g.within([-1e30, 1e30, 4.4, 4.6], (4, 4)), (0..2, 1..2));
+    }
+
+    /// The packet shapes and the sizes each width takes, with the error naming the width.
+    #[test]
+    fn sizes_follow_the_packet_shape() {
+        assert_eq!(TileTracer::<Vec4>::PACKET_SHAPE, (2, 2));
+        assert_eq!(TileTracer::<PortableF32<8>>::PACKET_SHAPE, (4, 2));
+        assert_eq!(TileTracer::<PortableF32<16>>::PACKET_SHAPE, (4, 4));
+        for size in 0..80 {
+            let four = size % 4 == 0 && (4..=64).contains(&size);
+            let eight = size % 8 == 0 && (8..=64).contains(&size);
+            assert_eq!(TileTracer::check_size(size).is_ok(), four, "{size}");
+            assert_eq!(TileTracer::<PortableF32<8>>::check_tile_size(size).is_ok(), eight, "{size}");
+            assert_eq!(TileTracer::<PortableF32<16>>::check_tile_size(size).is_ok(), eight, "{size}");
+            assert_eq!(TileTracer::<PortableF32<16>>::with_size(size).is_ok(), eight, "{size}");
+        }
+        assert_eq!(TileTracer::new(6).unwrap_err().to_string(), "tile size 6 must be a multiple of 4 from 4 to 64");
+        let e = TileTracer::<PortableF32<16>>::with_size(4).unwrap_err();
+        assert_eq!(e, TileError::BadSizeForWidth { size: 4, lanes: 16, multiple: 8 });
+        assert!(e.to_string().contains("multiple of 8") && e.to_string().contains("16 rays"), "{e}");
+        // A tile of the largest size holds size^2 / W packets.
+        let camera = Camera::look_at(glam::Vec3::ZERO, glam::Vec3::NEG_Z, 60.0, 64, 64).unwrap();
+        let mut tracer = TileTracer::<PortableF32<16>>::with_size(64).unwrap();
+        tracer.load_primary(&camera, &scenes::tiles(64, 64, 64)[0]).unwrap();
+        assert_eq!(tracer.packet_count(), 64 * 64 / 16);
+        assert!(tracer.quadrants.iter().all(|q| q.len() == 64));
     }
 }

@@ -2,14 +2,16 @@
 //! (`conformance/tests/ours.rs`, every registered method on the built-in and shared scenes
 //! and the hard cases) does not reach: random soups and cameras (proptest) at every tile
 //! size, MFT never doing more work than the single frustum of the same tile, omni packets in
-//! every direction, non-finite cameras and lanes, NaN frustum bounds.
+//! every direction, non-finite cameras and lanes, NaN frustum bounds; and the tile kernels
+//! in packets of 8 (4x2 pixels) and 16 rays (4x4) against single rays and 2x2 packets.
 
 mod common;
 
 use common::{arena_and_eye, build, same_hit, signed_rng, vertex};
 use glam::Vec3;
 use kdtree::Counts;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use packets::simd::{PortableF32, SimdF32};
 use packets::tile::TileTracer;
 use proptest::prelude::*;
 use scenes::{Camera, tiles};
@@ -232,6 +234,283 @@ fn nan_frustum_bounds_fall_back_to_the_pyramid() {
             tracer.write_hits(&mut got);
             let differ = got.iter().zip(&want).filter(|(g, w)| g != w).count();
             assert_eq!(differ, 0, "tile {tile:?}, case {case}: {differ} pixels differ");
+            checked += got.iter().filter(|h| h.is_some()).count();
+        }
+    }
+    assert!(checked > 1000, "{checked} hits compared");
+}
+
+/// A tile kernel's entry point at any packet width, counting its work.
+type WideKernel<V> = fn(&mut TileTracer<V>, &KdTree, &mut Counts);
+
+/// The four tile kernels at the packet width of `V`, by name.
+fn wide_methods<V: SimdF32>() -> [(&'static str, WideKernel<V>); 4] {
+    [
+        ("packet", TileTracer::<V>::trace_packets::<Counts>),
+        ("samesign", TileTracer::<V>::trace_samesign::<Counts>),
+        ("frustum", TileTracer::<V>::trace_frustum::<Counts>),
+        ("mft", TileTracer::<V>::trace_mft::<Counts>),
+    ]
+}
+
+/// Hits as bits (`t`, `u`, `v`, triangle), so that answers compare bit for bit.
+fn bits(hits: &[Option<Hit>]) -> Vec<Option<[u32; 4]>> {
+    hits.iter().map(|h| h.map(|h| [h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim])).collect()
+}
+
+/// The single rays of `camera`'s image, row by row: each pixel's closest hit and whether it
+/// is blocked.
+fn single_rays(tree: &KdTree, camera: &Camera) -> Vec<(Ray, Option<Hit>, bool)> {
+    (0..camera.height)
+        .flat_map(|y| (0..camera.width).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let (o, d) = camera.pixel_ray(x, y);
+            let ray = Ray::new(o, d, 0.0, f32::INFINITY);
+            (ray, tree.intersect(&ray), tree.occluded(&ray))
+        })
+        .collect()
+}
+
+/// The settings every tile is traced with: culling on and off, closest and any hit.
+const SETTINGS: [(bool, bool); 4] = [(true, false), (true, true), (false, false), (false, true)];
+
+/// What the kernels give in 2x2 packets: per tile of `camera`'s image at `tile_size`, per
+/// setting ([`SETTINGS`]) and kernel ([`METHODS`]), the tile's hits row by row.
+fn narrow_tiles(tree: &KdTree, camera: &Camera, tile_size: u32) -> Vec<Vec<Vec<Option<[u32; 4]>>>> {
+    let mut narrow = TileTracer::new(tile_size).unwrap();
+    tiles(camera.width, camera.height, tile_size)
+        .iter()
+        .map(|tile| {
+            let mut runs = Vec::new();
+            for (culling, any_hit) in SETTINGS {
+                for (_, trace) in METHODS {
+                    let mut got = vec![None; tile.pixel_count()];
+                    narrow.set_culling(culling);
+                    narrow.set_any_hit(any_hit);
+                    narrow.load_primary(camera, tile).unwrap();
+                    trace(&mut narrow, tree, &mut NoCounters);
+                    narrow.write_hits(&mut got);
+                    runs.push(bits(&got));
+                }
+            }
+            runs
+        })
+        .collect()
+}
+
+/// Traces every tile of `camera`'s image at `tile_size` with the four kernels in packets of
+/// `V` (culling on and off, closest and any hit) and checks each pixel against the single
+/// ray `want` (by the oracle's rule; in any-hit mode the frustum methods' hits must be
+/// exactly the blocked rays), each kernel against the same kernel in 2x2 packets (`narrow`,
+/// from [`narrow_tiles`]) bit for bit, and MFT's work (closest hits) against the single
+/// frustum's in the same packets. Returns the hits compared.
+fn wide_tiles_match<V: SimdF32>(
+    tree: &KdTree,
+    camera: &Camera,
+    tile_size: u32,
+    want: &[(Ray, Option<Hit>, bool)],
+    narrow: &[Vec<Vec<Option<[u32; 4]>>>],
+    oracle: &BruteForce,
+) -> Result<usize, String> {
+    let mut wide = TileTracer::<V>::with_size(tile_size).map_err(|e| e.to_string())?;
+    let mut hits = 0;
+    for (tile, narrow) in tiles(camera.width, camera.height, tile_size).iter().zip(narrow) {
+        let mut narrow = narrow.iter();
+        for (culling, any_hit) in SETTINGS {
+            let mut frustum_work = Counts::default();
+            for (method, trace) in wide_methods::<V>() {
+                let what =
+                    format!("{method} at {} lanes, tile {tile:?}, culling {culling}, any hit {any_hit}", V::LANES);
+                let mut got = vec![None; tile.pixel_count()];
+                let mut work = Counts::default();
+                wide.set_culling(culling);
+                wide.set_any_hit(any_hit);
+                wide.load_primary(camera, tile).map_err(|e| e.to_string())?;
+                trace(&mut wide, tree, &mut work);
+                wide.write_hits(&mut got);
+                if Some(&bits(&got)) != narrow.next() {
+                    return Err(format!("{what}: differs from 2x2 packets"));
+                }
+                let any = any_hit && matches!(method, "frustum" | "mft");
+                for (i, (x, y)) in tile.pixels().enumerate() {
+                    let (ray, closest, blocked) = &want[(y * camera.width + x) as usize];
+                    // `same_hit`, with the oracle made once.
+                    let ok =
+                        if any { got[i].is_some() == *blocked } else { oracle.equivalent_hits(ray, got[i], *closest) };
+                    if !ok {
+                        return Err(format!("{what}: pixel ({x}, {y}) got {:?}, single ray {closest:?}", got[i]));
+                    }
+                    hits += usize::from(got[i].is_some());
+                }
+                match method {
+                    "frustum" => frustum_work = work,
+                    // (In any-hit mode a frustum stops at other places: no bound, as in 2x2
+                    // packets.)
+                    "mft" if !any_hit && (work.nodes > frustum_work.nodes || work.tests > frustum_work.tests) => {
+                        return Err(format!("{what}: MFT {work:?} did more than the frustum {frustum_work:?}"));
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Ok(hits)
+}
+
+/// [`wide_tiles_match`] in packets of 8 and 16 rays.
+fn wide_tiles_match_8_16(tree: &KdTree, camera: &Camera, tile_size: u32) -> Result<usize, String> {
+    let (want, oracle) = (single_rays(tree, camera), BruteForce::for_tree(tree));
+    let narrow = narrow_tiles(tree, camera, tile_size);
+    Ok(wide_tiles_match::<PortableF32<8>>(tree, camera, tile_size, &want, &narrow, &oracle)?
+        + wide_tiles_match::<PortableF32<16>>(tree, camera, tile_size, &want, &narrow, &oracle)?)
+}
+
+/// The tile kernels in packets of 8 (4x2 pixels) and 16 rays (4x4) give the single rays'
+/// hits, and the 2x2 packets' bit for bit, on every built-in scene and view, with both
+/// intersectors, at tile sizes 8, 16 and 32 (the image, 45 x 37, clips tiles at its right
+/// and bottom edges; 16 only on the views after the first), culling on and off, closest and
+/// any hit; MFT does no more work than the single frustum.
+#[test]
+fn wide_packets_match_single_rays_on_the_builtin_scenes() {
+    let mut hits = 0;
+    for name in ["atrium", "arena", "atrium-rotated", "touching-boxes", "axis-plane-triangle"] {
+        let scene = scenes::load_scene(name).unwrap();
+        for intersector in [Intersector::Wald, Intersector::Watertight] {
+            let tree = build(&scene, intersector);
+            for (v, view) in scene.views.iter().enumerate() {
+                let camera = view.camera(45, 37).unwrap();
+                // Every size on the first view, the middle one on the others (time).
+                for size in if v == 0 { &[8, 16, 32][..] } else { &[16] } {
+                    let size = *size;
+                    hits += wide_tiles_match_8_16(&tree, &camera, size)
+                        .unwrap_or_else(|e| panic!("{name} {intersector:?} {} size {size}: {e}", view.name));
+                }
+            }
+        }
+    }
+    assert!(hits > 50_000, "{hits} hits compared");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    /// Random soups (many sharing vertices and axis planes), random cameras inside and
+    /// outside them: the tile kernels in packets of 8 and 16 rays give the single rays' hits
+    /// and the 2x2 packets' bit for bit, and MFT does no more work than the frustum.
+    #[test]
+    fn wide_packets_on_random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
+                                                eye in vertex(), target in vertex(), wide in any::<bool>(),
+                                                watertight in any::<bool>()) {
+        let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
+        let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
+        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
+        let eye = eye * 1.5;
+        prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
+        let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 27, 21).unwrap();
+        for size in [8, 16] {
+            let r = wide_tiles_match_8_16(&tree, &camera, size);
+            prop_assert!(r.is_ok(), "size {size}: {r:?}");
+        }
+    }
+}
+
+/// Rays with NaN or infinite components in loaded packets of 8 and 16 rays get no hit from
+/// every kernel, closest or any hit, and the others get the single rays' hits.
+#[test]
+fn wide_packets_with_non_finite_lanes() {
+    non_finite_lanes::<PortableF32<8>>();
+    non_finite_lanes::<PortableF32<16>>();
+}
+
+fn non_finite_lanes<V: SimdF32>() {
+    use packets::{OmniPacket, RayPacket};
+    let scene = scenes::load_scene("arena").unwrap();
+    let origin = scene.default_view().eye;
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    let bad = [
+        Ray::new(Vec3::new(nan, origin.y, origin.z), Vec3::X, 0.0, inf),
+        Ray::new(origin, Vec3::new(0.3, nan, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::new(inf, 0.0, -1.0), 0.0, inf),
+        Ray::new(origin, Vec3::NEG_Z, 0.0, nan),
+        Ray::new(origin, Vec3::NEG_Z, nan, inf),
+    ];
+    let w = V::LANES;
+    let is_bad = |i: usize| i < w || i % 12 == 5;
+    let rays: Vec<Ray> = (0..8 * w)
+        .map(|i| {
+            let (a, b) = (i as f32 * 0.37, i as f32 * 0.11);
+            let good = Ray::new(origin, Vec3::new(a.sin(), 0.4 * b.cos() - 0.2, -1.0), 0.0, inf);
+            if is_bad(i) { bad[i % bad.len()] } else { good }
+        })
+        .collect();
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = build(&scene, intersector);
+        let packets: Vec<OmniPacket<V>> =
+            rays.chunks(w).map(|c| OmniPacket::new(RayPacket::<V>::from_rays(c)).unwrap()).collect();
+        let mut tracer = TileTracer::<V>::with_size(16).unwrap();
+        let mut checked = 0;
+        for culling in [true, false] {
+            for any_hit in [false, true] {
+                tracer.set_culling(culling);
+                tracer.set_any_hit(any_hit);
+                for (method, trace) in wide_methods::<V>() {
+                    tracer.load_packets(&packets).expect("the valid lanes share one origin");
+                    trace(&mut tracer, &tree, &mut Counts::default());
+                    let any = any_hit && matches!(method, "frustum" | "mft");
+                    for (p, hit) in tracer.packet_hits().iter().enumerate() {
+                        for lane in 0..w {
+                            let (i, got) = (w * p + lane, hit.get(lane));
+                            let ray = &rays[i];
+                            let what = format!("{method} {intersector:?} {w} lanes, culling {culling}: ray {i}");
+                            if is_bad(i) {
+                                assert_eq!(got, None, "{what} {ray:?}");
+                            } else if any {
+                                assert_eq!(got.is_some(), tree.occluded(ray), "{what}");
+                            } else {
+                                assert!(same_hit(&tree, ray, got, tree.intersect(ray)), "{what}: {got:?}");
+                            }
+                            checked += usize::from(got.is_some());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 100, "{checked} hits");
+    }
+}
+
+/// A NaN frustum bound falls back to the pyramid in packets of 8 and 16 rays too: the hits
+/// are the single frustum's.
+#[test]
+fn wide_packets_with_nan_frustum_bounds() {
+    nan_bounds::<PortableF32<8>>();
+    nan_bounds::<PortableF32<16>>();
+}
+
+fn nan_bounds<V: SimdF32>() {
+    use packets::{Frusta, FrustumBound};
+    let scene = scenes::load_scene("atrium").unwrap();
+    let tree = build(&scene, Intersector::Watertight);
+    let camera = scene.default_view().camera(48, 36).unwrap();
+    let nan = FrustumBound { k0: [0.0; 4], k1: [0.0; 4], near: f32::NAN, far: f32::INFINITY, hit_scale: 1.0 };
+    let mut tracer = TileTracer::<V>::with_size(16).unwrap();
+    let mut checked = 0;
+    for tile in tiles(camera.width, camera.height, 16) {
+        let mut want = vec![None; tile.pixel_count()];
+        tracer.load_primary(&camera, &tile).unwrap();
+        tracer.trace_frustum(&tree, &mut NoCounters);
+        tracer.write_hits(&mut want);
+        for case in 0..3 {
+            let pyramids = tracer.prepare(&tree);
+            let frusta = match case {
+                0 => Frusta::One(nan),
+                1 => Frusta::Four([nan; 4]),
+                _ => Frusta::Four([pyramids[0], nan, pyramids[2], FrustumBound { near: 0.0, ..nan }]),
+            };
+            let mut got = vec![None; tile.pixel_count()];
+            tracer.trace_frusta(&tree, &frusta, &mut NoCounters);
+            tracer.write_hits(&mut got);
+            assert_eq!(bits(&got), bits(&want), "{} lanes, tile {tile:?}, case {case}", V::LANES);
             checked += got.iter().filter(|h| h.is_some()).count();
         }
     }
