@@ -86,6 +86,7 @@ fn is_empty(b: &FrustumBound) -> bool {
 }
 
 /// The valid lanes' directions of `packets`.
+#[inline(always)]
 fn directions<V: SimdF32>(packets: &[OmniPacket<V>]) -> impl Iterator<Item = Vec3> + '_ {
     packets.iter().flat_map(|p| {
         let mask = p.rays.valid.bitmask();
@@ -96,6 +97,7 @@ fn directions<V: SimdF32>(packets: &[OmniPacket<V>]) -> impl Iterator<Item = Vec
 }
 
 /// The cone of loaded packets (mean axis, widest ray) and their direction lengths.
+#[inline(always)]
 fn loaded_cone<V: SimdF32>(origin: Vec3, packets: &[OmniPacket<V>]) -> Result<(Cone, (f64, f64)), ConeError> {
     let mut sum = DVec3::ZERO;
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -122,6 +124,7 @@ fn loaded_cone<V: SimdF32>(origin: Vec3, packets: &[OmniPacket<V>]) -> Result<(C
 
 /// The cone of the loaded tile (`q = None`) or of its quadrant `q`, with the rays' direction
 /// lengths.
+#[inline(always)]
 fn tile_cone<V: SimdF32>(tracer: &TileTracer<V>, q: Option<usize>) -> Result<(Cone, (f64, f64)), ConeError> {
     if let Some((camera, tile)) = tracer.primary() {
         let tile = match q {
@@ -140,32 +143,40 @@ fn tile_cone<V: SimdF32>(tracer: &TileTracer<V>, q: Option<usize>) -> Result<(Co
 /// The frustum of one cone for the whole loaded tile (4.1.8), given its quadrants' root box
 /// intervals (from [`TileTracer::prepare_intervals`]), falling back to the quadrants'
 /// pyramids where no cone holds its rays.
+#[inline(always)]
 pub fn tile_cone_frusta<V: SimdF32>(tree: &KdTree, tracer: &mut TileTracer<V>, intervals: &[(f32, f32); 4]) -> Frusta {
     let near = intervals.iter().map(|i| i.0).fold(f32::INFINITY, f32::min);
     let far = intervals.iter().map(|i| i.1).fold(f32::NEG_INFINITY, f32::max);
     match tile_cone(tracer, None) {
         Ok((cone, len)) => Frusta::One(cone_bound(&cone, &interval_bound((near, far)), len)),
-        Err(_) => Frusta::Four(std::array::from_fn(|q| tracer.pyramid(tree, q))),
+        Err(_) => Frusta::Four(packets::simd::array_fn(
+            #[inline(always)]
+            |q| tracer.pyramid(tree, q),
+        )),
     }
 }
 
 /// The frusta of the loaded tile's four quadrant cones (4.1.9), given their root box
 /// intervals, each falling back to the quadrant's pyramid where no cone holds its rays.
+#[inline(always)]
 pub fn quadrant_cone_frusta<V: SimdF32>(
     tree: &KdTree,
     tracer: &mut TileTracer<V>,
     intervals: &[(f32, f32); 4],
 ) -> Frusta {
-    Frusta::Four(std::array::from_fn(|q| {
-        let interval = interval_bound(intervals[q]);
-        if is_empty(&interval) {
-            return interval;
-        }
-        match tile_cone(tracer, Some(q)) {
-            Ok((cone, len)) => cone_bound(&cone, &interval, len),
-            Err(_) => tracer.pyramid(tree, q),
-        }
-    }))
+    Frusta::Four(packets::simd::array_fn(
+        #[inline(always)]
+        |q| {
+            let interval = interval_bound(intervals[q]);
+            if is_empty(&interval) {
+                return interval;
+            }
+            match tile_cone(tracer, Some(q)) {
+                Ok((cone, len)) => cone_bound(&cone, &interval, len),
+                Err(_) => tracer.pyramid(tree, q),
+            }
+        },
+    ))
 }
 
 /// A bound with the root box interval `(near, far)` and no factors yet.

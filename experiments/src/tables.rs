@@ -17,6 +17,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use kdtree::isa::SimdLevel;
 use kdtree::{BuildConfig, BuildStrategy, CostModel, Intersector, KdTree};
 use scenes::Scene;
 use trace::progress::Progress;
@@ -167,6 +168,15 @@ fn scene_list(config: &TablesConfig) -> Vec<String> {
     if config.scene.is_empty() { trace::setup::default_scenes() } else { config.scene.clone() }
 }
 
+/// The options of the thesis's chapter-4 tables: its 2x2 packets (4 lanes, `sse4.1`, or
+/// less where the CPU has less), so that N and I count per 2x2 packet as the thesis's do
+/// and the rows measure the thesis's kernels. The wider packets of this CPU are the width
+/// ladder's (`docs/results/width-ladder.md`); Table 6.2 runs the best method at the
+/// default, widest level.
+fn thesis_options() -> Options {
+    Options { simd: SimdLevel::Sse41.min(SimdLevel::active()), ..Options::default() }
+}
+
 /// Measures every configuration on one scene.
 fn measure(
     scene: &Scene,
@@ -181,7 +191,7 @@ fn measure(
     let mut rows = Vec::new();
     let mut shade_secs = f64::INFINITY;
     for &(method, tile, culling) in CONFIGS {
-        let selected = registry.select(method, Options { tile, culling, ..Options::default() })?;
+        let selected = registry.select(method, Options { tile, culling, ..thesis_options() })?;
         let bound = registry.bind(&selected, structures)?;
         let renderer = Renderer::new(scene, &bound, camera, Shadows::None);
         let mut buffers = renderer.buffers();
@@ -260,7 +270,7 @@ fn measure_soft(
         let light = soft::scene_light(scene, structures.kdtree(), radius);
         let mut reference: Option<Vec<f32>> = None;
         for (label, method, soft) in SOFT_ROWS {
-            let bound = registry.bind(&registry.select(method, Options { soft, ..Options::default() })?, structures)?;
+            let bound = registry.bind(&registry.select(method, Options { soft, ..thesis_options() })?, structures)?;
             let tracer: &dyn FrameTracer = &*bound.tracer;
             let mut best = f64::INFINITY;
             let mut stats = Default::default();

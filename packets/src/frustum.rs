@@ -89,7 +89,13 @@ impl<V: SimdF32> TileTracer<V> {
     pub fn prepare_with<I: TreeTest>(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
         self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
-        quadrants.map(|range| bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range]))
+        crate::simd::array_fn(
+            #[inline(always)]
+            |q| {
+                let range = quadrants[q].clone();
+                bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
+            },
+        )
     }
 
     /// [`TileTracer::prepare`] without the pyramids: resets the hits, finishes the lanes
@@ -108,7 +114,13 @@ impl<V: SimdF32> TileTracer<V> {
     pub fn prepare_intervals_with<I: TreeTest>(&mut self, tree: &KdTree) -> [(f32, f32); 4] {
         self.reset::<I>(true);
         let quadrants = self.quadrants.clone();
-        quadrants.map(|range| bound::root_interval(tree, &self.packets[range.clone()], &mut self.done[range]))
+        crate::simd::array_fn(
+            #[inline(always)]
+            |q| {
+                let range = quadrants[q].clone();
+                bound::root_interval(tree, &self.packets[range.clone()], &mut self.done[range])
+            },
+        )
     }
 
     /// The pyramid bound (thesis 2.3.2) of quadrant `q` of a prepared tile
@@ -149,8 +161,10 @@ impl<V: SimdF32> TileTracer<V> {
                 intersect::<I, V, _, C>(tree, self, &Bounds::one(&f), counters)
             }
             Frusta::Four(bounds) => {
-                let bounds: [FrustumBound; 4] =
-                    std::array::from_fn(|q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] });
+                let bounds: [FrustumBound; 4] = crate::simd::array_fn(
+                    #[inline(always)]
+                    |q| if bounds[q].has_nan() { self.pyramid(tree, q) } else { bounds[q] },
+                );
                 intersect::<I, V, _, C>(tree, self, &Bounds::four(&bounds), counters)
             }
         }
@@ -491,9 +505,17 @@ impl<L: Lanes, V: SimdF32, T: PacketTest<V>> Descent for FrustaWalk<'_, L, V, T>
             let Span { unordered, near, far, lo, hi } = *span;
             let rect = self.tracer.screen_rect(lo, hi);
             let (records, tracer) = (self.records, &mut *self.tracer);
-            self.limit = L::leaf(near, far, self.limit, |quadrants, previous| {
-                leaf(records, prims, tracer, quadrants, rect, lo, hi, unordered, previous, counters)
-            });
+            self.limit = L::leaf(
+                near,
+                far,
+                self.limit,
+                // Inlined, so that the leaf's packet tests compile into a `#[target_feature]`
+                // caller (`at_width!`).
+                #[inline(always)]
+                |quadrants, previous| {
+                    leaf(records, prims, tracer, quadrants, rect, lo, hi, unordered, previous, counters)
+                },
+            );
             if L::all_complete(self.limit) {
                 return Flow::Stop;
             }

@@ -46,7 +46,7 @@ pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>,
 
 /// [`intersect`] with the tree's triangle test `I`, chosen once by the caller (see
 /// [`TreeTest`]).
-#[inline]
+#[inline(always)]
 pub fn intersect_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     packet: &OmniPacket<V>,
@@ -67,7 +67,7 @@ pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &OmniPacket<V>, 
 }
 
 /// [`occluded`] with the tree's triangle test `I` (see [`TreeTest`]).
-#[inline]
+#[inline(always)]
 pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     packet: &OmniPacket<V>,

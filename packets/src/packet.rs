@@ -25,12 +25,32 @@ use crate::simd::{SimdF32, SimdMask};
 /// built without `Ray`s: [`RayPacket::segments`] and the tile tracer's primary rays.
 #[inline(always)]
 pub(crate) fn directions<V: SimdF32>(raw: [V; 3]) -> ([V; 3], [V; 3]) {
-    let inv = raw.map(V::recip);
-    let d = std::array::from_fn(|a| {
-        let keep = inv[a].is_finite_mask() | raw[a].cmpeq(V::ZERO) | raw[a].is_nan_mask();
-        V::select(keep, raw[a], V::ZERO.copysign(raw[a]))
-    });
+    let inv: [V; 3] = crate::simd::array_fn(|a| raw[a].recip());
+    let d = crate::simd::array_fn(
+        #[inline(always)]
+        |a| {
+            let keep = inv[a].is_finite_mask() | raw[a].cmpeq(V::ZERO) | raw[a].is_nan_mask();
+            V::select(keep, raw[a], V::ZERO.copysign(raw[a]))
+        },
+    );
     (d, inv)
+}
+
+/// The first `V::LANES` points of `v` as one vector per axis (`SimdF32::axes`).
+#[inline(always)]
+fn soa<V: SimdF32>(v: &[Vec3]) -> [V; 4] {
+    let v = &v[..V::LANES];
+    V::axes(V::array_from_fn(|l| v[l]))
+}
+
+/// The lanes finite in every vector of `v`.
+#[inline(always)]
+fn all_finite<V: SimdF32>(v: &[V]) -> V::Mask {
+    let mut finite = V::Mask::splat(true);
+    for c in v {
+        finite &= c.is_finite_mask();
+    }
+    finite
 }
 
 /// `V::LANES` rays in structure-of-arrays form: by default four, one glam `Vec4` per
@@ -57,6 +77,7 @@ pub struct RayPacket<V: SimdF32 = Vec4> {
 impl RayPacket {
     /// A packet of up to four rays; lanes past `rays.len()` are invalid
     /// ([`RayPacket::from_rays`]).
+    #[inline(always)]
     pub fn new(rays: &[Ray]) -> RayPacket {
         RayPacket::from_rays(rays)
     }
@@ -79,6 +100,7 @@ impl<V: SimdF32> RayPacket<V> {
     /// interval are marked invalid, like missing ones: like [`kdtree::KdTree::intersect`],
     /// every method reports no hit for them. Invalid lanes hold a copy of the first usable
     /// ray (or a finite filler), never the rejected one.
+    #[inline(always)]
     pub fn from_rays(rays: &[Ray]) -> RayPacket<V> {
         let mut lanes = V::array_from_fn(|_| None);
         for (slot, ray) in lanes.as_mut().iter_mut().zip(rays) {
@@ -89,6 +111,7 @@ impl<V: SimdF32> RayPacket<V> {
 
     /// A packet from one optional ray per lane (`None` lanes, and rays
     /// [`RayPacket::from_rays`] rejects, are invalid).
+    #[inline(always)]
     pub fn from_slots(lanes: V::Array<Option<Ray>>) -> RayPacket<V> {
         let usable = V::array_from_fn(|l| lanes[l].filter(Ray::is_valid));
         let fill = usable.as_ref().iter().flatten().next().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::X, 0.0, 0.0));
@@ -113,20 +136,16 @@ impl<V: SimdF32> RayPacket<V> {
     /// `V::LANES` at a time in vectors (one division per axis for all the reciprocals)
     /// instead of ray by ray. A full packet of finite segments of non-zero length takes the
     /// vector path; any other input goes ray by ray.
+    #[inline(always)]
     pub fn from_segments(origins: &[Vec3], targets: &[Vec3]) -> RayPacket<V> {
         let n = origins.len().min(targets.len()).min(V::LANES);
         if n == V::LANES {
-            let soa = |v: &[Vec3]| {
-                let v = &v[..V::LANES];
-                V::axes(V::array_from_fn(|l| v[l]))
-            };
-            let (o, t) = (soa(origins), soa(targets));
-            let raw: [V; 3] = std::array::from_fn(|a| t[a] - o[a]);
-            let finite = |v: &[V]| v.iter().fold(V::Mask::splat(true), |m, c| m & c.is_finite_mask());
+            let (o, t) = (soa::<V>(origins), soa::<V>(targets));
+            let raw: [V; 3] = crate::simd::array_fn(|a| t[a] - o[a]);
             // Then `Ray::is_valid` wants finite, non-zero directions.
             let (d, inv) = directions(raw);
             let zero = d.iter().fold(V::Mask::splat(true), |m, c| m & c.cmpeq(V::ZERO));
-            if (finite(&o[..3]) & finite(&raw) & !zero).all() {
+            if (all_finite(&o[..3]) & all_finite(&raw) & !zero).all() {
                 return RayPacket {
                     o,
                     d: [d[0], d[1], d[2], V::ZERO],
@@ -145,6 +164,7 @@ impl<V: SimdF32> RayPacket<V> {
     }
 
     /// The ray in `lane` (also for an invalid lane, whose content is filler).
+    #[inline(always)]
     pub fn ray(&self, lane: usize) -> Ray {
         let origin = Vec3::new(self.o[0][lane], self.o[1][lane], self.o[2][lane]);
         let dir = Vec3::new(self.d[0][lane], self.d[1][lane], self.d[2][lane]);
@@ -152,6 +172,7 @@ impl<V: SimdF32> RayPacket<V> {
     }
 
     /// The common origin of the valid lanes, if they all start at one point (bit for bit).
+    #[inline(always)]
     pub fn common_origin(&self) -> Option<Vec3> {
         let first = self.valid.bitmask().trailing_zeros() as usize;
         if first >= V::LANES {
@@ -204,6 +225,7 @@ impl<V: SimdF32> OmniPacket<V> {
     /// at their origin). A packet with no valid lane qualifies (its origin is the filler's,
     /// finite). Lanes with NaN or infinite rays are invalid ([`RayPacket::from_rays`]), so
     /// they neither decide the origin nor get a hit.
+    #[inline(always)]
     pub fn new(rays: RayPacket<V>) -> Option<OmniPacket<V>> {
         let origin = match rays.common_origin() {
             Some(o) => o,
@@ -274,7 +296,7 @@ impl<V: SimdF32> PacketHit<V> {
     }
 
     /// The hit of `lane`, as single-ray traversal reports it.
-    #[inline]
+    #[inline(always)]
     pub fn get(&self, lane: usize) -> Option<Hit> {
         (self.found.bitmask() >> lane & 1 != 0).then(|| Hit {
             t: self.t[lane],
@@ -285,6 +307,7 @@ impl<V: SimdF32> PacketHit<V> {
     }
 
     /// Every lane's hit, in lane order.
+    #[inline(always)]
     pub fn hits(&self) -> V::Array<Option<Hit>> {
         V::array_from_fn(|lane| self.get(lane))
     }

@@ -39,7 +39,7 @@ pub fn intersect<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, 
 
 /// [`intersect`] with the tree's triangle test `I`, chosen once by the caller (see
 /// [`TreeTest`]).
-#[inline]
+#[inline(always)]
 pub fn intersect_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     packet: &RayPacket<V>,
@@ -60,7 +60,7 @@ pub fn occluded<V: SimdF32, C: Counters>(tree: &KdTree, packet: &RayPacket<V>, c
 }
 
 /// [`occluded`] with the tree's triangle test `I` (see [`TreeTest`]).
-#[inline]
+#[inline(always)]
 pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     packet: &RayPacket<V>,
@@ -119,7 +119,7 @@ pub fn occluded_in<V: SimdF32, C: Counters>(
 }
 
 /// [`occluded_in`] with the tree's triangle test `I` (see [`TreeTest`]).
-#[inline]
+#[inline(always)]
 pub fn occluded_in_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     packet: &RayPacket<V>,
@@ -180,6 +180,7 @@ fn one_sign_group<V: SimdF32>(packet: &RayPacket<V>) -> bool {
 
 /// The valid lanes grouped by direction sign pattern (sign bits of x, y, z): one mask per
 /// distinct pattern, at most eight (four in a 2x2 packet).
+#[inline(always)]
 pub fn sign_groups<V: SimdF32>(packet: &RayPacket<V>) -> impl Iterator<Item = V::Mask> + use<V> {
     let signs =
         V::array_from_fn(|lane| (0..3).fold(0u32, |s, a| s | u32::from(packet.d[a][lane].is_sign_negative()) << a));

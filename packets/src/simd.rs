@@ -118,6 +118,24 @@ pub trait SimdMask:
     fn all(self) -> bool;
 }
 
+/// `[f(0), f(1), ..., f(N - 1)]`, built in place: `std::array::from_fn` without its generic
+/// machinery. std's `from_fn` and `map` are ordinary `#[inline]` functions that the optimiser
+/// may leave out of line, compiled without a kernel's target features; this one is
+/// `#[inline(always)]`, so a kernel inlined into a `#[target_feature]` function (see
+/// [`crate::at_width!`]) keeps its lane operations there as single instructions.
+#[inline(always)]
+pub fn array_fn<T: Copy, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [std::mem::MaybeUninit::<T>::uninit(); N];
+    let mut l = 0;
+    while l < N {
+        out[l].write(f(l));
+        l += 1;
+    }
+    // SAFETY: every element was written above, and `[MaybeUninit<T>; N]` has the layout of
+    // `[T; N]`.
+    unsafe { std::mem::transmute_copy::<[std::mem::MaybeUninit<T>; N], [T; N]>(&out) }
+}
+
 /// glam's SSE vector: the 4-wide packets, each operation the glam method of the same name.
 impl SimdF32 for Vec4 {
     const LANES: usize = 4;
@@ -130,7 +148,7 @@ impl SimdF32 for Vec4 {
 
     #[inline(always)]
     fn array_from_fn<T: Copy + Debug>(f: impl FnMut(usize) -> T) -> [T; 4] {
-        std::array::from_fn(f)
+        array_fn(f)
     }
     #[inline(always)]
     fn splat(v: f32) -> Vec4 {
@@ -254,13 +272,13 @@ impl<const W: usize> PortableF32<W> {
     /// Lane by lane, `f(self[l], rhs[l])`.
     #[inline(always)]
     fn zip(self, rhs: Self, f: impl Fn(f32, f32) -> f32) -> Self {
-        PortableF32(std::array::from_fn(|l| f(self.0[l], rhs.0[l])))
+        PortableF32(array_fn(|l| f(self.0[l], rhs.0[l])))
     }
 
     /// Lane by lane, `f(self[l], rhs[l])` as a mask.
     #[inline(always)]
     fn test(self, rhs: Self, f: impl Fn(f32, f32) -> bool) -> PortableMask<W> {
-        PortableMask(std::array::from_fn(|l| f(self.0[l], rhs.0[l])))
+        PortableMask(array_fn(|l| f(self.0[l], rhs.0[l])))
     }
 }
 
@@ -318,7 +336,7 @@ impl<const W: usize> SimdF32 for PortableF32<W> {
 
     #[inline(always)]
     fn array_from_fn<T: Copy + Debug>(f: impl FnMut(usize) -> T) -> [T; W] {
-        std::array::from_fn(f)
+        array_fn(f)
     }
     #[inline(always)]
     fn splat(v: f32) -> Self {
@@ -326,7 +344,7 @@ impl<const W: usize> SimdF32 for PortableF32<W> {
     }
     #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self {
-        PortableF32(std::array::from_fn(f))
+        PortableF32(array_fn(f))
     }
     #[inline(always)]
     fn to_array(self) -> [f32; W] {
@@ -334,7 +352,7 @@ impl<const W: usize> SimdF32 for PortableF32<W> {
     }
     #[inline(always)]
     fn axes(points: [Vec3; W]) -> [Self; 4] {
-        std::array::from_fn(|axis| if axis < 3 { Self::from_fn(|l| points[l][axis]) } else { Self::ZERO })
+        array_fn(|axis| if axis < 3 { Self::from_fn(|l| points[l][axis]) } else { Self::ZERO })
     }
     #[inline(always)]
     fn min(self, rhs: Self) -> Self {
@@ -394,7 +412,7 @@ impl<const W: usize> SimdF32 for PortableF32<W> {
     }
     #[inline(always)]
     fn select(mask: PortableMask<W>, if_true: Self, if_false: Self) -> Self {
-        PortableF32(std::array::from_fn(|l| if mask.0[l] { if_true.0[l] } else { if_false.0[l] }))
+        PortableF32(array_fn(|l| if mask.0[l] { if_true.0[l] } else { if_false.0[l] }))
     }
 }
 
@@ -402,7 +420,7 @@ impl<const W: usize> BitAnd for PortableMask<W> {
     type Output = Self;
     #[inline(always)]
     fn bitand(self, rhs: Self) -> Self {
-        PortableMask(std::array::from_fn(|l| self.0[l] & rhs.0[l]))
+        PortableMask(array_fn(|l| self.0[l] & rhs.0[l]))
     }
 }
 
@@ -410,7 +428,7 @@ impl<const W: usize> BitOr for PortableMask<W> {
     type Output = Self;
     #[inline(always)]
     fn bitor(self, rhs: Self) -> Self {
-        PortableMask(std::array::from_fn(|l| self.0[l] | rhs.0[l]))
+        PortableMask(array_fn(|l| self.0[l] | rhs.0[l]))
     }
 }
 
@@ -443,7 +461,7 @@ impl<const W: usize> SimdMask for PortableMask<W> {
     }
     #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> bool) -> Self {
-        PortableMask(std::array::from_fn(f))
+        PortableMask(array_fn(f))
     }
     #[inline(always)]
     fn bitmask(self) -> u32 {

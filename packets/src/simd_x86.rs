@@ -250,7 +250,7 @@ impl SimdF32 for F32x8 {
 
     #[inline(always)]
     fn array_from_fn<T: Copy + Debug>(f: impl FnMut(usize) -> T) -> [T; 8] {
-        std::array::from_fn(f)
+        crate::simd::array_fn(f)
     }
     #[inline(always)]
     fn splat(v: f32) -> F32x8 {
@@ -259,7 +259,7 @@ impl SimdF32 for F32x8 {
     }
     #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> f32) -> F32x8 {
-        F32x8::from_array(std::array::from_fn(f))
+        F32x8::from_array(crate::simd::array_fn(f))
     }
     #[inline(always)]
     fn to_array(self) -> [f32; 8] {
@@ -562,7 +562,7 @@ impl SimdF32 for F32x16 {
 
     #[inline(always)]
     fn array_from_fn<T: Copy + Debug>(f: impl FnMut(usize) -> T) -> [T; 16] {
-        std::array::from_fn(f)
+        crate::simd::array_fn(f)
     }
     #[inline(always)]
     fn splat(v: f32) -> F32x16 {
@@ -571,7 +571,7 @@ impl SimdF32 for F32x16 {
     }
     #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> f32) -> F32x16 {
-        F32x16::from_array(std::array::from_fn(f))
+        F32x16::from_array(crate::simd::array_fn(f))
     }
     #[inline(always)]
     fn to_array(self) -> [f32; 16] {

@@ -187,6 +187,7 @@ impl<V: SimdF32> TileTracer<V> {
     /// pixel `(x, y)` gets exactly the single-ray camera ray, `Camera::pixel_ray` over
     /// `[0, +inf]`. A camera with a NaN or infinite field is [`TileError::NonFiniteCamera`]
     /// naming it.
+    #[inline(always)]
     pub fn load_primary(&mut self, camera: &Camera, tile: &Tile) -> Result<(), TileError> {
         if tile.width() > self.size || tile.height() > self.size || tile.x1 > camera.width || tile.y1 > camera.height {
             return Err(TileError::BadTile(*tile, self.size));
@@ -237,7 +238,7 @@ impl<V: SimdF32> TileTracer<V> {
     /// rays can meet the box `[lo, hi]`: the box's corners projected onto the image, grown by
     /// a pixel for rounding, as `[x_min, x_max, y_min, y_max]`. `None` (every pixel a
     /// candidate) without a camera, or when a corner is not in front of the eye.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn screen_rect(&self, lo: [f32; 4], hi: [f32; 4]) -> Option<[f32; 4]> {
         let cam = self.camera.as_ref()?;
         let (w, h) = (cam.width as f32, cam.height as f32);
@@ -273,6 +274,7 @@ impl<V: SimdF32> TileTracer<V> {
     /// packets do not share one origin. Only valid lanes count: a packet with none (e.g. of
     /// rays with NaN or infinite components, see [`RayPacket::new`]) may have any origin and
     /// gets no hit.
+    #[inline(always)]
     pub fn load_packets(&mut self, packets: &[OmniPacket<V>]) -> Option<()> {
         let origin = packets.iter().find(|p| p.rays.valid.any()).map_or([0.0; 4], |p| p.origin);
         if packets.iter().any(|p| p.rays.valid.any() && p.origin != origin) {
@@ -296,14 +298,20 @@ impl<V: SimdF32> TileTracer<V> {
     /// once by the caller: the check is a constant).
     #[inline(always)]
     pub(crate) fn reset<I: TreeTest>(&mut self, frustum: bool) {
+        // Plain loops: `extend` over a `map` leaves iterator code out of line, compiled
+        // without a wide caller's target features.
         self.sheared.clear();
         if frustum && I::INTERSECTOR == Intersector::Watertight {
-            self.sheared.extend(self.packets.iter().map(|p| <WatertightTriangle as PacketTest<V>>::prepare4(&p.rays)));
+            for p in &self.packets {
+                self.sheared.push(<WatertightTriangle as PacketTest<V>>::prepare4(&p.rays));
+            }
         }
         self.hits.clear();
-        self.hits.extend(self.packets.iter().map(|p| PacketHit::new(&p.rays)));
         self.done.clear();
-        self.done.extend(self.packets.iter().map(|p| !p.rays.valid.bitmask() & all_lanes::<V>()));
+        for p in &self.packets {
+            self.hits.push(PacketHit::new(&p.rays));
+            self.done.push(!p.rays.valid.bitmask() & all_lanes::<V>());
+        }
     }
 
     /// The camera and tile of a primary tile ([`TileTracer::load_primary`]); `None` for
@@ -345,6 +353,7 @@ impl<V: SimdF32> TileTracer<V> {
 
     /// Writes the traced hits into `out`, the tile's pixels row by row (`tile.width()` per
     /// row), as single-ray traversal would.
+    #[inline(always)]
     pub fn write_hits(&self, out: &mut [Option<Hit>]) {
         let (t, w) = (self.tile, self.tile.width() as usize);
         let pw = Self::PACKET_SHAPE.0;
@@ -404,7 +413,7 @@ impl PrimaryRays {
     /// The packet of the `pw x ph` pixels ([`TileTracer::PACKET_SHAPE`]) whose top-left
     /// pixel is `(x, y)`, lane `l` pixel `(x + l % pw, y + l / pw)`; pixels outside `tile`
     /// are invalid lanes.
-    #[inline]
+    #[inline(always)]
     fn packet<V: SimdF32>(&self, x: u32, y: u32, tile: &Tile) -> RayPacket<V> {
         let c = &self.camera;
         let (w, h) = (c.width as f32, c.height as f32);
@@ -450,6 +459,7 @@ mod tests {
         primary_lanes::<PortableF32<16>>();
     }
 
+    #[inline(always)]
     fn primary_lanes<V: SimdF32>() {
         let pw = TileTracer::<V>::PACKET_SHAPE.0;
         for (w, h, fovy) in [(37u32, 21u32, 70.0f32), (64, 64, 150.0), (5, 9, 1.0)] {

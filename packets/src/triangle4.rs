@@ -142,7 +142,7 @@ pub struct ShearedPacket<V: SimdF32 = Vec4> {
 impl<V: SimdF32> PacketTest<V> for WatertightTriangle {
     type PacketData = ShearedPacket<V>;
 
-    #[inline]
+    #[inline(always)]
     fn prepare4(rays: &RayPacket<V>) -> ShearedPacket<V> {
         let lanes = V::array_from_fn(|lane| WatertightTriangle::prepare(&rays.ray(lane)));
         let valid = rays.valid.bitmask();

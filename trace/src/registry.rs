@@ -477,11 +477,16 @@ mod tests {
         let s = Structures::new(&tree);
         let r = Registry::ours();
         let kernels = |method: &str| r.bind(&r.select(method, Options::default()).unwrap(), &s).unwrap().kernels;
-        let k = kernels("multi-frusta-8");
+        let k = kernels("multi-frusta-8@sse");
         assert_eq!(
             (k.primary.as_str(), k.shadow.as_str(), k.soft.as_str()),
             ("kd-mft-8", "kd-frusta-8", "kd-multi-frusta-8")
         );
+        // The primary packets are as wide as the SIMD level (4x4 pixels at avx512), but a
+        // 4-pixel tile keeps 2x2 packets.
+        let wide = packets::Width::for_level(SimdLevel::active()).suffix();
+        assert_eq!(kernels("multi-frusta-8").primary, format!("kd-mft-8{wide}"));
+        assert_eq!(kernels("mft-4").primary, "kd-mft-4");
         assert_eq!(k.stream, "kd-mft-runs");
         let k = kernels("mono");
         assert_eq!([k.primary, k.shadow, k.soft, k.stream], ["kd-single"; 4]);

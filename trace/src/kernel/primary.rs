@@ -13,9 +13,11 @@
 //! its name (`kd-mft-16`).
 
 use cones::traverse;
-use kdtree::{Counters, Hit, KdTree};
-use packets::PacketTreeTest;
-use packets::TileTracer;
+use glam::Vec4;
+use kdtree::{Counters, Hit, KdTree, TreeTest};
+use packets::simd::{PortableF32, SimdF32};
+use packets::triangle4::PacketTest;
+use packets::{PacketTreeTest, TileTracer, Width, at_width};
 use scenes::{Camera, Tile};
 
 use super::{FromOptions, NoOptions, Primary, TreeWith};
@@ -55,46 +57,99 @@ impl Primary for Single {
 }
 
 /// How a tile loaded in a [`TileTracer`] (a primary tile, or packets sharing one origin) is
-/// traced: the traversal of one tile kernel. Also what a stream's runs of rays sharing an
-/// origin are traced with (`super::stream::Runs`).
+/// traced: the traversal of one tile kernel, at any packet width. Also what a stream's runs
+/// of rays sharing an origin are traced with (`super::stream::Runs`, 2x2 packets).
 pub trait TileKernel: Primary {
     /// The kernel's part of its names: `mft` in `kd-mft-16` and `kd-mft-runs`.
     const NAME: &'static str;
 
     /// Traces the tile loaded in `tracer`: the closest hits (any hits in the tracer's any-hit
     /// mode, for the frustum and cone kernels), exactly those of single rays.
-    fn trace_loaded<I: PacketTreeTest, C: Counters>(tree: &KdTree, tracer: &mut TileTracer, counters: &mut C);
+    fn trace_loaded<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+        tree: &KdTree,
+        tracer: &mut TileTracer<V>,
+        counters: &mut C,
+    );
 }
 
-/// The options a tile kernel reads: its tile (a multiple of 4 in `4..=64`, checked) and
-/// packet/leaf culling (thesis 4.1.4).
-fn tile_options(options: &Options) -> Result<(u32, bool), Error> {
+/// The options a tile kernel reads: its tile (a multiple of 4 in `4..=64`, checked),
+/// packet/leaf culling (thesis 4.1.4) and its packets' width: the widest the method's SIMD
+/// level runs ([`Options::simd`]) whose packets the tile holds whole in each quadrant (a
+/// tile of 4 or 12 pixels keeps 2x2 packets; wider packets need a multiple of 8).
+fn tile_options(options: &Options) -> Result<(u32, bool, Width), Error> {
     TileTracer::check_size(options.tile).map_err(|e| Error::Usage(format!("tile: {e}")))?;
-    Ok((options.tile, options.culling))
+    let width = match Width::for_level(options.simd) {
+        Width::Four => Width::Four,
+        _ if !options.tile.is_multiple_of(8) => Width::Four,
+        wide => wide,
+    };
+    Ok((options.tile, options.culling, width))
 }
 
-/// [`Primary::primary_tile`] of the tile kernel `K` with tiles of `size` and `culling`.
-#[inline]
+/// The per-thread tile tracers of a tile kernel: one slot per lane type it may run at
+/// ([`at_width!`]); only the bound width's tracer is ever made.
+#[derive(Debug, Default)]
+pub struct TileScratch {
+    four: Option<TileTracer<Vec4>>,
+    eight: Option<TileTracer<PortableF32<8>>>,
+    sixteen: Option<TileTracer<PortableF32<16>>>,
+    #[cfg(target_arch = "x86_64")]
+    avx2: Option<TileTracer<packets::F32x8>>,
+    #[cfg(target_arch = "x86_64")]
+    avx512: Option<TileTracer<packets::F32x16>>,
+}
+
+/// The slot of [`TileScratch`] for packets of lane type `V`.
+pub trait TracerSlot<V: SimdF32> {
+    /// The tracer slot of `V`.
+    fn slot(&mut self) -> &mut Option<TileTracer<V>>;
+}
+
+macro_rules! tracer_slot {
+    ($($(#[$cfg:meta])* $field:ident: $lanes:ty;)*) => {$(
+        $(#[$cfg])*
+        impl TracerSlot<$lanes> for TileScratch {
+            #[inline(always)]
+            fn slot(&mut self) -> &mut Option<TileTracer<$lanes>> {
+                &mut self.$field
+            }
+        }
+    )*};
+}
+
+tracer_slot! {
+    four: Vec4;
+    eight: PortableF32<8>;
+    sixteen: PortableF32<16>;
+    #[cfg(target_arch = "x86_64")]
+    avx2: packets::F32x8;
+    #[cfg(target_arch = "x86_64")]
+    avx512: packets::F32x16;
+}
+
+/// [`Primary::primary_tile`] of the tile kernel `K` with tiles of `size` and `culling`, in
+/// packets of lane type `V` (inlined into [`at_width!`]'s `target_feature` function).
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn primary_tile<I: PacketTreeTest, K: TileKernel, C: TileCounters>(
+fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C: TileCounters>(
     size: u32,
     culling: bool,
     tree: &KdTree,
-    scratch: &mut Option<TileTracer>,
+    slot: &mut Option<TileTracer<V>>,
     camera: &Camera,
     tile: &Tile,
     out: &mut [Option<Hit>],
     counters: &mut C,
 ) {
-    let tracer = scratch.get_or_insert_with(|| {
-        // The size was checked by `from_options`.
-        let mut tracer = TileTracer::new(size).expect("tile size checked");
+    let tracer = slot.get_or_insert_with(|| {
+        // The size was checked for this width by `from_options`.
+        let mut tracer = TileTracer::with_size(size).expect("tile size checked");
         tracer.set_culling(culling);
         tracer
     });
     // The frame driver's tiles fit the tracer (same size, inside the image).
     tracer.load_primary(camera, tile).expect("tile fits the tracer");
-    K::trace_loaded::<I, C>(tree, tracer, counters);
+    K::trace_loaded::<I, V, C>(tree, tracer, counters);
     tracer.write_hits(out);
 }
 
@@ -110,48 +165,59 @@ macro_rules! tile_kernel {
             pub tile: u32,
             /// Packet/leaf culling (thesis 4.1.4); only the frustum and cone kernels cull.
             pub culling: bool,
+            /// Rays per packet: 2x2 pixels at 4 (the thesis's), 4x2 at 8, 4x4 at 16.
+            pub width: Width,
         }
 
         impl FromOptions for $kernel {
             fn from_options(options: &Options) -> Result<Self, Error> {
-                let (tile, culling) = tile_options(options)?;
-                Ok($kernel { tile, culling })
+                let (tile, culling, width) = tile_options(options)?;
+                Ok($kernel { tile, culling, width })
             }
         }
 
         impl TileKernel for $kernel {
             const NAME: &'static str = $name;
 
-            #[inline]
-            fn trace_loaded<I: PacketTreeTest, C: Counters>($tree: &KdTree, $tracer: &mut TileTracer, $counters: &mut C) {
+            #[inline(always)]
+            fn trace_loaded<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+                $tree: &KdTree,
+                $tracer: &mut TileTracer<V>,
+                $counters: &mut C,
+            ) {
                 $trace
             }
         }
 
         impl Primary for $kernel {
-            type Scratch = Option<TileTracer>;
+            type Scratch = TileScratch;
             const TILED: bool = $tiled;
             const PACKETS: bool = true;
 
             fn name(&self) -> String {
-                if Self::TILED { format!("kd-{}-{}", $name, self.tile) } else { format!("kd-{}", $name) }
+                let width = self.width.suffix();
+                if Self::TILED { format!("kd-{}-{}{width}", $name, self.tile) } else { format!("kd-{}{width}", $name) }
             }
 
-            fn scratch(&self) -> Option<TileTracer> {
-                None
+            fn scratch(&self) -> TileScratch {
+                TileScratch::default()
             }
 
             #[inline]
             fn primary_tile<I: PacketTreeTest, C: TileCounters>(
                 &self,
                 tree: &KdTree,
-                scratch: &mut Option<TileTracer>,
+                scratch: &mut TileScratch,
                 camera: &Camera,
                 tile: &Tile,
                 out: &mut [Option<Hit>],
                 counters: &mut C,
             ) {
-                primary_tile::<I, Self, C>(self.tile, self.culling, tree, scratch, camera, tile, out, counters);
+                let (size, culling) = (self.tile, self.culling);
+                at_width!(self.width, V => {
+                    let slot = TracerSlot::<V>::slot(scratch);
+                    primary_tile::<I, V, Self, C>(size, culling, tree, slot, camera, tile, out, counters)
+                })
             }
         }
     };
@@ -177,8 +243,8 @@ tile_kernel!(
 );
 
 tile_kernel!(
-    /// Multiple Frustum Traversal: the tile's four quadrants as four frusta in SSE lanes
-    /// (thesis 4.1.5).
+    /// Multiple Frustum Traversal: the tile's four quadrants as four frusta in the lanes of a
+    /// `Vec4` (thesis 4.1.5).
     Mft, "mft", tiled: true,
     |tree, tracer, counters| tracer.trace_mft_with::<I, C>(tree, counters)
 );
@@ -186,11 +252,11 @@ tile_kernel!(
 tile_kernel!(
     /// One cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8).
     Cone, "cone", tiled: true,
-    |tree, tracer, counters| traverse::trace_cone_with::<I, C>(tree, tracer, counters)
+    |tree, tracer, counters| traverse::trace_cone_wide_with::<I, V, C>(tree, tracer, counters)
 );
 
 tile_kernel!(
     /// Four quadrant cones per tile in the lanes of a `Vec4` (thesis 4.1.9).
     MftCone, "mft-cone", tiled: true,
-    |tree, tracer, counters| traverse::trace_mft_cone_with::<I, C>(tree, tracer, counters)
+    |tree, tracer, counters| traverse::trace_mft_cone_wide_with::<I, V, C>(tree, tracer, counters)
 );

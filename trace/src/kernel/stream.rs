@@ -251,7 +251,7 @@ impl<K: TileKernel> Stream for Runs<K> {
                     group.push(OmniPacket::new(RayPacket::new(four)).expect("run shares its origin"));
                 }
                 tracer.load_packets(group).expect("run shares its origin");
-                K::trace_loaded::<I, C>(tree, tracer, counters);
+                K::trace_loaded::<I, glam::Vec4, C>(tree, tracer, counters);
                 for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
                     for (lane, slot) in slots.iter_mut().enumerate() {
                         *slot = hits.get(lane);
