@@ -4,15 +4,18 @@
 //! `trace::Registry::ours()` (streams of mixed origins and of one origin, tiles 4 and 16)
 //! gives the single-ray hits (or a tie at the same distance, or a difference by a rounding
 //! artefact on a triangle the ray cannot reach: `BruteForce::equivalent_hits`), closest and
-//! any hit, and the shadow kernels (a shadow frustum of all the rays, 2x2 same-sign any-hit
-//! packets) give the single rays' occlusion; rejected rays still traverse without a panic.
+//! any hit, and the shadow kernels (a shadow frustum of all the rays, same-sign any-hit
+//! packets, the tile kernels' any-hit mode at 4, 8 and 16 lanes) give the single rays'
+//! occlusion; rejected rays still traverse without a panic.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use glam::Vec3;
-use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
 use libfuzzer_sys::fuzz_target;
-use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, TileTracer};
+use packets::simd::{SimdF32, SimdMask};
+use packets::triangle4::PacketTest;
+use packets::{LaneFrusta, LaneWidth, OmniPacket, RayPacket, ShadowFrustum, TileTracer, Width};
 use trace::{Options, Registry, Structures};
 
 #[derive(Arbitrary, Debug)]
@@ -147,30 +150,54 @@ fuzz_target!(|input: Input| {
 
     // The tile tracer's any-hit mode (shadow rays), which no registered stream uses: the
     // frustum, MFT and cones find a hit exactly where the single ray's occlusion query does.
-    let packets: Vec<OmniPacket> =
-        shared.chunks(4).map(|rays| OmniPacket::new(RayPacket::new(rays)).expect("one origin, t_min >= 0")).collect();
-    if packets.is_empty() {
+    if shared.is_empty() {
         return;
     }
-    let mut tracer = TileTracer::new(4).expect("4 is a valid tile size");
+    // At every packet width: 4 lanes, and 8 and 16 (AVX2 and AVX-512 where the CPU has them,
+    // else their portable twins).
+    for width in Width::ALL {
+        packets::at_width!(width, V => any_hit_tiles::<V>(&tree, &oracle, &shared));
+    }
+});
+
+/// The tile kernels in any-hit mode over packets of `V::LANES` rays of `shared` (one
+/// origin): each lane's answer is the single ray's occlusion.
+#[inline(always)]
+fn any_hit_tiles<V: SimdF32>(tree: &KdTree, oracle: &BruteForce, shared: &[Ray])
+where
+    kdtree::triangle::WaldTriangle: PacketTest<V>,
+    kdtree::triangle::WatertightTriangle: PacketTest<V>,
+{
+    let packets: Vec<OmniPacket<V>> = shared
+        .chunks(V::LANES)
+        .map(|rays| OmniPacket::new(RayPacket::from_rays(rays)).expect("one origin, t_min >= 0"))
+        .collect();
+    let mut tracer = TileTracer::<V>::with_size(TileTracer::<V>::SIZE_MULTIPLE).expect("a valid tile size");
     tracer.load_packets(&packets).expect("one origin");
     tracer.set_any_hit(true);
     for method in 0..4 {
         match method {
-            0 => tracer.trace_frustum(&tree, &mut NoCounters),
-            1 => tracer.trace_mft(&tree, &mut NoCounters),
-            2 => cones::traverse::trace_cone(&tree, &mut tracer, &mut NoCounters),
-            _ => cones::traverse::trace_mft_cone(&tree, &mut tracer, &mut NoCounters),
+            0 => tracer.trace_frustum(tree, &mut NoCounters),
+            1 => tracer.trace_mft(tree, &mut NoCounters),
+            2 if tree.intersector() == Intersector::Wald => {
+                cones::traverse::trace_cone_wide_with::<WaldTest, V, _>(tree, &mut tracer, &mut NoCounters)
+            }
+            2 => cones::traverse::trace_cone_wide_with::<WatertightTest, V, _>(tree, &mut tracer, &mut NoCounters),
+            _ if tree.intersector() == Intersector::Wald => {
+                cones::traverse::trace_mft_cone_wide_with::<WaldTest, V, _>(tree, &mut tracer, &mut NoCounters)
+            }
+            _ => cones::traverse::trace_mft_cone_wide_with::<WatertightTest, V, _>(tree, &mut tracer, &mut NoCounters),
         }
-        for (hits, rays) in tracer.packet_hits().iter().zip(shared.chunks(4)) {
+        for (hits, rays) in tracer.packet_hits().iter().zip(shared.chunks(V::LANES)) {
             for (lane, ray) in rays.iter().enumerate() {
                 let found = hits.found.bitmask() >> lane & 1 != 0;
                 let want = tree.occluded(ray);
                 assert!(
                     oracle.equivalent_occlusion(ray, found, want),
-                    "any-hit method {method} lane {lane}: {found}, single ray {want}"
+                    "any-hit method {method} at {} lanes, lane {lane}: {found}, single ray {want}",
+                    V::LANES
                 );
             }
         }
     }
-});
+}

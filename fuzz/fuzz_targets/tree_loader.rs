@@ -64,8 +64,9 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(tree) = treefile::from_bytes(&bytes, &fx.mesh.positions, &fx.mesh.triangles, config, checks) {
         let valid = tree.validate();
         assert!(checks == Checks::File || valid.is_ok(), "an accepted tree validates");
-        let ray = kdtree::Ray::try_new(glam::Vec3::new(-3.0, 0.5, 0.1), glam::Vec3::new(1.0, 0.01, 0.02), 0.0, f32::INFINITY)
-            .expect("ray");
+        let ray =
+            kdtree::Ray::try_new(glam::Vec3::new(-3.0, 0.5, 0.1), glam::Vec3::new(1.0, 0.01, 0.02), 0.0, f32::INFINITY)
+                .expect("ray");
         let _ = (tree.intersect(&ray), tree.occluded(&ray));
         let again = treefile::to_bytes(&tree, &fx.mesh.positions, &fx.mesh.triangles).expect("save again");
         assert_eq!(again, bytes, "an accepted file saves back to the same bytes");
