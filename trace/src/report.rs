@@ -268,7 +268,9 @@ pub struct TraversalReport {
     /// steps are shared by its packets).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub primary_steps_per_packet: Option<f64>,
-    /// I: packet-triangle tests per 2x2 packet of the primary pass (packet methods).
+    /// I: packet-triangle tests per 2x2 packet of the primary pass (packet methods): per 4
+    /// rays, so a 16-ray packet's one test counts a quarter (the thesis's unit at every
+    /// width; the chapter-4 tables run 2x2 packets).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub primary_tests_per_packet: Option<f64>,
     /// Percentage of the packets considered at leaves that packet/leaf culling skipped
@@ -440,7 +442,7 @@ impl fmt::Display for RenderReport {
                 t.shadow_isects_per_ray
             )?;
             if let (Some(n), Some(i)) = (t.primary_steps_per_packet, t.primary_tests_per_packet) {
-                write!(f, "per packet   N = {n:.2} steps, I = {i:.2} tests (2x2 packets)")?;
+                write!(f, "per packet   N = {n:.2} steps, I = {i:.2} tests (per 4 rays, the thesis's 2x2 packet)")?;
                 match t.culled_percent {
                     Some(c) => writeln!(f, ", {c:.1}% of packets culled at leaves")?,
                     None => writeln!(f)?,
