@@ -69,16 +69,18 @@ impl SimdLevel {
     }
 
     /// The widest level this CPU runs, detected once per process: `avx512` with `avx512f`
-    /// and `avx512vl`, `avx2` with `avx2` and `fma`, `sse4.1` with `sse4.1`, else `sse2` on
+    /// and `avx512vl` (and AVX2 and FMA, which every such CPU has: the AVX-512 kernels use
+    /// them too), `avx2` with `avx2` and `fma`, `sse4.1` with `sse4.1`, else `sse2` on
     /// x86-64 and `scalar` elsewhere.
     pub fn detect() -> SimdLevel {
         static DETECTED: OnceLock<SimdLevel> = OnceLock::new();
         *DETECTED.get_or_init(|| {
             #[cfg(target_arch = "x86_64")]
             {
-                if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl") {
+                let avx2 = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+                if avx2 && is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl") {
                     SimdLevel::Avx512
-                } else if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+                } else if avx2 {
                     SimdLevel::Avx2
                 } else if is_x86_feature_detected!("sse4.1") {
                     SimdLevel::Sse41
@@ -150,7 +152,7 @@ mod tests {
             let avx512 = is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl");
             let avx2 = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
             let sse41 = is_x86_feature_detected!("sse4.1");
-            assert_eq!(level == SimdLevel::Avx512, avx512);
+            assert_eq!(level == SimdLevel::Avx512, avx512 && avx2);
             assert_eq!(level >= SimdLevel::Avx2, avx512 || avx2, "{level}");
             assert_eq!(level >= SimdLevel::Sse41, avx512 || avx2 || sse41, "{level}");
             assert!(level >= SimdLevel::Sse2);

@@ -17,7 +17,7 @@
 //! rays may start behind their origin, `t_min < 0`), and a lane lying in the split plane
 //! (`d` NaN) visits both children over its whole interval.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree, TreeTest, WaldTest, WatertightTest};
 
@@ -82,13 +82,18 @@ pub fn occluded_segments<C: Counters>(
     counters: &mut C,
 ) {
     match tree.intersector() {
-        Intersector::Wald => occluded_segments_with::<WaldTest, C>(tree, starts, ends, blocked, counters),
-        Intersector::Watertight => occluded_segments_with::<WatertightTest, C>(tree, starts, ends, blocked, counters),
+        Intersector::Wald => occluded_segments_with::<WaldTest, Vec4, C>(tree, starts, ends, blocked, counters),
+        Intersector::Watertight => {
+            occluded_segments_with::<WatertightTest, Vec4, C>(tree, starts, ends, blocked, counters)
+        }
     }
 }
 
-/// [`occluded_segments`] with the tree's triangle test `I` (see [`TreeTest`]).
-pub fn occluded_segments_with<I: TreeTest<Record: PacketTest>, C: Counters>(
+/// [`occluded_segments`] with the tree's triangle test `I` (see [`TreeTest`]), `V::LANES`
+/// consecutive segments per packet (four in 2x2 pixels for `Vec4`, sixteen in 4x4 for 16
+/// lanes: the shadow kernels' widths, `trace::kernel::shadow::Packets`).
+#[inline(always)]
+pub fn occluded_segments_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
     tree: &KdTree,
     starts: &[Vec3],
     ends: &[Vec3],
@@ -96,8 +101,9 @@ pub fn occluded_segments_with<I: TreeTest<Record: PacketTest>, C: Counters>(
     counters: &mut C,
 ) {
     blocked.clear();
-    for (starts, ends) in starts.chunks(4).zip(ends.chunks(4)) {
-        let found = occluded_with::<I, _, C>(tree, &RayPacket::segments(starts, ends), counters).found.bitmask();
+    for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
+        let packet = RayPacket::<V>::from_segments(starts, ends);
+        let found = occluded_with::<I, V, C>(tree, &packet, counters).found.bitmask();
         blocked.extend((0..starts.len().min(ends.len())).map(|lane| found >> lane & 1 != 0));
     }
 }

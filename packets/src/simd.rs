@@ -480,38 +480,7 @@ impl<const W: usize> SimdMask for PortableMask<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Values where SSE and IEEE rules part: signed zeros, infinities, NaNs of both signs,
-    /// denormals, the extremes.
-    fn specials() -> Vec<f32> {
-        let mut v = vec![
-            0.0,
-            -0.0,
-            1.0,
-            -1.0,
-            0.5,
-            3.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            -f32::NAN,
-            f32::MIN_POSITIVE,
-            1e-45,
-            -1e-45,
-            f32::MAX,
-            f32::MIN,
-            1e-30,
-            -7e22,
-        ];
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        for _ in 0..48 {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            v.push(f32::from_bits((seed >> 32) as u32));
-        }
-        v
-    }
+    use crate::test_support::specials;
 
     /// The lanes' bits, every NaN as one value: which operand's NaN an operation passes on
     /// is not specified (LLVM may swap the operands of `+` and `*`), only that it is NaN.

@@ -43,9 +43,10 @@
 //! `#[target_feature]` function. A `run` marked `#[inline(always)]` is inlined into that
 //! function at every optimisation level, and with it every `#[inline(always)]` function it
 //! reaches, down to the lane operations and their intrinsics. A closure is a `LaneKernel`
-//! too, but closures cannot be marked `#[inline(always)]` on stable Rust, so whether its
-//! body joins the runner is the optimiser's choice: in the workspace's `opt-level = 1` test
-//! builds it does not, and each lane operation in it stays a call into `core::core_arch`.
+//! too: written in argument position as `#[inline(always)] || ...` it joins the runner the
+//! same way ([`crate::at_width!`] passes its kernels so); without the attribute, whether its
+//! body joins is the optimiser's choice (in the workspace's `opt-level = 1` test builds it
+//! does not, and each lane operation in it stays a call into `core::core_arch`).
 //! Likewise a function on the way that is neither `#[inline(always)]` nor inlined by choice
 //! is compiled without the feature: still correct on a CPU that has it, only slow.
 //!
@@ -732,10 +733,9 @@ impl SimdMask for Mask16 {
 ///
 /// Mark `run` `#[inline(always)]`: then it, and every `#[inline(always)]` function it calls
 /// (the lane operations, the kernels' hot functions), is compiled into the runner with the
-/// feature, at every optimisation level. Closures `FnOnce() -> R` are kernels too, but
-/// whether a closure's body is inlined into the runner is the optimiser's choice (it is
-/// not at the workspace's `opt-level = 1` test builds: there each lane operation in it
-/// becomes a call).
+/// feature, at every optimisation level. Closures `FnOnce() -> R` are kernels too; one
+/// marked `#[inline(always)]` (in argument position) is inlined the same way, an unmarked
+/// one only if the optimiser chooses (not at the workspace's `opt-level = 1` test builds).
 pub trait LaneKernel {
     /// What the work returns.
     type Output;
@@ -802,51 +802,12 @@ mod tests {
     use super::*;
     use crate::packet::{OmniPacket, PacketHit, RayPacket};
     use crate::simd::{PortableF32, PortableMask};
-    use crate::test_support::{self, HardScene, Rng, packet_hit_bits, ray_packet_bits};
+    use crate::test_support::{self, HardScene, Rng, packet_hit_bits, ray_packet_bits, specials};
     use crate::triangle4::PacketTest;
     use crate::{omni, samesign};
     use kdtree::Ray;
     use kdtree::counters::NoCounters;
     use kdtree::triangle::{WaldTriangle, WatertightTriangle};
-
-    /// Values where SSE and IEEE rules part (signed zeros, infinities, NaNs of both signs and
-    /// other payloads, denormals, the extremes), then random bit patterns.
-    fn specials() -> Vec<f32> {
-        let mut v = vec![
-            0.0,
-            -0.0,
-            1.0,
-            -1.0,
-            0.5,
-            3.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            -f32::NAN,
-            f32::from_bits(0x7f80_0001),
-            f32::from_bits(0xffc0_1234),
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-            1e-45,
-            -1e-45,
-            f32::from_bits(0x0040_0000),
-            f32::MAX,
-            f32::MIN,
-            1e-30,
-            -1e30,
-            -7e22,
-            1e38,
-            1e-38,
-        ];
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        for _ in 0..48 {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            v.push(f32::from_bits((seed >> 32) as u32));
-        }
-        v
-    }
 
     /// The lanes' bits, exactly.
     fn exact<V: SimdF32, const W: usize>(v: V) -> [u32; W] {

@@ -226,3 +226,42 @@ pub(crate) fn ray_packet_bits<V: crate::simd::SimdF32>(p: &crate::RayPacket<V>) 
     bits.push(p.valid.bitmask());
     bits
 }
+
+/// Values where SSE and IEEE rules part (signed zeros, infinities, NaNs of both signs and
+/// other payloads, denormals, the extremes), then random bit patterns.
+pub(crate) fn specials() -> Vec<f32> {
+    let mut v = vec![
+        0.0,
+        -0.0,
+        1.0,
+        -1.0,
+        0.5,
+        3.0,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        -f32::NAN,
+        f32::from_bits(0x7f80_0001),
+        f32::from_bits(0xffc0_1234),
+        f32::MIN_POSITIVE,
+        -f32::MIN_POSITIVE,
+        1e-45,
+        -1e-45,
+        f32::from_bits(0x0040_0000),
+        f32::MAX,
+        f32::MIN,
+        1e-30,
+        -1e30,
+        -7e22,
+        1e38,
+        1e-38,
+    ];
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    for _ in 0..48 {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        v.push(f32::from_bits((seed >> 32) as u32));
+    }
+    v
+}

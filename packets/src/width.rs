@@ -5,13 +5,15 @@
 //! The packet code is written once, generic over its lane type ([`crate::simd::SimdF32`]);
 //! a width names the lane type it runs with:
 //! - [`Width::Four`]: glam's `Vec4` (SSE), the thesis's 2x2 packet;
-//! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside a
-//!   `#[target_feature(enable = "avx2,fma")]` function;
+//! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside
+//!   [`with_avx2`](crate::simd_x86::with_avx2)'s `#[target_feature(enable = "avx2,fma")]`
+//!   function;
 //! - [`Width::Sixteen`]: [`F32x16`](crate::simd_x86::F32x16) (AVX-512 F/VL), compiled
-//!   inside a `#[target_feature(enable = "avx512f,avx512vl,...")]` function.
+//!   inside [`with_avx512`](crate::simd_x86::with_avx512)'s.
 //!
-//! The wide lane types use their instructions unconditionally, so [`at_width!`] checks the
-//! CPU (one cached load per call) and runs the portable twin of the same width
+//! The wide lane types use their instructions unconditionally, so [`at_width!`] goes through
+//! those runners, which check the CPU (cached feature bits, per call), and runs the portable
+//! twin of the same width
 //! ([`PortableF32<8>`](crate::simd::PortableF32), `<16>`) on a CPU without them: the answer
 //! is the same bit for bit either way (the lane types are tested against each other), only
 //! the speed differs. Everything the kernel calls must inline into the `target_feature`
@@ -64,39 +66,19 @@ impl Width {
     }
 
     /// Whether this CPU runs the width's instructions (else [`at_width!`] runs its portable
-    /// twin).
+    /// twin): the lane type's own check ([`crate::simd_x86::F32x8::available`],
+    /// [`crate::simd_x86::F32x16::available`]).
     pub fn native(self) -> bool {
         match self {
             Width::Four => true,
-            Width::Eight => SimdLevel::detect() >= SimdLevel::Avx2,
-            Width::Sixteen => SimdLevel::detect() >= SimdLevel::Avx512,
+            #[cfg(target_arch = "x86_64")]
+            Width::Eight => crate::simd_x86::F32x8::available(),
+            #[cfg(target_arch = "x86_64")]
+            Width::Sixteen => crate::simd_x86::F32x16::available(),
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
         }
     }
-}
-
-/// Runs `f` compiled for AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[doc(hidden)]
-#[inline(never)]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-pub unsafe fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
-    f()
-}
-
-/// Runs `f` compiled for AVX-512 (F, VL, BW, DQ, CD) with AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX-512 F and VL (every such CPU has BW, DQ and CD too: Skylake-SP
-/// and later, Zen 4 and later), AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[doc(hidden)]
-#[inline(never)]
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx512cd,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-pub unsafe fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
-    f()
 }
 
 /// `at_width!(width, V => body)`: evaluates `body` with the type `V` the lane type of
@@ -108,42 +90,47 @@ pub unsafe fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
 #[macro_export]
 macro_rules! at_width {
     ($width:expr, $V:ident => $body:expr) => {{
-        #[allow(unused_unsafe)]
         match $width {
             $crate::Width::Four => {
                 type $V = ::glam::Vec4;
                 $body
             }
             #[cfg(target_arch = "x86_64")]
-            $crate::Width::Eight if $crate::Width::Eight.native() => {
-                // SAFETY: the CPU has AVX2 and FMA (`Width::native`).
-                unsafe {
-                    $crate::width::run_avx2(
-                        #[inline(always)]
-                        || {
-                            type $V = $crate::simd_x86::F32x8;
-                            $body
-                        },
-                    )
-                }
-            }
+            $crate::Width::Eight => $crate::simd_x86::with_avx2(
+                #[inline(always)]
+                || {
+                    type $V = $crate::simd_x86::F32x8;
+                    $body
+                },
+            )
+            .unwrap_or_else(
+                #[inline(always)]
+                || {
+                    type $V = $crate::simd::PortableF32<8>;
+                    $body
+                },
+            ),
             #[cfg(target_arch = "x86_64")]
-            $crate::Width::Sixteen if $crate::Width::Sixteen.native() => {
-                // SAFETY: the CPU has AVX-512 F and VL, AVX2 and FMA (`Width::native`).
-                unsafe {
-                    $crate::width::run_avx512(
-                        #[inline(always)]
-                        || {
-                            type $V = $crate::simd_x86::F32x16;
-                            $body
-                        },
-                    )
-                }
-            }
+            $crate::Width::Sixteen => $crate::simd_x86::with_avx512(
+                #[inline(always)]
+                || {
+                    type $V = $crate::simd_x86::F32x16;
+                    $body
+                },
+            )
+            .unwrap_or_else(
+                #[inline(always)]
+                || {
+                    type $V = $crate::simd::PortableF32<16>;
+                    $body
+                },
+            ),
+            #[cfg(not(target_arch = "x86_64"))]
             $crate::Width::Eight => {
                 type $V = $crate::simd::PortableF32<8>;
                 $body
             }
+            #[cfg(not(target_arch = "x86_64"))]
             $crate::Width::Sixteen => {
                 type $V = $crate::simd::PortableF32<16>;
                 $body

@@ -61,6 +61,27 @@ fn mft_never_does_more_work_than_the_frustum() {
     }
 }
 
+/// The tree of a random soup (each item a triangle's corners) with the given test, and a
+/// `w x h` camera from `eye * 1.5` towards `target`, wide or narrow; `None` for a view too
+/// short or too vertical to make a camera from (the property tests skip it).
+fn soup_and_camera(
+    tris: Vec<(Vec3, Vec3, Vec3)>,
+    eye: Vec3,
+    target: Vec3,
+    wide: bool,
+    watertight: bool,
+    (w, h): (u32, u32),
+) -> Option<(KdTree, Camera)> {
+    let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
+    let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
+    let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
+    let eye = eye * 1.5;
+    if !((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999) {
+        return None;
+    }
+    Some((tree, Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, w, h).unwrap()))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
 
@@ -71,12 +92,9 @@ proptest! {
     fn mft_work_on_random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
                                             eye in vertex(), target in vertex(), wide in any::<bool>(),
                                             watertight in any::<bool>()) {
-        let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
-        let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
-        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
-        let eye = eye * 1.5;
-        prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
-        let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 24, 20).unwrap();
+        let view = soup_and_camera(tris, eye, target, wide, watertight, (24, 20));
+        prop_assume!(view.is_some());
+        let (tree, camera) = view.unwrap();
         for size in [4, 8, 16] {
             prop_assert!(mft_work(&tree, &camera, size).is_ok(), "{:?}", mft_work(&tree, &camera, size));
         }
@@ -401,12 +419,9 @@ proptest! {
     fn wide_packets_on_random_soups_and_cameras(tris in prop::collection::vec((vertex(), vertex(), vertex()), 1..120),
                                                 eye in vertex(), target in vertex(), wide in any::<bool>(),
                                                 watertight in any::<bool>()) {
-        let tris: Vec<[Vec3; 3]> = tris.into_iter().map(|(a, b, c)| [a, b, c]).collect();
-        let intersector = if watertight { Intersector::Watertight } else { Intersector::Wald };
-        let tree = KdTree::build_soup(&tris, &BuildConfig { intersector, ..Default::default() }).unwrap();
-        let eye = eye * 1.5;
-        prop_assume!((target - eye).length() > 1e-3 && (target - eye).normalize().y.abs() < 0.999);
-        let camera = Camera::look_at(eye, target, if wide { 150.0 } else { 40.0 }, 27, 21).unwrap();
+        let view = soup_and_camera(tris, eye, target, wide, watertight, (27, 21));
+        prop_assume!(view.is_some());
+        let (tree, camera) = view.unwrap();
         for size in [8, 16] {
             let r = wide_tiles_match_8_16(&tree, &camera, size);
             prop_assert!(r.is_ok(), "size {size}: {r:?}");

@@ -13,7 +13,7 @@
 
 use kdtree::isa::SimdLevel;
 use kdtree::{Hit, KdTree, Ray};
-use mbvh::{Avx2, Avx512, BoxTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, Traversal};
+use mbvh::{Avx2, Avx512, BoxTest, DefaultTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, MultiBvh, Traversal};
 use scenes::Scene;
 
 use crate::error::Error;
@@ -75,20 +75,7 @@ pub fn bind<'s>(bvh: &'s Mbvh, tree: &KdTree) -> Result<Binding<'s>, Error> {
 /// scalar (the kernel then named `mbvh-8-scalar-nodes`).
 pub fn bind8<'s>(bvh: &'s Mbvh8, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
     let avx2 = Avx2::detect().filter(|_| simd >= SimdLevel::Avx2);
-    if avx2.is_none() {
-        return Ok(bind8_nodes(bvh, tree, None)?.named(KernelNames::whole("mbvh-8-scalar-nodes")));
-    }
-    bind8_nodes(bvh, tree, avx2)
-}
-
-/// [`bind8`] with the node test chosen: AVX2 with the token, else scalar.
-fn bind8_nodes<'s>(bvh: &'s Mbvh8, tree: &KdTree, avx2: Option<Avx2>) -> Result<Binding<'s>, Error> {
-    match (tree.intersector(), avx2) {
-        (kdtree::Intersector::Wald, Some(avx2)) => driven(bvh.wald().with_test(avx2)),
-        (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
-        (kdtree::Intersector::Watertight, Some(avx2)) => driven(bvh.watertight().with_test(avx2)),
-        (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
-    }
+    bind_wide(bvh, tree, avx2, "mbvh-8-scalar-nodes")
 }
 
 /// `mbvh-16`: single rays through the 16-wide BVH `bvh` with the triangle test of `tree`,
@@ -97,19 +84,22 @@ fn bind8_nodes<'s>(bvh: &'s Mbvh8, tree: &KdTree, avx2: Option<Avx2>) -> Result<
 /// `mbvh-16-scalar-nodes`).
 pub fn bind16<'s>(bvh: &'s Mbvh16, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
     let avx512 = Avx512::detect().filter(|_| simd >= SimdLevel::Avx512);
-    if avx512.is_none() {
-        return Ok(bind16_nodes(bvh, tree, None)?.named(KernelNames::whole("mbvh-16-scalar-nodes")));
-    }
-    bind16_nodes(bvh, tree, avx512)
+    bind_wide(bvh, tree, avx512, "mbvh-16-scalar-nodes")
 }
 
-/// [`bind16`] with the node test chosen: AVX-512 with the token, else scalar.
-fn bind16_nodes<'s>(bvh: &'s Mbvh16, tree: &KdTree, avx512: Option<Avx512>) -> Result<Binding<'s>, Error> {
-    match (tree.intersector(), avx512) {
+/// A wide BVH bound with its SIMD node test `token` where there is one, else with its
+/// default (scalar) test and its kernels named `scalar_name`.
+fn bind_wide<'s, N: DefaultTest, T: BoxTest<Node = N> + 's>(
+    bvh: &'s MultiBvh<N>,
+    tree: &KdTree,
+    token: Option<T>,
+    scalar_name: &str,
+) -> Result<Binding<'s>, Error> {
+    match (tree.intersector(), token) {
         (kdtree::Intersector::Wald, Some(t)) => driven(bvh.wald().with_test(t)),
-        (kdtree::Intersector::Wald, None) => driven(bvh.wald()),
         (kdtree::Intersector::Watertight, Some(t)) => driven(bvh.watertight().with_test(t)),
-        (kdtree::Intersector::Watertight, None) => driven(bvh.watertight()),
+        (kdtree::Intersector::Wald, None) => Ok(driven(bvh.wald())?.named(KernelNames::whole(scalar_name))),
+        (kdtree::Intersector::Watertight, None) => Ok(driven(bvh.watertight())?.named(KernelNames::whole(scalar_name))),
     }
 }
 

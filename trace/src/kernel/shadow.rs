@@ -18,9 +18,7 @@ use glam::Vec3;
 use kdtree::{KdTree, Ray};
 use packets::PacketTreeTest;
 use packets::lane_frusta::FRUSTUM_RAYS;
-use packets::simd::{SimdF32, SimdMask};
-use packets::triangle4::PacketTest;
-use packets::{LaneFrusta, LaneWidth, RayPacket, ShadowFrustum, Width, samesign};
+use packets::{LaneFrusta, LaneWidth, ShadowFrustum, Width, samesign};
 
 use super::{FromOptions, HardShadow, NoOptions, TreeWith};
 use crate::error::Error;
@@ -91,27 +89,9 @@ impl Grouping for Packets {
         blocked: &mut Vec<bool>,
         counters: &mut C,
     ) {
-        blocked.clear();
-        packets::at_width!(self.width, V => occluded_runs::<I, V, C>(tree, starts, ends, blocked, counters));
-    }
-}
-
-/// Each run of `V::LANES` segments `starts[i] -> ends[i]` as one same-sign packet: whether
-/// each is blocked, appended to `blocked` in order.
-#[inline(always)]
-fn occluded_runs<I: PacketTreeTest, V: SimdF32, C: TileCounters>(
-    tree: &KdTree,
-    starts: &[Vec3],
-    ends: &[Vec3],
-    blocked: &mut Vec<bool>,
-    counters: &mut C,
-) where
-    I::Record: PacketTest<V>,
-{
-    for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
-        let packet = RayPacket::<V>::from_segments(starts, ends);
-        let found = samesign::occluded_with::<I, V, C>(tree, &packet, counters).found.bitmask();
-        blocked.extend((0..starts.len().min(ends.len())).map(|lane| found >> lane & 1 != 0));
+        packets::at_width!(self.width, V => {
+            samesign::occluded_segments_with::<I, V, C>(tree, starts, ends, blocked, counters)
+        });
     }
 }
 
