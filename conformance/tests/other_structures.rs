@@ -1,5 +1,7 @@
-//! Our methods on structures other than the kd-tree (the 4- and 8-wide BVHs `mbvh-4` and
-//! `mbvh-8`; on a CPU with AVX2 `mbvh-8` runs its AVX2 node test) through the
+//! Our methods on structures other than the kd-tree (the 4-, 8- and 16-wide BVHs `mbvh-4`,
+//! `mbvh-8` and `mbvh-16`; on a CPU with AVX2 `mbvh-8` runs its AVX2 node test, with
+//! AVX-512 `mbvh-16` its AVX-512 one, and their scalar twins `NAME@sse` are checked against
+//! the oracle too) through the
 //! conformance harness (this crate): every query (primary tiles at tiles 4, 8 and
 //! 16, hard and soft shadows, streams closest and any hit) against `mono` on the kd-tree
 //! built with the same triangle test, under `Rule::Equivalent` (the hit `mono` reports, a tie
@@ -11,6 +13,7 @@
 //! kd-tree methods only; a new method of ours on another structure is picked up here.
 
 use conformance::{Check, OracleCheck, OracleTest, Plan, Rule};
+use kdtree::isa::SimdLevel;
 use trace::Registry;
 use trace::registry::{KDTREE, Options};
 
@@ -22,8 +25,14 @@ fn plan(registry: &Registry) -> Plan {
             checks.push(Check { method: e.name.into(), options, reference: "mono".into(), rule: Rule::Equivalent });
         }
         oracles.push(OracleCheck { method: e.name.into(), test: OracleTest::Tree, rule: Rule::Exact });
+        // The scalar twins of the SIMD node tests, where the CPU runs those (`mbvh-8@sse`,
+        // `mbvh-16@sse`: the scalar node test), against the oracle too.
+        if SimdLevel::detect() >= SimdLevel::Avx2 {
+            let twin = format!("{}@sse", e.name);
+            oracles.push(OracleCheck { method: twin, test: OracleTest::Tree, rule: Rule::Exact });
+        }
     }
-    for name in ["mbvh-4", "mbvh-8"] {
+    for name in ["mbvh-4", "mbvh-8", "mbvh-16"] {
         assert!(oracles.iter().any(|o| o.method == name), "{name} is not checked");
     }
     Plan { checks, oracles, ..Plan::ours(registry) }

@@ -759,7 +759,12 @@ impl<R, F: FnOnce() -> R> LaneKernel for F {
 pub fn with_avx2<K: LaneKernel>(kernel: K) -> Option<K::Output> {
     F32x8::available().then(|| {
         // SAFETY: the CPU has AVX2 and FMA (just detected).
-        unsafe { run_avx2(kernel) }
+        unsafe {
+            run_avx2(
+                #[inline(always)]
+                || kernel.run(),
+            )
+        }
     })
 }
 
@@ -771,28 +776,41 @@ pub fn with_avx2<K: LaneKernel>(kernel: K) -> Option<K::Output> {
 pub fn with_avx512<K: LaneKernel>(kernel: K) -> Option<K::Output> {
     F32x16::available().then(|| {
         // SAFETY: the CPU has AVX-512F and VL, AVX2 and FMA (just detected).
-        unsafe { run_avx512(kernel) }
+        unsafe {
+            run_avx512(
+                #[inline(always)]
+                || kernel.run(),
+            )
+        }
     })
 }
 
-/// Runs `kernel` in a function compiled for AVX2 and FMA.
+/// Runs `f` in a function compiled for AVX2 and FMA, the features [`F32x8::available`]
+/// checks: the one runner of the 8-lane kernels ([`with_avx2`], [`crate::at_width!`]). Pass
+/// `f` as an `#[inline(always)]` closure so that its body is compiled into the runner (a
+/// closure reached through another generic layer may be left in an out-of-line
+/// `FnOnce::call_once` shim, compiled without the features).
 ///
 /// # Safety
-/// The CPU must have AVX2 and FMA.
+/// The CPU must have AVX2 and FMA ([`F32x8::available`]).
+#[doc(hidden)]
 #[inline(never)]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn run_avx2<K: LaneKernel>(kernel: K) -> K::Output {
-    kernel.run()
+pub unsafe fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
+    f()
 }
 
-/// Runs `kernel` in a function compiled for AVX-512F and VL, AVX2 and FMA.
+/// Runs `f` in a function compiled for AVX-512F and VL, AVX2 and FMA, the features
+/// [`F32x16::available`] checks: the one runner of the 16-lane kernels ([`with_avx512`],
+/// [`crate::at_width!`]), as [`run_avx2`].
 ///
 /// # Safety
-/// The CPU must have AVX-512F, AVX-512VL, AVX2 and FMA.
+/// The CPU must have AVX-512F, AVX-512VL, AVX2 and FMA ([`F32x16::available`]).
+#[doc(hidden)]
 #[inline(never)]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-unsafe fn run_avx512<K: LaneKernel>(kernel: K) -> K::Output {
-    kernel.run()
+pub unsafe fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
+    f()
 }
 
 #[cfg(test)]

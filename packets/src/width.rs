@@ -5,15 +5,15 @@
 //! The packet code is written once, generic over its lane type ([`crate::simd::SimdF32`]);
 //! a width names the lane type it runs with:
 //! - [`Width::Four`]: glam's `Vec4` (SSE), the thesis's 2x2 packet;
-//! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside
-//!   [`with_avx2`](crate::simd_x86::with_avx2)'s `#[target_feature(enable = "avx2,fma")]`
-//!   function;
+//! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside the
+//!   8-lane runner `simd_x86::run_avx2` (`#[target_feature(enable = "avx2,fma")]`);
 //! - [`Width::Sixteen`]: [`F32x16`](crate::simd_x86::F32x16) (AVX-512 F/VL), compiled
-//!   inside [`with_avx512`](crate::simd_x86::with_avx512)'s.
+//!   inside the 16-lane runner `simd_x86::run_avx512`.
 //!
-//! The wide lane types use their instructions unconditionally, so [`at_width!`] goes through
-//! those runners, which check the CPU (cached feature bits, per call), and runs the portable
-//! twin of the same width
+//! Those are the runners `simd_x86::with_avx2` / `with_avx512` use too, with the features
+//! the lane types' `available()` checks. The wide lane types use their instructions
+//! unconditionally, so [`at_width!`] checks `available()` first (cached feature bits, per
+//! call) and runs the portable twin of the same width
 //! ([`PortableF32<8>`](crate::simd::PortableF32), `<16>`) on a CPU without them: the answer
 //! is the same bit for bit either way (the lane types are tested against each other), only
 //! the speed differs. Everything the kernel calls must inline into the `target_feature`
@@ -96,41 +96,35 @@ macro_rules! at_width {
                 $body
             }
             #[cfg(target_arch = "x86_64")]
-            $crate::Width::Eight => $crate::simd_x86::with_avx2(
-                #[inline(always)]
-                || {
-                    type $V = $crate::simd_x86::F32x8;
-                    $body
-                },
-            )
-            .unwrap_or_else(
-                #[inline(always)]
-                || {
-                    type $V = $crate::simd::PortableF32<8>;
-                    $body
-                },
-            ),
+            $crate::Width::Eight if $crate::simd_x86::F32x8::available() => {
+                // SAFETY: the CPU has AVX2 and FMA (just checked).
+                unsafe {
+                    $crate::simd_x86::run_avx2(
+                        #[inline(always)]
+                        || {
+                            type $V = $crate::simd_x86::F32x8;
+                            $body
+                        },
+                    )
+                }
+            }
             #[cfg(target_arch = "x86_64")]
-            $crate::Width::Sixteen => $crate::simd_x86::with_avx512(
-                #[inline(always)]
-                || {
-                    type $V = $crate::simd_x86::F32x16;
-                    $body
-                },
-            )
-            .unwrap_or_else(
-                #[inline(always)]
-                || {
-                    type $V = $crate::simd::PortableF32<16>;
-                    $body
-                },
-            ),
-            #[cfg(not(target_arch = "x86_64"))]
+            $crate::Width::Sixteen if $crate::simd_x86::F32x16::available() => {
+                // SAFETY: the CPU has AVX-512F and VL, AVX2 and FMA (just checked).
+                unsafe {
+                    $crate::simd_x86::run_avx512(
+                        #[inline(always)]
+                        || {
+                            type $V = $crate::simd_x86::F32x16;
+                            $body
+                        },
+                    )
+                }
+            }
             $crate::Width::Eight => {
                 type $V = $crate::simd::PortableF32<8>;
                 $body
             }
-            #[cfg(not(target_arch = "x86_64"))]
             $crate::Width::Sixteen => {
                 type $V = $crate::simd::PortableF32<16>;
                 $body
