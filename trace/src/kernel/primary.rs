@@ -77,13 +77,15 @@ pub trait TileKernel: Primary {
 /// level runs ([`Options::simd`]) whose packets the tile holds whole in each quadrant (a
 /// tile of 4 or 12 pixels keeps 2x2 packets; wider packets need a multiple of 8).
 fn tile_options(options: &Options) -> Result<(u32, bool, Width), Error> {
-    TileTracer::check_size(options.tile).map_err(|e| Error::Usage(format!("tile: {e}")))?;
+    let tile = options.tile;
+    TileTracer::check_size(tile).map_err(|e| Error::Usage(format!("tile: {e}")))?;
+    // The tracer's own size rule for each width (its portable twin has the same packets).
     let width = match Width::for_level(options.simd) {
-        Width::Four => Width::Four,
-        _ if !options.tile.is_multiple_of(8) => Width::Four,
-        wide => wide,
+        Width::Eight if TileTracer::<PortableF32<8>>::check_tile_size(tile).is_ok() => Width::Eight,
+        Width::Sixteen if TileTracer::<PortableF32<16>>::check_tile_size(tile).is_ok() => Width::Sixteen,
+        _ => Width::Four,
     };
-    Ok((options.tile, options.culling, width))
+    Ok((tile, options.culling, width))
 }
 
 /// The per-thread tile tracers of a tile kernel: one slot per lane type it may run at
