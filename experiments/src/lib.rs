@@ -4,7 +4,9 @@
 //! these configs; the criterion benches and the tests call the same functions.
 //!
 //! - [`tables`]: the thesis's Tables 4.1-4.6 (packets, frusta, culling, MFT, cones, soft
-//!   shadows) and, through [`scaling`] and [`table51`], Tables 6.2 and 5.1;
+//!   shadows) and, through [`scaling`] and [`table51`], Tables 6.2 and 5.1, and through
+//!   [`ladder`] the width ladder (each kernel at 1, 4, 8 and 16 rays per instruction beside
+//!   Embree's);
 //! - [`compare`]: every registered method, ours and the baselines, on the same rays (build,
 //!   primary, hard-shadow and soft-shadow Mrays/s, primitive mismatches classified);
 //! - [`shadows`]: edge-width against sampled soft shadows (images, errors, a plot drawn by
@@ -18,6 +20,7 @@
 pub mod compare;
 pub mod culling;
 pub mod dynamic;
+pub mod ladder;
 pub mod leaks;
 pub mod sah_sweep;
 pub mod scaling;

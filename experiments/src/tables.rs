@@ -47,6 +47,10 @@ pub struct TablesConfig {
     pub no_soft_shadows: bool,
     /// Leave out Table 6.2 (frame rate against threads, the best method of each scene).
     pub no_scaling: bool,
+    /// Leave out the width ladder ([`crate::ladder`]).
+    pub no_ladder: bool,
+    /// Only the width ladder: none of the thesis's tables.
+    pub only_ladder: bool,
 }
 
 impl Default for TablesConfig {
@@ -61,6 +65,8 @@ impl Default for TablesConfig {
             csv: false,
             no_soft_shadows: false,
             no_scaling: false,
+            no_ladder: false,
+            only_ladder: false,
         }
     }
 }
@@ -320,11 +326,32 @@ pub struct TablesReport {
     scaling_rows: Vec<crate::scaling::ScalingRow>,
     threads: usize,
     table51: String,
+    ladder: Option<crate::ladder::LadderReport>,
 }
 
 /// Measures Tables 4.1-4.6, 6.2 and 5.1 (see the module documentation) on the current rayon
 /// pool.
 pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesReport, Error> {
+    let ladder = (!config.no_ladder || config.only_ladder)
+        .then(|| {
+            let scenes = scene_list(config);
+            crate::ladder::run(
+                &crate::ladder::LadderConfig { scenes, size: config.size, rounds: config.frames },
+                progress,
+            )
+        })
+        .transpose()?;
+    if config.only_ladder {
+        return Ok(TablesReport {
+            config: config.clone(),
+            rows: Vec::new(),
+            soft_rows: Vec::new(),
+            scaling_rows: Vec::new(),
+            threads: rayon::current_num_threads(),
+            table51: String::new(),
+            ladder,
+        });
+    }
     let registry = baselines::registry();
     let mut all = Vec::new();
     let mut soft_rows = Vec::new();
@@ -359,14 +386,16 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
         scaling_rows,
         threads: rayon::current_num_threads(),
         table51,
+        ladder,
     })
 }
 
 impl std::fmt::Display for TablesReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let config = &self.config;
+        let ladder = self.ladder.as_ref();
         let text = if config.csv {
-            let mut text = csv(&self.rows);
+            let mut text = if config.only_ladder { String::new() } else { csv(&self.rows) };
             if !self.soft_rows.is_empty() {
                 text.push('\n');
                 text.push_str(&soft_csv(&self.soft_rows));
@@ -375,14 +404,23 @@ impl std::fmt::Display for TablesReport {
                 text.push('\n');
                 text.push_str(&crate::scaling::csv(&self.scaling_rows));
             }
+            if let Some(ladder) = ladder {
+                if !text.is_empty() {
+                    text.push('\n');
+                }
+                text.push_str(&ladder.csv());
+            }
             text
         } else {
-            let mut text = markdown(&self.rows, config, self.threads);
+            let mut text = if config.only_ladder { String::new() } else { markdown(&self.rows, config, self.threads) };
             if !self.soft_rows.is_empty() {
                 text.push_str(&soft_markdown(&self.soft_rows, config, self.threads));
             }
             if !self.scaling_rows.is_empty() {
                 text.push_str(&crate::scaling::markdown(&self.scaling_rows, config.size, config.frames.max(5)));
+            }
+            if let Some(ladder) = ladder {
+                text.push_str(&ladder.to_string());
             }
             text
         };

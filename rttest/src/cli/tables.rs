@@ -40,6 +40,13 @@ pub struct TablesArgs {
     /// Leave out Table 6.2 (frame rate against threads, the best method of each scene).
     #[arg(long)]
     pub no_scaling: bool,
+    /// Leave out the width ladder (each kernel at 1, 4, 8 and 16 rays per instruction beside
+    /// Embree's, one `compare` run per scene).
+    #[arg(long, conflicts_with = "only_ladder")]
+    pub no_ladder: bool,
+    /// Only the width ladder, none of the thesis's tables.
+    #[arg(long)]
+    pub only_ladder: bool,
 }
 
 impl From<&TablesArgs> for TablesConfig {
@@ -54,6 +61,8 @@ impl From<&TablesArgs> for TablesConfig {
             csv: a.csv,
             no_soft_shadows: a.no_soft_shadows,
             no_scaling: a.no_scaling,
+            no_ladder: a.no_ladder,
+            only_ladder: a.only_ladder,
         }
     }
 }
