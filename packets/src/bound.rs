@@ -153,12 +153,19 @@ pub fn plane_interval(dist: f32, k0: f32, k1: f32) -> (f32, f32) {
 /// `k0[q]`, `k1[q]`: the same arithmetic lane by lane. `dist` must not be 0.
 #[inline(always)]
 pub fn plane_interval4(dist: f32, k0: Vec4, k1: Vec4) -> (Vec4, Vec4) {
+    plane_interval_lanes(dist, k0, k1)
+}
+
+/// [`plane_interval`] of `F::LANES` frusta at once (four for MFT, sixteen for a tile split
+/// 4 x 4), lane by lane. `dist` must not be 0.
+#[inline(always)]
+pub fn plane_interval_lanes<F: SimdF32>(dist: f32, k0: F, k1: F) -> (F, F) {
     // Behind the origin by the signs of `dist` and the factor (a product that underflows to
     // -0.0 is still behind).
-    let dist4 = Vec4::splat(dist);
-    let fix = |k: Vec4| {
-        let behind = if dist > 0.0 { k.cmplt(Vec4::ZERO) } else { k.cmpgt(Vec4::ZERO) };
-        Vec4::select(behind, Vec4::INFINITY, dist4 * k)
+    let dist_lanes = F::splat(dist);
+    let fix = |k: F| {
+        let behind = if dist > 0.0 { k.cmplt(F::ZERO) } else { k.cmpgt(F::ZERO) };
+        F::select(behind, F::INFINITY, dist_lanes * k)
     };
     let (a, b) = (fix(k0), fix(k1));
     (widen_down(a.min(b)), widen_up(a.max(b)))
@@ -167,7 +174,13 @@ pub fn plane_interval4(dist: f32, k0: Vec4, k1: Vec4) -> (Vec4, Vec4) {
 /// [`distance_up`] of four frusta at once (MFT, thesis 4.1.5), lane by lane.
 #[inline(always)]
 pub fn distance_up4(t: Vec4, scale: Vec4) -> Vec4 {
-    widen_up((t + Vec4::splat(T_UNDERFLOW)) * scale)
+    distance_up_lanes(t, scale)
+}
+
+/// [`distance_up`] of `F::LANES` frusta at once, lane by lane.
+#[inline(always)]
+pub fn distance_up_lanes<F: SimdF32>(t: F, scale: F) -> F {
+    widen_up((t + F::splat(T_UNDERFLOW)) * scale)
 }
 
 #[cfg(test)]

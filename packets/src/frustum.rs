@@ -53,7 +53,7 @@ use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree};
 use kdtree::{TreeTest, WaldTest, WatertightTest};
 
-use crate::bound::{self, FrustumBound, distance_up, distance_up4, plane_interval, plane_interval4};
+use crate::bound::{self, FrustumBound, distance_up, plane_interval};
 use crate::packet::{all_lanes, mask_of, max_where, widen_down};
 use crate::simd::{SimdF32, SimdMask};
 use crate::tile::TileTracer;
@@ -93,6 +93,22 @@ impl<V: SimdF32> TileTracer<V> {
             #[inline(always)]
             |q| {
                 let range = quadrants[q].clone();
+                bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
+            },
+        )
+    }
+
+    /// [`TileTracer::prepare_with`] for a tile split into `N` regions
+    /// ([`TileTracer::set_regions`]): each region's pyramid bound, region `q` at `q`.
+    #[inline(always)]
+    pub fn prepare_regions_with<I: TreeTest, const N: usize>(&mut self, tree: &KdTree) -> [FrustumBound; N] {
+        debug_assert_eq!(N, self.region_count(), "one bound per region");
+        self.reset::<I>(true);
+        let regions = self.quadrants.clone();
+        crate::simd::array_fn(
+            #[inline(always)]
+            |q| {
+                let range = regions[q].clone();
                 bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
             },
         )
@@ -174,7 +190,7 @@ impl<V: SimdF32> TileTracer<V> {
 /// The number of frusta traced together, as the type of one interval end: `f32` for one
 /// frustum (2.3.2), `Vec4` for the four of MFT (4.1.5), one per lane. Every operation the
 /// traversal does on intervals goes through it, so the traversal is written once.
-pub(crate) trait Lanes: Copy + Default {
+pub(crate) trait Lanes: Copy {
     /// `+inf` in every lane.
     const INFINITY: Self;
     /// Lane-wise minimum.
@@ -224,8 +240,8 @@ impl Lanes for f32 {
     }
     #[inline(always)]
     fn leaf(_near: f32, _far: f32, limit: f32, mut visit: impl FnMut(Range<usize>, f32) -> f32) -> f32 {
-        // The one frustum is active wherever the traversal goes.
-        visit(0..4, limit)
+        // The one frustum is active wherever the traversal goes, over every region.
+        visit(0..crate::tile::MAX_REGIONS, limit)
     }
     #[inline(always)]
     fn all_complete(limit: f32) -> bool {
@@ -233,46 +249,52 @@ impl Lanes for f32 {
     }
 }
 
-impl Lanes for Vec4 {
-    const INFINITY: Vec4 = Vec4::INFINITY;
+/// Any number of frusta in the lanes of a lane type: the four of MFT in a `Vec4` (4.1.5), or
+/// sixteen in a 16-lane type (one per region of a tile split 4 x 4:
+/// [`TileTracer::trace_mft_regions_with`]). Lane `q` is region `q`.
+impl<F: SimdF32> Lanes for F {
+    const INFINITY: F = F::INFINITY;
     #[inline(always)]
-    fn min(a: Vec4, b: Vec4) -> Vec4 {
+    fn min(a: F, b: F) -> F {
         a.min(b)
     }
     #[inline(always)]
-    fn max(a: Vec4, b: Vec4) -> Vec4 {
+    fn max(a: F, b: F) -> F {
         a.max(b)
     }
     #[inline(always)]
-    fn any_open(near: Vec4, far: Vec4) -> bool {
+    fn any_open(near: F, far: F) -> bool {
         near.cmple(far).any()
     }
     #[inline(always)]
-    fn none_open(near: Vec4, far: Vec4) -> bool {
+    fn none_open(near: F, far: F) -> bool {
         !near.cmple(far).any()
     }
     #[inline(always)]
-    fn plane_interval(dist: f32, k0: Vec4, k1: Vec4) -> (Vec4, Vec4) {
-        plane_interval4(dist, k0, k1)
+    fn plane_interval(dist: f32, k0: F, k1: F) -> (F, F) {
+        bound::plane_interval_lanes(dist, k0, k1)
     }
     #[inline(always)]
-    fn distance_up(t: Vec4, scale: Vec4) -> Vec4 {
-        distance_up4(t, scale)
+    fn distance_up(t: F, scale: F) -> F {
+        bound::distance_up_lanes(t, scale)
     }
     #[inline(always)]
-    fn leaf(near: Vec4, far: Vec4, limit: Vec4, mut visit: impl FnMut(Range<usize>, f32) -> f32) -> Vec4 {
-        let active = near.cmple(far).bitmask();
+    fn leaf(near: F, far: F, limit: F, mut visit: impl FnMut(Range<usize>, f32) -> f32) -> F {
+        let mut active = near.cmple(far).bitmask();
         let mut l = limit.to_array();
-        for (q, slot) in l.iter_mut().enumerate() {
-            if active >> q & 1 != 0 {
-                *slot = visit(q..q + 1, *slot);
-            }
+        while active != 0 {
+            let q = active.trailing_zeros() as usize;
+            active &= active - 1;
+            l[q] = visit(q..q + 1, l[q]);
         }
-        Vec4::from_array(l)
+        F::from_fn(
+            #[inline(always)]
+            |q| l[q],
+        )
     }
     #[inline(always)]
-    fn all_complete(limit: Vec4) -> bool {
-        limit.cmpeq(Vec4::NEG_INFINITY).all()
+    fn all_complete(limit: F) -> bool {
+        limit.cmpeq(F::NEG_INFINITY).all()
     }
 }
 
@@ -296,14 +318,29 @@ impl Bounds<f32> {
 
 impl Bounds<Vec4> {
     /// Four frusta, quadrant `q` in lane `q`.
+    #[inline(always)]
     pub(crate) fn four(bounds: &[FrustumBound; 4]) -> Bounds<Vec4> {
-        let axis = |a: usize, second: bool| Vec4::from_array(bounds.map(|b| if second { b.k1[a] } else { b.k0[a] }));
+        Bounds::lanes(bounds)
+    }
+}
+
+impl<F: SimdF32> Bounds<F> {
+    /// `F::LANES` frusta, region `q` in lane `q` (`bounds` holds one per lane).
+    #[inline(always)]
+    pub(crate) fn lanes(bounds: &[FrustumBound]) -> Bounds<F> {
+        #[inline(always)]
+        fn lane<F: SimdF32>(bounds: &[FrustumBound], f: impl Fn(&FrustumBound) -> f32) -> F {
+            F::from_fn(
+                #[inline(always)]
+                |q| f(&bounds[q]),
+            )
+        }
         Bounds {
-            k0: [axis(0, false), axis(1, false), axis(2, false), Vec4::ZERO],
-            k1: [axis(0, true), axis(1, true), axis(2, true), Vec4::ZERO],
-            near: Vec4::from_array(bounds.map(|b| b.near)),
-            far: Vec4::from_array(bounds.map(|b| b.far)),
-            hit_scale: Vec4::from_array(bounds.map(|b| b.hit_scale)),
+            k0: [lane(bounds, |b| b.k0[0]), lane(bounds, |b| b.k0[1]), lane(bounds, |b| b.k0[2]), F::ZERO],
+            k1: [lane(bounds, |b| b.k1[0]), lane(bounds, |b| b.k1[1]), lane(bounds, |b| b.k1[2]), F::ZERO],
+            near: lane(bounds, |b| b.near),
+            far: lane(bounds, |b| b.far),
+            hit_scale: lane(bounds, |b| b.hit_scale),
         }
     }
 }
@@ -336,6 +373,8 @@ fn leaf<V: SimdF32, T: PacketTest<V>, C: Counters>(
 ) -> f32 {
     let culling = tracer.culling;
     let all = all_lanes::<V>();
+    // One frustum visits every region: as many as the tile was split into.
+    let quadrants = quadrants.start..quadrants.end.min(tracer.region_count());
     let (mut tested, mut closed) = (0u64, 0u64);
     for q in quadrants.clone() {
         let range = tracer.quadrants[q].clone();

@@ -45,6 +45,9 @@ pub enum TileError {
         /// What the size must be a multiple of.
         multiple: u32,
     },
+    /// A tile is split into 4 or 16 frusta, not this many.
+    #[error("a tile is split into 4 or 16 frusta, not {0}")]
+    BadRegions(usize),
     /// The tile is larger than the tile size, or lies outside the camera's image.
     #[error("tile {0:?} does not fit a {1} x {1} tile of the image")]
     BadTile(Tile, u32),
@@ -56,6 +59,9 @@ pub enum TileError {
 
 /// The largest tile side.
 pub const MAX_TILE: u32 = 64;
+
+/// The most frusta a tile is split into: 4 x 4 regions ([`TileTracer::set_regions`]).
+pub const MAX_REGIONS: usize = 16;
 
 /// Scratch space and state for tracing one tile of packets of `V::LANES` rays at a time
 /// (2x2 pixels for the default `Vec4`; see the module for the other shapes).
@@ -73,10 +79,13 @@ pub struct TileTracer<V: SimdF32 = Vec4> {
     /// are finished from the start; a frustum finishes a lane when its hit is known to be the
     /// closest). Every lane finished is [`all_lanes`].
     pub(crate) done: Vec<u32>,
-    /// The packets of each quadrant.
-    pub(crate) quadrants: [Range<usize>; 4],
-    /// Each quadrant's packets as a grid on the image (primary tiles only).
-    pub(crate) grids: [Grid; 4],
+    /// The packets of each region (the four quadrants by default; [`TileTracer::set_regions`]),
+    /// the unused ones empty.
+    pub(crate) quadrants: [Range<usize>; MAX_REGIONS],
+    /// Each region's packets as a grid on the image (primary tiles only).
+    pub(crate) grids: [Grid; MAX_REGIONS],
+    /// Regions per side of the tile: 2 (the four quadrants of MFT) or 4 (16 frusta).
+    side: u32,
     /// The camera of a primary tile (for the screen-space candidate test at leaves).
     pub(crate) camera: Option<Camera>,
     /// The common origin of every ray, `[x, y, z, 0]`.
@@ -151,8 +160,9 @@ impl<V: SimdF32> TileTracer<V> {
             corners: Vec::with_capacity(packets),
             hits: Vec::with_capacity(packets),
             done: Vec::with_capacity(packets),
-            quadrants: [0..0, 0..0, 0..0, 0..0],
-            grids: [Grid::default(); 4],
+            quadrants: std::array::from_fn(|_| 0..0),
+            grids: [Grid::default(); MAX_REGIONS],
+            side: 2,
             camera: None,
             sheared: Vec::with_capacity(packets),
             origin: [0.0; 4],
@@ -164,6 +174,41 @@ impl<V: SimdF32> TileTracer<V> {
     /// The tile side.
     pub fn size(&self) -> u32 {
         self.size
+    }
+
+    /// Whether tiles of `size` pixels split into `regions` frusta (4 or 16: 2 x 2 or 4 x 4
+    /// regions) hold whole packets of these lanes in every region: [`TileTracer::check_tile_size`],
+    /// and for 16 regions a size that is a multiple of 4 packet widths (8 for 2x2 packets, 16
+    /// for 4x2 and 4x4).
+    pub fn check_regions(size: u32, regions: usize) -> Result<(), TileError> {
+        Self::check_tile_size(size)?;
+        match regions {
+            4 => Ok(()),
+            16 => {
+                let multiple = 4 * Self::PACKET_SHAPE.0;
+                if size.is_multiple_of(multiple) {
+                    Ok(())
+                } else {
+                    Err(TileError::BadSizeForWidth { size, lanes: V::LANES, multiple })
+                }
+            }
+            _ => Err(TileError::BadRegions(regions)),
+        }
+    }
+
+    /// Splits the tiles loaded from now on into `regions` frusta: 4 (the quadrants, thesis
+    /// 4.1.5; the default) or 16 (4 x 4 regions, each traced as one lane of a 16-lane
+    /// frustum: [`TileTracer::trace_mft_regions_with`]). The size must hold whole packets in
+    /// each region ([`TileTracer::check_regions`]).
+    pub fn set_regions(&mut self, regions: usize) -> Result<(), TileError> {
+        Self::check_regions(self.size, regions)?;
+        self.side = if regions == 16 { 4 } else { 2 };
+        Ok(())
+    }
+
+    /// The number of frusta a loaded tile is split into (4 or 16).
+    pub fn region_count(&self) -> usize {
+        (self.side * self.side) as usize
     }
 
     /// Turns packet/leaf culling (4.1.4) on or off for the frustum methods.
@@ -206,19 +251,21 @@ impl<V: SimdF32> TileTracer<V> {
         self.tile = *tile;
         self.packets.clear();
         self.corners.clear();
-        let half = self.size / 2;
         let (pw, ph) = Self::PACKET_SHAPE;
-        let (xm, ym) = ((tile.x0 + half).min(tile.x1), (tile.y0 + half).min(tile.y1));
-        let quads = [
-            (tile.x0, xm, tile.y0, ym),
-            (xm, tile.x1, tile.y0, ym),
-            (tile.x0, xm, ym, tile.y1),
-            (xm, tile.x1, ym, tile.y1),
-        ];
+        let (side, step) = (self.side, self.size / self.side);
+        // Region edges: `step` apart from the tile's corner, clipped to the tile.
+        let xs = |k: u32| (tile.x0 + k * step).min(tile.x1);
+        let ys = |k: u32| (tile.y0 + k * step).min(tile.y1);
         let origin = camera.eye.extend(0.0).to_array();
         let rays = PrimaryRays::new(camera);
-        for (q, &(qx0, qx1, qy0, qy1)) in quads.iter().enumerate() {
+        for q in 0..MAX_REGIONS {
             let first = self.packets.len();
+            let (qx0, qx1, qy0, qy1) = if (q as u32) < side * side {
+                let (cx, cy) = (q as u32 % side, q as u32 / side);
+                (xs(cx), xs(cx + 1), ys(cy), ys(cy + 1))
+            } else {
+                (0, 0, 0, 0)
+            };
             let (cols, rows) = (qx1.saturating_sub(qx0).div_ceil(pw), qy1.saturating_sub(qy0).div_ceil(ph));
             for y in (qy0..qy1.max(qy0)).step_by(ph as usize) {
                 for x in (qx0..qx1.max(qx0)).step_by(pw as usize) {
@@ -285,9 +332,9 @@ impl<V: SimdF32> TileTracer<V> {
         self.packets.extend_from_slice(packets);
         self.corners.clear();
         self.corners.resize(packets.len(), (0, 0));
-        let n = packets.len();
-        let cut = |q: usize| q * n / 4;
-        self.quadrants = [0..cut(1), cut(1)..cut(2), cut(2)..cut(3), cut(3)..n];
+        let (n, regions) = (packets.len(), self.region_count());
+        let cut = |q: usize| q.min(regions) * n / regions;
+        self.quadrants = std::array::from_fn(|q| cut(q)..cut(q + 1));
         self.camera = None;
         self.origin = origin;
         Some(())
@@ -535,6 +582,43 @@ mod tests {
         let mut tracer = TileTracer::<PortableF32<16>>::with_size(64).unwrap();
         tracer.load_primary(&camera, &scenes::tiles(64, 64, 64)[0]).unwrap();
         assert_eq!(tracer.packet_count(), 64 * 64 / 16);
-        assert!(tracer.quadrants.iter().all(|q| q.len() == 64));
+        assert!(
+            tracer.quadrants[..4].iter().all(|q| q.len() == 64) && tracer.quadrants[4..].iter().all(|q| q.is_empty())
+        );
+        // Split 4 x 4: sixteen regions of 16 packets, row by row, each a 16x16 square.
+        tracer.set_regions(16).unwrap();
+        tracer.load_primary(&camera, &scenes::tiles(64, 64, 64)[0]).unwrap();
+        assert_eq!(tracer.region_count(), 16);
+        for (q, (range, grid)) in tracer.quadrants.iter().zip(&tracer.grids).enumerate() {
+            assert_eq!(range.len(), 16, "region {q}");
+            assert_eq!((grid.x0, grid.y0, grid.cols, grid.rows), (16 * (q as u32 % 4), 16 * (q as u32 / 4), 4, 4));
+        }
+        // Sixteen regions need whole packets in each: 4 packet widths.
+        assert!(TileTracer::<PortableF32<16>>::check_regions(16, 16).is_ok());
+        let e = TileTracer::<PortableF32<16>>::check_regions(8, 16).unwrap_err();
+        assert_eq!(e, TileError::BadSizeForWidth { size: 8, lanes: 16, multiple: 16 });
+        assert!(TileTracer::<Vec4>::check_regions(8, 16).is_ok());
+        assert!(TileTracer::<Vec4>::check_regions(12, 16).is_err());
+        assert_eq!(TileTracer::<Vec4>::check_regions(8, 9), Err(TileError::BadRegions(9)));
+    }
+
+    /// A tile split 4 x 4 at the image's edge: regions clipped to the tile, every pixel in
+    /// exactly one packet of its region.
+    #[test]
+    fn regions_cover_clipped_tiles() {
+        let camera = Camera::look_at(glam::Vec3::ZERO, glam::Vec3::NEG_Z, 60.0, 37, 21).unwrap();
+        let mut tracer = TileTracer::<Vec4>::with_size(16).unwrap();
+        tracer.set_regions(16).unwrap();
+        for tile in scenes::tiles(37, 21, 16) {
+            tracer.load_primary(&camera, &tile).unwrap();
+            let valid: u32 = tracer.packets.iter().map(|p| p.rays.valid.bitmask().count_ones()).sum();
+            assert_eq!(valid as usize, tile.pixel_count(), "{tile:?}");
+            for (range, grid) in tracer.quadrants.iter().zip(&tracer.grids) {
+                assert_eq!(range.len(), (grid.cols * grid.rows) as usize);
+                for &(x, y) in &tracer.corners[range.clone()] {
+                    assert!(x >= grid.x0 && x < grid.x0 + 4 && y >= grid.y0 && y < grid.y0 + 4, "{tile:?}");
+                }
+            }
+        }
     }
 }

@@ -66,7 +66,7 @@ impl<P, H, S, R> From<Line<P, H, S, R>> for Entry {
     }
 }
 
-use primary::{Cone, Frustum, Mft, MftCone, Packet, SameSign, Single};
+use primary::{Cone, Frustum, Mft, MftCone, MftX16, Packet, SameSign, Single};
 use stream::Runs;
 
 impl Registry {
@@ -83,6 +83,7 @@ impl Registry {
         r.add(compose::<SameSign, shadow::Packets, soft::StratumPackets, stream::SameSign>("samesign", "same-sign 2x2 packets, split where signs differ (thesis 2.3.1)").per_point::<soft::Pyramid>());
         r.add(compose::<Frustum, shadow::Packets, soft::StratumPackets, Runs<Frustum>>("frustum", "one frustum per tile, packet/leaf culling (thesis 2.3.2, 4.1.3-4.1.4)").per_point::<soft::Pyramid>());
         r.add(compose::<Mft, shadow::Packets, soft::StratumPackets, Runs<Mft>>("mft", "Multiple Frustum Traversal, four quadrant frusta per tile (thesis 4.1.5)").per_point::<soft::Pyramid>());
+        r.add(compose::<MftX16, shadow::Packets, soft::StratumPackets, Runs<Mft>>("mft-x16", "MFT with 16 frusta per tile (4 x 4 regions, one per SIMD lane) instead of four quadrants (thesis 4.1.5, at AVX-512's width)"));
         r.add(compose::<Mft, shadow::Packets, soft::OmniPoints, Runs<Mft>>("mft-omni", "MFT primaries; each point's 16 soft-shadow rays as four omni-directional 2x2 packets from the point, with no pyramid or cone (thesis 4.1.2, Table 4.6)"));
         r.add(compose::<Mft, shadow::Frusta, soft::Frusta, Runs<Mft>>("multi-frusta", "MFT primaries; shadows as Benthin & Wald's (2009) frusta: one per tile, one per tile and light stratum"));
         r.add(compose::<Mft, shadow::Lanes, soft::Lanes, Runs<Mft>>("lane-frusta", "MFT primaries; shadows as Benthin & Wald's (2009) multi-frusta in SIMD lanes: a 4x4 block's or a point's rays per frustum, 8 (AVX2) or 4 frusta at once"));

@@ -63,6 +63,10 @@ pub trait TileKernel: Primary {
     /// The kernel's part of its names: `mft` in `kd-mft-16` and `kd-mft-runs`.
     const NAME: &'static str;
 
+    /// The frusta its tiles are split into ([`TileTracer::set_regions`]): the four quadrants,
+    /// or 16 regions for [`MftX16`].
+    const REGIONS: usize = 4;
+
     /// Traces the tile loaded in `tracer`: the closest hits (any hits in the tracer's any-hit
     /// mode, for the frustum and cone kernels), exactly those of single rays.
     fn trace_loaded<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
@@ -76,13 +80,13 @@ pub trait TileKernel: Primary {
 /// packet/leaf culling (thesis 4.1.4) and its packets' width: the widest the method's SIMD
 /// level runs ([`Options::simd`]) whose packets the tile holds whole in each quadrant (a
 /// tile of 4 or 12 pixels keeps 2x2 packets; wider packets need a multiple of 8).
-fn tile_options(options: &Options) -> Result<(u32, bool, Width), Error> {
+fn tile_options(options: &Options, regions: usize) -> Result<(u32, bool, Width), Error> {
     let tile = options.tile;
-    TileTracer::check_size(tile).map_err(|e| Error::Usage(format!("tile: {e}")))?;
+    TileTracer::<Vec4>::check_regions(tile, regions).map_err(|e| Error::Usage(format!("tile: {e}")))?;
     // The tracer's own size rule for each width (its portable twin has the same packets).
     let width = match Width::for_level(options.simd) {
-        Width::Eight if TileTracer::<PortableF32<8>>::check_tile_size(tile).is_ok() => Width::Eight,
-        Width::Sixteen if TileTracer::<PortableF32<16>>::check_tile_size(tile).is_ok() => Width::Sixteen,
+        Width::Eight if TileTracer::<PortableF32<8>>::check_regions(tile, regions).is_ok() => Width::Eight,
+        Width::Sixteen if TileTracer::<PortableF32<16>>::check_regions(tile, regions).is_ok() => Width::Sixteen,
         _ => Width::Four,
     };
     Ok((tile, options.culling, width))
@@ -144,8 +148,9 @@ fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C
     counters: &mut C,
 ) {
     let tracer = slot.get_or_insert_with(|| {
-        // The size was checked for this width by `from_options`.
+        // The size was checked for this width and these regions by `from_options`.
         let mut tracer = TileTracer::with_size(size).expect("tile size checked");
+        tracer.set_regions(K::REGIONS).expect("tile size checked");
         tracer.set_culling(culling);
         tracer
     });
@@ -158,6 +163,11 @@ fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C
 /// Defines a tile kernel: its type with the tile and culling fields, and its traversal.
 macro_rules! tile_kernel {
     ($(#[$doc:meta])* $kernel:ident, $name:literal, tiled: $tiled:literal,
+     |$tree:ident, $tracer:ident, $counters:ident| $trace:expr) => {
+        tile_kernel!($(#[$doc])* $kernel, $name, tiled: $tiled, regions: 4,
+            |$tree, $tracer, $counters| $trace);
+    };
+    ($(#[$doc:meta])* $kernel:ident, $name:literal, tiled: $tiled:literal, regions: $regions:literal,
      |$tree:ident, $tracer:ident, $counters:ident| $trace:expr) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,13 +183,14 @@ macro_rules! tile_kernel {
 
         impl FromOptions for $kernel {
             fn from_options(options: &Options) -> Result<Self, Error> {
-                let (tile, culling, width) = tile_options(options)?;
+                let (tile, culling, width) = tile_options(options, $regions)?;
                 Ok($kernel { tile, culling, width })
             }
         }
 
         impl TileKernel for $kernel {
             const NAME: &'static str = $name;
+            const REGIONS: usize = $regions;
 
             #[inline(always)]
             fn trace_loaded<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
@@ -249,6 +260,23 @@ tile_kernel!(
     /// `Vec4` (thesis 4.1.5).
     Mft, "mft", tiled: true,
     |tree, tracer, counters| tracer.trace_mft_with::<I, C>(tree, counters)
+);
+
+tile_kernel!(
+    /// Multiple Frustum Traversal with 16 frusta: the tile split into 4 x 4 regions, each
+    /// region's frustum one lane of a 16-lane vector (`F32x16` inside the AVX-512 kernel, the
+    /// portable twin elsewhere), each culling and testing its own packets at leaves
+    /// ([`TileTracer::trace_mft_regions_with`]). The measured alternative to [`Mft`]'s four
+    /// frusta of wider packets (issue 28's question: four frusta of W-ray packets, or W
+    /// frusta?). Tiles: a multiple of 8 (of 16 for 8- and 16-lane packets, else 2x2 packets).
+    MftX16, "mft-x16", tiled: true, regions: 16,
+    |tree, tracer, counters| {
+        if V::LANES == 16 {
+            tracer.trace_mft_regions_with::<I, V, C>(tree, counters)
+        } else {
+            tracer.trace_mft_regions_with::<I, PortableF32<16>, C>(tree, counters)
+        }
+    }
 );
 
 tile_kernel!(
