@@ -113,7 +113,7 @@ fuzz_target!(|input: Input| {
         frusta.push((run.iter().map(|r| r.origin).collect(), ends.clone()));
         frusta.push((vec![run[0].origin; run.len()], ends));
     }
-    for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::Eight] {
+    for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::Eight, LaneWidth::Sixteen] {
         let mut lanes = LaneFrusta::new();
         for (starts, ends) in &frusta {
             lanes.push(starts, ends);

@@ -43,9 +43,10 @@
 //!
 //! **Lanes.** The kernel is written once over `[f32; L]` lanes, each step a loop over the
 //! lanes without branches for the compiler to vectorise: [`LaneWidth::Scalar`] is the scalar
-//! twin (one frustum at a time), [`LaneWidth::Four`] four frusta, and [`LaneWidth::Eight`]
-//! eight, compiled for AVX2 and chosen at run time (`is_x86_feature_detected!`). All give the
-//! same answers, bit for bit (tested). On Zen 1, 8 lanes measure 1.1-1.4x faster than 4,
+//! twin (one frustum at a time), [`LaneWidth::Four`] four frusta, [`LaneWidth::Eight`]
+//! eight, compiled for AVX2, and [`LaneWidth::Sixteen`] sixteen, compiled for AVX-512 (the
+//! paper's width), each chosen at run time (`is_x86_feature_detected!`). All give the same
+//! answers, bit for bit (tested). On Zen 1, 8 lanes measure 1.1-1.4x faster than 4,
 //! and up to 1.8x the scalar twin (`docs/results/coherent-shadows.md`).
 
 use glam::{BVec4A, Vec3};
@@ -71,14 +72,35 @@ pub enum LaneWidth {
     /// Eight frusta, one per lane of a 256-bit (AVX2) register; four where the CPU has no
     /// AVX2.
     Eight,
+    /// Sixteen frusta, one per lane of a 512-bit (AVX-512) register, the paper's own width
+    /// (Larrabee's 16 lanes); eight where the CPU has AVX2 but no AVX-512, else four.
+    Sixteen,
 }
 
 impl LaneWidth {
-    /// The widest width this CPU runs natively: [`LaneWidth::Eight`] with AVX2 (unless the
-    /// SIMD level is capped below it, `kdtree::isa::SimdLevel::active`), else
-    /// [`LaneWidth::Four`].
+    /// The widest width this CPU runs natively: [`LaneWidth::Sixteen`] with AVX-512,
+    /// [`LaneWidth::Eight`] with AVX2 (unless the SIMD level is capped below them,
+    /// `kdtree::isa::SimdLevel::active`), else [`LaneWidth::Four`].
     pub fn widest() -> LaneWidth {
-        if avx2() { LaneWidth::Eight } else { LaneWidth::Four }
+        if avx512() {
+            LaneWidth::Sixteen
+        } else if avx2() {
+            LaneWidth::Eight
+        } else {
+            LaneWidth::Four
+        }
+    }
+
+    /// This width narrowed to what `level` runs natively: sixteen lanes need AVX-512, eight
+    /// AVX2 (the scalar twin and four lanes run everywhere).
+    pub fn capped(self, level: kdtree::isa::SimdLevel) -> LaneWidth {
+        use kdtree::isa::SimdLevel;
+        match self {
+            LaneWidth::Sixteen if level < SimdLevel::Avx2 => LaneWidth::Four,
+            LaneWidth::Sixteen if level < SimdLevel::Avx512 => LaneWidth::Eight,
+            LaneWidth::Eight if level < SimdLevel::Avx2 => LaneWidth::Four,
+            width => width,
+        }
     }
 
     /// Frusta per trace.
@@ -87,8 +109,16 @@ impl LaneWidth {
             LaneWidth::Scalar => 1,
             LaneWidth::Four => 4,
             LaneWidth::Eight => 8,
+            LaneWidth::Sixteen => 16,
         }
     }
+}
+
+/// Whether this CPU has AVX-512 (F and VL, with AVX2 and FMA: `SimdLevel::Avx512`) and the
+/// SIMD level is not capped below it (`rttest --simd`).
+fn avx512() -> bool {
+    kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx512)
+        && kdtree::isa::SimdLevel::detect() >= kdtree::isa::SimdLevel::Avx512
 }
 
 /// Whether this CPU has AVX2 and FMA and the SIMD level is not capped below them
@@ -145,16 +175,44 @@ struct Segments {
 pub struct LaneFrusta {
     frusta: Vec<Segments>,
     blocked: Vec<u16>,
-    stack: Vec<Entry<Span>>,
+    stacks: Stacks,
     stats: LaneStats,
 }
 
-/// The frusta's state in a voxel: every lane's interval (the first `L` of 8 used; empty,
-/// `s0 > s1`, in lanes that take no part) and the voxel's box.
+/// The traversal stacks of each lane count, kept between traces (a `Span<L>` holds `L`
+/// intervals, so each width has its own).
+#[derive(Debug, Default)]
+struct Stacks {
+    one: Vec<Entry<Span<1>>>,
+    four: Vec<Entry<Span<4>>>,
+    eight: Vec<Entry<Span<8>>>,
+    sixteen: Vec<Entry<Span<16>>>,
+}
+
+/// The stack of [`Stacks`] for `L` lanes.
+trait StackOf<const L: usize> {
+    fn stack(&mut self) -> &mut Vec<Entry<Span<L>>>;
+}
+
+macro_rules! stack_of {
+    ($($lanes:literal => $field:ident),*) => {$(
+        impl StackOf<$lanes> for Stacks {
+            #[inline(always)]
+            fn stack(&mut self) -> &mut Vec<Entry<Span<$lanes>>> {
+                &mut self.$field
+            }
+        }
+    )*};
+}
+
+stack_of!(1 => one, 4 => four, 8 => eight, 16 => sixteen);
+
+/// The frusta's state in a voxel: every lane's interval (empty, `s0 > s1`, in lanes that
+/// take no part) and the voxel's box.
 #[derive(Clone, Copy, Debug)]
-struct Span {
-    s0: [f32; 8],
-    s1: [f32; 8],
+struct Span<const L: usize> {
+    s0: [f32; L],
+    s1: [f32; L],
     lo: Vec3,
     hi: Vec3,
 }
@@ -236,12 +294,27 @@ impl LaneFrusta {
         match width {
             LaneWidth::Scalar => self.batches::<I, C, 1>(tree, counters),
             #[cfg(target_arch = "x86_64")]
-            LaneWidth::Eight if avx2() => {
+            LaneWidth::Sixteen if avx512() => {
+                // SAFETY: the CPU has AVX-512 F and VL, AVX2 and FMA (the guard).
+                unsafe { self.batches_avx512::<I, C>(tree, counters) }
+            }
+            #[cfg(target_arch = "x86_64")]
+            LaneWidth::Eight | LaneWidth::Sixteen if avx2() => {
                 // SAFETY: the CPU has AVX2 and FMA (the guard).
                 unsafe { self.batches_avx2::<I, C>(tree, counters) }
             }
-            LaneWidth::Four | LaneWidth::Eight => self.batches::<I, C, 4>(tree, counters),
+            LaneWidth::Four | LaneWidth::Eight | LaneWidth::Sixteen => self.batches::<I, C, 4>(tree, counters),
         }
+    }
+
+    /// [`LaneFrusta::batches`] with sixteen lanes, compiled for AVX-512 (the paper's width).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 F and VL, AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+    unsafe fn batches_avx512<I: TreeTest<Record: PacketTest>, C: Counters>(&mut self, tree: &KdTree, counters: &mut C) {
+        self.batches::<I, C, 16>(tree, counters);
     }
 
     /// [`LaneFrusta::batches`] with eight lanes, compiled for AVX2.
@@ -256,11 +329,10 @@ impl LaneFrusta {
 
     /// Every frustum, `L` at a time; those that cannot be bounded ray by ray.
     #[inline(always)]
-    fn batches<I: TreeTest<Record: PacketTest>, C: Counters, const L: usize>(
-        &mut self,
-        tree: &KdTree,
-        counters: &mut C,
-    ) {
+    fn batches<I: TreeTest<Record: PacketTest>, C: Counters, const L: usize>(&mut self, tree: &KdTree, counters: &mut C)
+    where
+        Stacks: StackOf<L>,
+    {
         let records = I::records(tree);
         let bounds = tree.bounds();
         let mut lanes = Lanes::<L>::empty();
@@ -305,16 +377,18 @@ impl LaneFrusta {
         lanes: &mut Lanes<L>,
         which: &[usize],
         counters: &mut C,
-    ) {
+    ) where
+        Stacks: StackOf<L>,
+    {
         let bounds = tree.bounds();
         let pad = lanes.pad.iter().fold(0.0f32, |m, &p| m.max(p));
         self.stats.frusta += which.len() as u64;
         // Every lane's interval inside the tree's box.
-        let (mut s0, mut s1) = ([f32::INFINITY; 8], [f32::NEG_INFINITY; 8]);
+        let (mut s0, mut s1) = ([f32::INFINITY; L], [f32::NEG_INFINITY; L]);
         for i in 0..which.len() {
             (s0[i], s1[i]) = lanes.clip(i, bounds.min, bounds.max);
         }
-        let mut stack = std::mem::take(&mut self.stack);
+        let mut stack = std::mem::take(StackOf::<L>::stack(&mut self.stacks));
         stack.clear();
         let unmade = RayPacket::new(&[]);
         let mut walk = LaneWalk {
@@ -332,7 +406,7 @@ impl LaneFrusta {
         let span = Span { s0, s1, lo: bounds.min, hi: bounds.max };
         descend(tree, &mut walk, (0, span), &mut stack, counters);
         let blocked = walk.blocked;
-        self.stack = stack;
+        *StackOf::<L>::stack(&mut self.stacks) = stack;
         for (i, &f) in which.iter().enumerate() {
             self.blocked[f] = blocked[i];
         }
@@ -362,13 +436,13 @@ struct LaneWalk<'a, T: PacketTest, const L: usize> {
 }
 
 impl<T: PacketTest, const L: usize> Descent for LaneWalk<'_, T, L> {
-    type Span = Span;
-    type Deferred = Span;
-    type Stack = Vec<Entry<Span>>;
+    type Span = Span<L>;
+    type Deferred = Span<L>;
+    type Stack = Vec<Entry<Span<L>>>;
 
     /// Lanes whose interval is empty or whose rays are all blocked take no part.
     #[inline(always)]
-    fn enter<C: Counters>(&mut self, _: usize, span: &mut Span, _: &mut Self::Stack, _: &mut C) -> bool {
+    fn enter<C: Counters>(&mut self, _: usize, span: &mut Span<L>, _: &mut Self::Stack, _: &mut C) -> bool {
         let mut live = false;
         for i in 0..L {
             let on = self.lanes.open[i] != 0 && span.s0[i] <= span.s1[i];
@@ -385,7 +459,7 @@ impl<T: PacketTest, const L: usize> Descent for LaneWalk<'_, T, L> {
     }
 
     #[inline(always)]
-    fn inner(&mut self, node: KdNode, span: &mut Span, _: &Self::Stack) -> Visit<Span> {
+    fn inner(&mut self, node: KdNode, span: &mut Span<L>, _: &Self::Stack) -> Visit<Span<L>> {
         let k = node.axis();
         let p = node.split();
         let left = node.left_child() as u32;
@@ -408,7 +482,7 @@ impl<T: PacketTest, const L: usize> Descent for LaneWalk<'_, T, L> {
     }
 
     #[inline(always)]
-    fn leaf<C: Counters>(&mut self, node: KdNode, span: &Span, _: &Self::Stack, counters: &mut C) -> Flow {
+    fn leaf<C: Counters>(&mut self, node: KdNode, span: &Span<L>, _: &Self::Stack, counters: &mut C) -> Flow {
         if node.prim_count() == 0 {
             return Flow::Continue;
         }
@@ -492,7 +566,7 @@ impl<T: PacketTest, const L: usize> Descent for LaneWalk<'_, T, L> {
     }
 
     #[inline(always)]
-    fn resume(&mut self, span: Span) -> Option<Span> {
+    fn resume(&mut self, span: Span<L>) -> Option<Span<L>> {
         Some(span)
     }
 }
@@ -666,7 +740,7 @@ impl<const L: usize> Lanes<L> {
     /// the sweep's low side is below `p`) into `lower`, the upper child's into `upper`
     /// (`SweptAxis::below` and `above`, lane by lane; an empty share has `s0 > s1`).
     #[inline(always)]
-    fn split(&self, k: usize, p: f32, at: &Span, lower: &mut Span, upper: &mut Span) {
+    fn split(&self, k: usize, p: f32, at: &Span<L>, lower: &mut Span<L>, upper: &mut Span<L>) {
         let [lo0, lo_slope, lo_inv, hi0, hi_slope, hi_inv] = &self.axes[k % 3];
         for i in 0..L {
             let (s0, s1) = (at.s0[i], at.s1[i]);
@@ -765,7 +839,7 @@ mod tests {
     /// the widest trace.
     fn check(tree: &KdTree, frusta: &[Frustum]) -> LaneStats {
         let mut stats = LaneStats::default();
-        for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::Eight] {
+        for width in [LaneWidth::Scalar, LaneWidth::Four, LaneWidth::Eight, LaneWidth::Sixteen] {
             let mut lanes = LaneFrusta::new();
             for (starts, ends) in frusta {
                 lanes.push(starts, ends);

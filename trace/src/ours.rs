@@ -86,7 +86,7 @@ impl Registry {
         r.add(compose::<MftX16, shadow::Packets, soft::StratumPackets, Runs<Mft>>("mft-x16", "MFT with 16 frusta per tile (4 x 4 regions, one per SIMD lane) instead of four quadrants (thesis 4.1.5, at AVX-512's width)"));
         r.add(compose::<Mft, shadow::Packets, soft::OmniPoints, Runs<Mft>>("mft-omni", "MFT primaries; each point's 16 soft-shadow rays as four omni-directional 2x2 packets from the point, with no pyramid or cone (thesis 4.1.2, Table 4.6)"));
         r.add(compose::<Mft, shadow::Frusta, soft::Frusta, Runs<Mft>>("multi-frusta", "MFT primaries; shadows as Benthin & Wald's (2009) frusta: one per tile, one per tile and light stratum"));
-        r.add(compose::<Mft, shadow::Lanes, soft::Lanes, Runs<Mft>>("lane-frusta", "MFT primaries; shadows as Benthin & Wald's (2009) multi-frusta in SIMD lanes: a 4x4 block's or a point's rays per frustum, 8 (AVX2) or 4 frusta at once"));
+        r.add(compose::<Mft, shadow::Lanes, soft::Lanes, Runs<Mft>>("lane-frusta", "MFT primaries; shadows as Benthin & Wald's (2009) multi-frusta in SIMD lanes: a 4x4 block's or a point's rays per frustum, 16 (AVX-512), 8 (AVX2) or 4 frusta at once"));
         r.add(compose::<Cone, shadow::Packets, soft::StratumPackets, Runs<Cone>>("cone", "one cone per tile as the proxy of its rays (thesis 4.1.6-4.1.8)").per_point::<soft::Cone>());
         r.add(compose::<MftCone, shadow::Packets, soft::StratumPackets, Runs<MftCone>>("mft-cone", "four quadrant cones per tile (thesis 4.1.9)").per_point::<soft::Cone>());
         r.add_structure(StructureEntry { name: multibvh::MBVH, build: |scene| Ok(Box::new(multibvh::build(scene)?)) });

@@ -491,7 +491,14 @@ mod tests {
         let k = kernels("mono");
         assert_eq!([k.primary, k.shadow, k.soft, k.stream], ["kd-single"; 4]);
         let k = kernels("lane-frusta-16");
-        assert_eq!((k.shadow.as_str(), k.soft.as_str()), ("kd-lane-frusta", "kd-lane-frusta"));
+        let lanes = match LaneWidth::widest() {
+            LaneWidth::Eight => "kd-lane-frusta".to_string(),
+            w => format!("kd-lane-frusta-x{}", w.lanes()),
+        };
+        assert_eq!((k.shadow.as_str(), k.soft.as_str()), (lanes.as_str(), lanes.as_str()));
+        if LaneWidth::widest() == LaneWidth::Sixteen {
+            assert_eq!(kernels("lane-frusta-16@avx2").shadow, "kd-lane-frusta");
+        }
         let k = kernels("packet@sse");
         assert_eq!(
             (k.primary.as_str(), k.shadow.as_str(), k.stream.as_str()),

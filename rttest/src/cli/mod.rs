@@ -415,8 +415,8 @@ pub struct RenderArgs {
     /// thesis's, Table 4.6; packet, samesign, frustum, mft, cone and mft-cone).
     #[arg(long, value_enum, default_value_t = SoftGroupingArg::Strata)]
     pub soft_grouping: SoftGroupingArg,
-    /// How many shadow frusta `lane-frusta` traces at once: the widest this CPU runs (8
-    /// with AVX2, else 4), or 1 (the scalar twin), 4 or 8.
+    /// How many shadow frusta `lane-frusta` traces at once: the widest this CPU runs (16
+    /// with AVX-512, 8 with AVX2, else 4), or 1 (the scalar twin), 4, 8 or 16.
     #[arg(long, value_enum, default_value_t = LanesArg::Auto)]
     pub lanes: LanesArg,
     /// Also trace one untimed frame counting nodes, leaves and intersection tests per ray
@@ -488,6 +488,9 @@ pub enum LanesArg {
     /// Eight frusta (AVX2; four without it).
     #[value(name = "8")]
     Eight,
+    /// Sixteen frusta (AVX-512, the paper's width; eight or four without it).
+    #[value(name = "16")]
+    Sixteen,
 }
 
 impl From<LanesArg> for LaneWidth {
@@ -497,6 +500,7 @@ impl From<LanesArg> for LaneWidth {
             LanesArg::One => LaneWidth::Scalar,
             LanesArg::Four => LaneWidth::Four,
             LanesArg::Eight => LaneWidth::Eight,
+            LanesArg::Sixteen => LaneWidth::Sixteen,
         }
     }
 }

@@ -29,7 +29,6 @@ use std::marker::PhantomData;
 
 use cones::Cone;
 use cones::shadows::SAMPLES;
-use kdtree::isa::SimdLevel;
 use kdtree::{Hit, Intersector, KdTree, Ray, WaldTest, WatertightTest};
 use packets::LaneWidth;
 use packets::PacketTreeTest;
@@ -69,17 +68,14 @@ impl<I: PacketTreeTest> Tracer for TreeWith<'_, I> {
     }
 }
 
-/// The lane frusta's width for `options`: `--lanes`, narrowed to four below AVX2
-/// ([`Options::simd`]).
+/// The lane frusta's width for `options`: `--lanes`, narrowed to what the SIMD level runs
+/// ([`Options::simd`], [`LaneWidth::capped`]).
 fn lane_width(options: &Options) -> LaneWidth {
-    match options.lanes {
-        LaneWidth::Eight if options.simd < SimdLevel::Avx2 => LaneWidth::Four,
-        width => width,
-    }
+    options.lanes.capped(options.simd)
 }
 
-/// The lane frusta kernels' identity: `kd-lane-frusta` at eight lanes (AVX2, the default
-/// wherever the CPU has it), `kd-lane-frusta-x4` and `kd-lane-frusta-x1` otherwise.
+/// The lane frusta kernels' identity: `kd-lane-frusta` at eight lanes (AVX2),
+/// `kd-lane-frusta-x16`, `-x4` and `-x1` otherwise.
 fn lane_frusta_name(width: LaneWidth) -> String {
     match width {
         LaneWidth::Eight => "kd-lane-frusta".into(),
