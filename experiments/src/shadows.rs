@@ -1203,6 +1203,28 @@ mod tests {
     }
 
     #[test]
+    fn silhouette_frames_beat_hard_shadows_with_one_to_five_rays_a_hit() {
+        on_touching_boxes(|setup| {
+            let hard = setup.frame(ShadowMethod::Hard);
+            let ours = setup.frame(ShadowMethod::Silhouette);
+            assert_eq!(hard.hits, ours.hits);
+            let reference = setup.reference(256);
+            let mask: Vec<bool> = ours.hits.iter().map(Option::is_some).collect();
+            let (rmse, _, _) = masked_errors(&ours.visibility, &reference, &mask);
+            let (hard_rmse, _, _) = masked_errors(&hard.visibility, &reference, &mask);
+            assert!(rmse < 0.5 * hard_rmse, "{rmse} against hard {hard_rmse}");
+            assert!(ours.visibility.iter().any(|&v| v > 0.0 && v < 0.5), "the dark half of a penumbra");
+            assert!(ours.visibility.iter().any(|&v| v > 0.5 && v < 1.0), "the lit half of a penumbra");
+            let hits = ours.hits.iter().flatten().count() as u64;
+            assert!(
+                ours.shadow_rays >= hits / 2 && ours.shadow_rays <= 5 * hits,
+                "{} rays, {hits} hits",
+                ours.shadow_rays
+            );
+        });
+    }
+
+    #[test]
     fn sampled_packets_and_lanes_give_the_sampled_frame() {
         on_touching_boxes(|setup| {
             let single = setup.frame(ShadowMethod::Sampled(16));

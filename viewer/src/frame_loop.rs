@@ -233,7 +233,9 @@ impl<'a> FrameLoop<'a> {
                 info.trace_secs = stats.trace_secs();
                 if state.shadows == ShadowMode::Silhouette {
                     let t = Instant::now();
-                    info.rays += self.silhouette_pass(&renderer);
+                    let silhouettes = self.silhouettes.get_or_insert_with(|| Silhouettes::new(self.tree));
+                    let light = AreaLight::Sphere(self.light);
+                    info.rays += silhouette_pass(self.tree, silhouettes, &light, &renderer, &mut self.buffers);
                     info.trace_secs += t.elapsed().as_secs_f64();
                 }
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
@@ -334,38 +336,39 @@ impl FrameLoop<'_> {
     }
 }
 
-impl FrameLoop<'_> {
-    /// Silhouette widths (`edgewidth::silhouette`) of the kept primary hits, to the soft
-    /// shadows' spherical light, into `buffers.visible` (tile order; 0 for misses). The
-    /// adjacency is made on the first such frame and kept. Returns the shadow rays traced.
-    fn silhouette_pass(&mut self, renderer: &Renderer<'_>) -> u64 {
-        let tree = self.tree;
-        let silhouettes = self.silhouettes.get_or_insert_with(|| Silhouettes::new(tree));
-        let light = AreaLight::Sphere(self.light);
-        let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), &self.surfaces);
-        let pixels: Vec<(u32, u32)> = layout.tiles().iter().flat_map(|t| t.pixels()).collect();
-        let hits = &self.buffers.hits;
-        let mut visible = vec![0.0f32; hits.len()];
-        let rays: u64 = visible
-            .par_chunks_mut(REFINE_PIXELS)
-            .enumerate()
-            .map(|(c, out)| {
-                let mut scratch = SilhouetteScratch::default();
-                let mut rays = 0u64;
-                for (k, slot) in out.iter_mut().enumerate() {
-                    let i = c * REFINE_PIXELS + k;
-                    let (Some(hit), Some(&(x, y))) = (&hits[i], pixels.get(i)) else { continue };
-                    let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
-                    let v = silhouette_visibility(tree, silhouettes, &light, &p, &mut scratch);
-                    *slot = v.fraction;
-                    rays += u64::from(v.rays);
-                }
-                rays
-            })
-            .sum();
-        self.buffers.visible = visible;
-        rays
-    }
+/// Silhouette widths (`edgewidth::silhouette`) of the primary hits in `buffers` (traced by
+/// `renderer`, whose surfaces they use) to `light`, into `buffers.visible` (tile order; 0 for
+/// misses). Returns the shadow rays traced.
+fn silhouette_pass(
+    tree: &KdTree,
+    silhouettes: &Silhouettes,
+    light: &AreaLight,
+    renderer: &Renderer<'_>,
+    buffers: &mut FrameBuffers,
+) -> u64 {
+    let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), renderer.surfaces());
+    let pixels: Vec<(u32, u32)> = layout.tiles().iter().flat_map(|t| t.pixels()).collect();
+    let hits = &buffers.hits;
+    let mut visible = vec![0.0f32; hits.len()];
+    let rays: u64 = visible
+        .par_chunks_mut(REFINE_PIXELS)
+        .enumerate()
+        .map(|(c, out)| {
+            let mut scratch = SilhouetteScratch::default();
+            let mut rays = 0u64;
+            for (k, slot) in out.iter_mut().enumerate() {
+                let i = c * REFINE_PIXELS + k;
+                let (Some(hit), Some(&(x, y))) = (&hits[i], pixels.get(i)) else { continue };
+                let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
+                let v = silhouette_visibility(tree, silhouettes, light, &p, &mut scratch);
+                *slot = v.fraction;
+                rays += u64::from(v.rays);
+            }
+            rays
+        })
+        .sum();
+    buffers.visible = visible;
+    rays
 }
 
 impl Refinement {
