@@ -15,6 +15,9 @@
 //! - [`filter`]: Benthin & Wald's 4x4 discontinuity filter.
 //! - [`adaptive`]: adaptive stratified sampling: four corner probes per pixel, all 16
 //!   samples only where the probes of the pixel or a neighbour disagree.
+//! - [`silhouette`]: silhouette widths, a variant of Eq. 5.1 that draws both halves of the
+//!   penumbra and does not leak: one shadow ray, the silhouette edges in the light's cone
+//!   projected onto the light (Parker, Shirley & Smits 1998).
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their
@@ -28,9 +31,11 @@ pub mod occlusion;
 pub mod packet;
 pub mod pairing;
 pub mod sampling;
+pub mod silhouette;
 pub mod traverse;
 
 pub use occlusion::{occlusion_factor, width_from_light};
 pub use pairing::{LeakRemedies, Pairing};
 pub use sampling::AreaLight;
+pub use silhouette::{SilhouetteScratch, Silhouettes, silhouette_visibility};
 pub use traverse::{EdgeScratch, edge_width, edge_width_with};

@@ -1,5 +1,5 @@
 //! Criterion bench `edgewidth` (thesis chapter 5, Table 5.1): one whole frame of atrium (and
-//! Sponza when present) at 256x256 for hard shadows, single-ray and packet edge widths, 4 samples, and the interleaved 16 samples with their filter. Scene,
+//! Sponza when present) at 256x256 for hard shadows, single-ray and packet edge widths, silhouette widths (`edgewidth::silhouette`), 4 samples, and the interleaved 16 samples with their filter. Scene,
 //! tree and camera are made outside the timed loop; each iteration renders one whole frame
 //! (primary rays, visibility, shading), as Table 5.1 counts it.
 
@@ -24,6 +24,7 @@ fn frames(c: &mut Criterion) {
             ShadowMethod::Hard,
             ShadowMethod::EdgeWidth,
             ShadowMethod::EdgeWidthPacket,
+            ShadowMethod::Silhouette,
             ShadowMethod::Sampled(4),
             ShadowMethod::Interleaved,
         ] {

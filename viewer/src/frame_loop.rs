@@ -3,7 +3,8 @@
 //!
 //! Every method is taken by name from the one catalogue, `baselines::registry()` (a
 //! `trace::Registry`), and bound to the scene's kd-tree; a frame is `trace::Renderer`'s passes
-//! (primary, then hard, edge-width or soft shadows) and its shading, or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
+//! (primary, then hard, edge-width or soft shadows) and its shading (silhouette widths,
+//! `edgewidth::silhouette`, are filled in after the renderer's primary pass), or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
 //! Edge widths (thesis chapter 5) are traced over the kd-tree given to [`FrameLoop::new`]
 //! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
@@ -15,8 +16,11 @@
 use std::time::Instant;
 
 use cones::shadows::SAMPLES;
+use edgewidth::sampling::ShadingPoint;
+use edgewidth::{AreaLight, SilhouetteScratch, Silhouettes, silhouette_visibility};
 use kdtree::surface::Surfaces;
 use kdtree::{Counts, KdTree, Ray};
+use rayon::prelude::*;
 use scenes::colormap::{common_max, heatmap};
 use scenes::font::{GLYPH_H, draw_text, text_width};
 use scenes::{Rgb8Image, Scene, SphereLight};
@@ -91,6 +95,8 @@ pub struct FrameLoop<'a> {
     structures: Structures<'a>,
     /// The scene's surface records (`trace::shade::surfaces`), made once for every frame.
     surfaces: Surfaces,
+    /// The tree's triangle adjacency for silhouette widths, made on their first frame.
+    silhouettes: Option<Silhouettes>,
     light: SphereLight,
     /// Size of `buffers` and the method/shadows they were traced with.
     size: (u32, u32),
@@ -138,6 +144,7 @@ impl<'a> FrameLoop<'a> {
             registry,
             structures,
             surfaces: trace::shade::surfaces(&scene.mesh),
+            silhouettes: None,
             light: trace::soft::scene_light(scene, tree, 1.0),
             size: (0, 0),
             buffers: FrameBuffers::new(0),
@@ -224,6 +231,13 @@ impl<'a> FrameLoop<'a> {
                 let stats = renderer.trace(&mut self.buffers);
                 info.rays = stats.rays();
                 info.trace_secs = stats.trace_secs();
+                if state.shadows == ShadowMode::Silhouette {
+                    let t = Instant::now();
+                    let silhouettes = self.silhouettes.get_or_insert_with(|| Silhouettes::new(self.tree));
+                    let light = AreaLight::Sphere(self.light);
+                    info.rays += silhouette_pass(self.tree, silhouettes, &light, &renderer, &mut self.buffers);
+                    info.trace_secs += t.elapsed().as_secs_f64();
+                }
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
                 // The sum refinement adds to: soft shadows only (edge widths fill `visible` too).
                 if state.shadows == ShadowMode::Soft {
@@ -322,6 +336,41 @@ impl FrameLoop<'_> {
     }
 }
 
+/// Silhouette widths (`edgewidth::silhouette`) of the primary hits in `buffers` (traced by
+/// `renderer`, whose surfaces they use) to `light`, into `buffers.visible` (tile order; 0 for
+/// misses). Returns the shadow rays traced.
+fn silhouette_pass(
+    tree: &KdTree,
+    silhouettes: &Silhouettes,
+    light: &AreaLight,
+    renderer: &Renderer<'_>,
+    buffers: &mut FrameBuffers,
+) -> u64 {
+    let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), renderer.surfaces());
+    let pixels: Vec<(u32, u32)> = layout.tiles().iter().flat_map(|t| t.pixels()).collect();
+    let hits = &buffers.hits;
+    let mut visible = vec![0.0f32; hits.len()];
+    let rays: u64 = visible
+        .par_chunks_mut(REFINE_PIXELS)
+        .enumerate()
+        .map(|(c, out)| {
+            let mut scratch = SilhouetteScratch::default();
+            let mut rays = 0u64;
+            for (k, slot) in out.iter_mut().enumerate() {
+                let i = c * REFINE_PIXELS + k;
+                let (Some(hit), Some(&(x, y))) = (&hits[i], pixels.get(i)) else { continue };
+                let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
+                let v = silhouette_visibility(tree, silhouettes, light, &p, &mut scratch);
+                *slot = v.fraction;
+                rays += u64::from(v.rays);
+            }
+            rays
+        })
+        .sum();
+    buffers.visible = visible;
+    rays
+}
+
 impl Refinement {
     /// One refinement pass over the primary hits of `buffers`: 16 jittered rays per lit pixel
     /// through the method's stream kernel, averaged into `buffers.visible`. Returns the rays
@@ -379,6 +428,8 @@ fn renderer_shadows(mode: ShadowMode) -> Shadows {
         ShadowMode::None => Shadows::None,
         ShadowMode::Hard => Shadows::Hard,
         ShadowMode::EdgeWidth => Shadows::EdgeWidth,
+        // Primary rays only: `FrameLoop::silhouette_pass` fills the visible fractions.
+        ShadowMode::Silhouette => Shadows::None,
         ShadowMode::Soft => Shadows::Soft16,
     }
 }
@@ -523,6 +574,33 @@ mod tests {
         assert!(frames.render(&state, Change::default(), 300, 7, &mut out).unwrap().is_some());
         assert_eq!(out.len(), 2100);
     }
+    /// Silhouette widths (H after edge widths): a frame shaded with `edgewidth::silhouette`'s
+    /// visible fractions, which are the hard shadow's outside the penumbrae and fractional in
+    /// them; nothing to refine; the status line names the mode.
+    #[test]
+    fn silhouette_frames_soften_the_hard_shadows() {
+        let (scene, tree) = setup();
+        let mut frames = FrameLoop::new(&scene, &tree);
+        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+        let (w, h) = (96, 64);
+        let settings = Change { settings: true, camera: false };
+        let mut hard = Vec::new();
+        frames.render(&state, settings, w, h, &mut hard).unwrap().unwrap();
+        state.shadows = ShadowMode::Silhouette;
+        let mut soft = Vec::new();
+        let info = frames.render(&state, settings, w, h, &mut soft).unwrap().unwrap();
+        assert!(info.status(&state).ends_with("edge-width-silhouette"), "{}", info.status(&state));
+        assert!(info.rays > u64::from(w * h), "primary and shadow rays: {}", info.rays);
+        assert!(frames.render(&state, Change::default(), w, h, &mut soft).unwrap().is_none(), "nothing to refine");
+        looks_like_a_scene(&soft);
+        let visible = &frames.buffers.visible;
+        assert_eq!(visible.len(), w as usize * h as usize);
+        assert!(visible.iter().all(|v| (0.0..=1.0).contains(v)));
+        assert!(visible.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
+        assert!(visible.iter().filter(|&&v| v == 1.0).count() > visible.len() / 10, "lit pixels");
+        assert_ne!(soft, hard);
+    }
+
     /// Edge-width shadows (H: none, hard, edge width, soft): the frame is the renderer's
     /// edge-width image; it differs from the hard-shadow frame only in the light's penumbra
     /// (0 < visible < 1, inside the hard shadows), in some pixels there, and is identical

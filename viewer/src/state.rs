@@ -69,6 +69,10 @@ pub enum ShadowMode {
     /// Edge Width Soft Shadows (thesis chapter 5): one edge-width ray per hit to the centre
     /// of the soft shadows' spherical light (`trace::Shadows::EdgeWidth`, over the kd-tree).
     EdgeWidth,
+    /// Silhouette widths (`edgewidth::silhouette`): the edge-width variant that draws both
+    /// halves of the penumbra and does not leak; one shadow ray per hit to the centre of the
+    /// same spherical light, the silhouette edges in its cone, a check ray per claimed exit.
+    Silhouette,
     /// 16 rays per hit to a spherical light (the method's soft-shadow pass), refined with 16
     /// more per hit each frame while the camera rests.
     Soft,
@@ -76,19 +80,21 @@ pub enum ShadowMode {
 
 impl ShadowMode {
     /// Every mode, in the order of the `H` key.
-    pub const ALL: [ShadowMode; 4] = [ShadowMode::None, ShadowMode::Hard, ShadowMode::EdgeWidth, ShadowMode::Soft];
+    pub const ALL: [ShadowMode; 5] =
+        [ShadowMode::None, ShadowMode::Hard, ShadowMode::EdgeWidth, ShadowMode::Silhouette, ShadowMode::Soft];
 
     /// The mode called `name` (its [`ShadowMode::name`]).
     pub fn from_name(name: &str) -> Option<ShadowMode> {
         ShadowMode::ALL.into_iter().find(|m| m.name() == name)
     }
 
-    /// The next mode (`H` key): none, hard, edge width, soft, none.
+    /// The next mode (`H` key): none, hard, edge width, silhouette widths, soft, none.
     pub fn next(self) -> ShadowMode {
         match self {
             ShadowMode::None => ShadowMode::Hard,
             ShadowMode::Hard => ShadowMode::EdgeWidth,
-            ShadowMode::EdgeWidth => ShadowMode::Soft,
+            ShadowMode::EdgeWidth => ShadowMode::Silhouette,
+            ShadowMode::Silhouette => ShadowMode::Soft,
             ShadowMode::Soft => ShadowMode::None,
         }
     }
@@ -99,6 +105,7 @@ impl ShadowMode {
             ShadowMode::None => "none",
             ShadowMode::Hard => "hard",
             ShadowMode::EdgeWidth => "edge-width",
+            ShadowMode::Silhouette => "edge-width-silhouette",
             ShadowMode::Soft => "soft",
         }
     }
@@ -315,18 +322,22 @@ mod tests {
         assert_eq!(s.method_name(), "mft-16");
         assert_eq!(s.shadows, ShadowMode::Hard);
         let mut cycle = Vec::new();
-        for _ in 0..4 {
+        for _ in 0..5 {
             assert!(s.apply(&press(Action::NextShadows)).settings);
             cycle.push(s.shadows);
         }
-        assert_eq!(cycle, [ShadowMode::EdgeWidth, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]);
+        assert_eq!(
+            cycle,
+            [ShadowMode::EdgeWidth, ShadowMode::Silhouette, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]
+        );
         for m in ShadowMode::ALL {
             assert_eq!(ShadowMode::from_name(m.name()), Some(m));
-            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 4], m.next());
+            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 5], m.next());
         }
         assert_eq!(ShadowMode::from_name("soft16"), None);
-        s.apply(&press(Action::NextShadows));
-        s.apply(&press(Action::NextShadows));
+        for _ in 0..3 {
+            s.apply(&press(Action::NextShadows));
+        }
         assert_eq!(s.shadows, ShadowMode::Soft);
         let mut seen = Vec::new();
         for _ in 0..5 {
