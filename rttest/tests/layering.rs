@@ -62,7 +62,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("conformance", &["cones", "kdtree", "scenes", "trace"]),
     ("experiments", &["baselines", "cones", "edgewidth", "kdtree", "mbvh", "packets", "scenes", "trace"]),
     ("rttest", &["baselines", "cones", "edgewidth", "experiments", "kdtree", "packets", "scenes", "trace"]),
-    ("viewer", &["baselines", "cones", "kdtree", "scenes", "trace"]),
+    ("viewer", &["baselines", "cones", "edgewidth", "kdtree", "scenes", "trace"]),
 ];
 
 // ---------------------------------------------------------------------------------------------
