@@ -4,8 +4,9 @@
 //! One [`crate::compare`] run per scene times every rung (interleaved rounds, medians), so a
 //! row's widths and Embree's compare within one run. A rung is a registry method capped at a
 //! SIMD level (`NAME@LEVEL`, [`trace::Options::simd`]): our packet kernels at 4 (SSE 4.1, the
-//! thesis's 2x2 packets), 8 (AVX2, 4x2 pixels) and 16 lanes (AVX-512, 4x4 pixels), the
-//! multi-BVHs at node widths 4, 8 and 16 (one ray against W children), and the kd-tree's
+//! thesis's 2x2 packets), 8 (AVX2, 4x2 pixels) and 16 lanes (AVX-512, 4x4 pixels), MFT with
+//! 16 frusta over those packets, Benthin & Wald's lane frusta 4, 8 and 16 frusta per step,
+//! the multi-BVHs at node widths 4, 8 and 16 (one ray against W children), and the kd-tree's
 //! single rays as every kernel's `W = 1`. Levels above the machine's (or `rttest --simd`'s
 //! cap) are not run and show as `-`, as do Embree's rungs in a build without it.
 
@@ -79,6 +80,11 @@ const LADDER: &[Rungs] = &[
         [Some("mono"), Some("mft-16@sse"), Some("mft-16@avx2"), Some("mft-16@avx512")],
     ),
     rungs(
+        "MFT 16x16, 16 frusta (`kd-mft-x16`)",
+        Column::Primary,
+        [Some("mono"), Some("mft-x16-16@sse"), Some("mft-x16-16@avx2"), Some("mft-x16-16@avx512")],
+    ),
+    rungs(
         "omni-directional packets (`kd-omni-packets`)",
         Column::Primary,
         [Some("mono"), Some("packet@sse"), Some("packet@avx2"), Some("packet@avx512")],
@@ -92,6 +98,16 @@ const LADDER: &[Rungs] = &[
         "stratum packets (`kd-stratum-packets`)",
         Column::Soft16,
         [Some("mono"), Some("packet@sse"), Some("packet@avx2"), Some("packet@avx512")],
+    ),
+    rungs(
+        "lane frusta, W frusta per step (`kd-lane-frusta`)",
+        Column::Shadow,
+        [Some("mono"), Some("lane-frusta-16@sse"), Some("lane-frusta-16@avx2"), Some("lane-frusta-16@avx512")],
+    ),
+    rungs(
+        "lane frusta, W frusta per step (`kd-lane-frusta`)",
+        Column::Soft16,
+        [Some("mono"), Some("lane-frusta-16@sse"), Some("lane-frusta-16@avx2"), Some("lane-frusta-16@avx512")],
     ),
     rungs(
         "multi-BVH, W children per ray",
