@@ -1,7 +1,8 @@
 //! Our methods on structures other than the kd-tree (the 4-, 8- and 16-wide BVHs `mbvh-4`,
-//! `mbvh-8` and `mbvh-16`; on a CPU with AVX2 `mbvh-8` runs its AVX2 node test, with
-//! AVX-512 `mbvh-16` its AVX-512 one, and their scalar twins `NAME@sse` are checked against
-//! the oracle too) through the
+//! `mbvh-8` and `mbvh-16`, and the 8-wide tree's 16-ray packets `mbvh-8-p16`; on a CPU with
+//! AVX2 `mbvh-8` runs its AVX2 node test, with AVX-512 `mbvh-16` its AVX-512 one and
+//! `mbvh-8-p16` its AVX-512 packets, and their scalar twins `NAME@sse` (scalar node tests,
+//! portable packet lanes) are checked against the oracle too) through the
 //! conformance harness (this crate): every query (primary tiles at tiles 4, 8 and
 //! 16, hard and soft shadows, streams closest and any hit) against `mono` on the kd-tree
 //! built with the same triangle test, under `Rule::Equivalent` (the hit `mono` reports, a tie
@@ -32,7 +33,7 @@ fn plan(registry: &Registry) -> Plan {
             oracles.push(OracleCheck { method: twin, test: OracleTest::Tree, rule: Rule::Exact });
         }
     }
-    for name in ["mbvh-4", "mbvh-8", "mbvh-16"] {
+    for name in ["mbvh-4", "mbvh-8", "mbvh-16", "mbvh-8-p16"] {
         assert!(oracles.iter().any(|o| o.method == name), "{name} is not checked");
     }
     Plan { checks, oracles, ..Plan::ours(registry) }

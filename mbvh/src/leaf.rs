@@ -10,6 +10,8 @@
 //! `tests/oracle.rs`); unused lanes hold NaN records, which never hit. The BVH's own rule for
 //! ties is the lowest lane at equal `t`, in both the SIMD block and its scalar twin.
 
+use std::any::Any;
+
 use glam::{BVec4A, Vec4};
 use kdtree::Ray;
 use kdtree::leaf::{GroupHits, LeafGroup, Wald4, Watertight4};
@@ -39,6 +41,12 @@ pub trait LeafBlock: Copy + Send + Sync + 'static {
     fn closest(&self, ray: &Ray, data: &Self::RayData, t_max: f32) -> Option<(usize, f32, f32, f32)>;
     /// Whether any lane is hit in `[ray.t_min, t_max]`.
     fn any(&self, ray: &Ray, data: &Self::RayData, t_max: f32) -> bool;
+    /// The block's Wald group if it holds Wald records (for the packets' 16-lane leaf test,
+    /// [`crate::packet`]), else `None`.
+    #[inline(always)]
+    fn wald_group(&self) -> Option<&Wald4> {
+        None
+    }
     /// The scalar twin of [`LeafBlock::closest`]: the records one by one.
     fn closest_scalar(&self, ray: &Ray, t_max: f32) -> Option<(usize, f32, f32, f32)> {
         let data = Self::Record::prepare(ray);
@@ -118,6 +126,12 @@ where
     #[inline(always)]
     fn any(&self, ray: &Ray, data: &G::RayData, t_max: f32) -> bool {
         self.group.intersect(ray, data, t_max).mask.any()
+    }
+
+    #[inline(always)]
+    fn wald_group(&self) -> Option<&Wald4> {
+        // A type comparison, decided at compile time.
+        (&self.group as &dyn Any).downcast_ref::<Wald4>()
     }
 }
 

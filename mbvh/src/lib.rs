@@ -30,10 +30,15 @@
 //!   each lane bit-identical to the scalar test.
 //! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), one loop
 //!   for every width and node test, with a scalar twin.
+//! - [`packet`]: the 8-wide tree traced by packets of 16 rays (one AVX-512 register per ray
+//!   coordinate, [`Avx512`], or the portable twin [`Portable16`]), lanes finished by single
+//!   rays below a threshold (the hybrid traversal of Benthin et al. 2012, Embree's
+//!   incoherent `embree-16`).
 //!
 //! Modules import only downwards: `node` imports nothing of the crate; `boxtest` and
 //! `build` import `node`; `simd4`, `simd8` and `simd16` import `node` and `boxtest`; `traverse`
-//! imports `node`, `boxtest` and `leaf`; this root imports them all.
+//! imports `node`, `boxtest` and `leaf`; `packet` imports `node`, `boxtest`, `leaf`,
+//! `simd16` and `traverse`; this root imports them all.
 //!
 //! **Where the CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
 //! and builds 16-wide nodes and leaves. The project's first machine (AMD Zen 1) has SSE4.2 and
@@ -59,6 +64,7 @@ pub mod boxtest;
 pub mod build;
 pub mod leaf;
 pub mod node;
+pub mod packet;
 pub mod simd16;
 pub mod simd4;
 pub mod simd8;
@@ -72,6 +78,7 @@ pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8, Scalar16};
 pub use build::BuildError;
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
 pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, Node16, NodeWidth, Width};
+pub use packet::{HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, LEAF_LANES, PacketLanes, PacketTraversal, Portable16};
 pub use simd4::Simd4;
 pub use simd8::Avx2;
 pub use simd16::Avx512;

@@ -48,7 +48,7 @@ impl<B, K: BoxTest> Copy for Traversal<'_, B, K> {}
 /// Whether a ray can hit anything: finite origin and direction, a non-NaN interval. Others
 /// get "no hit" (as from `kdtree::KdTree::intersect`).
 #[inline(always)]
-fn traceable(ray: &Ray) -> bool {
+pub(crate) fn traceable(ray: &Ray) -> bool {
     ray.origin.is_finite() && ray.dir.is_finite() && !ray.t_min.is_nan() && !ray.t_max.is_nan()
 }
 
@@ -101,15 +101,32 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         if !traceable(ray) {
             return None;
         }
-        let rb = K::prepare(ray);
         let data = B::prepare(ray);
+        self.closest_from::<SIMD, C>(0, ray, &data, ray.t_max, counters)
+    }
+
+    /// The closest-hit loop from node `start` (an inner node or `LEAF | block`) with the
+    /// interval `[ray.t_min, t_max]`, for a traceable `ray` whose leaf data is `data`: the
+    /// closest hit below `start`, `None` if none is at most `t_max`. The whole query is
+    /// `closest_from(0, ray, .., ray.t_max)`; the packet traversal ([`crate::packet`]) finishes
+    /// its lanes with it.
+    #[inline(always)]
+    pub(crate) fn closest_from<const SIMD: bool, C: Counters>(
+        &self,
+        start: u32,
+        ray: &Ray,
+        data: &B::RayData,
+        t_max: f32,
+        counters: &mut C,
+    ) -> Option<Hit> {
+        let rb = K::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
         let mut storage = <K::Node as MultiNode>::Stack::<(u32, f32)>::uninit();
         let stack = storage.entries();
         let mut sp = 1;
-        stack[0].write((0, ray.t_min));
+        stack[0].write((start, ray.t_min));
         let mut best: Option<Hit> = None;
-        let mut t_max = ray.t_max;
+        let mut t_max = t_max;
         while sp > 0 {
             sp -= 1;
             // SAFETY: below the stack pointer (invariant).
@@ -124,7 +141,7 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
                     if C::ENABLED {
                         counters.tests(block_count(block));
                     }
-                    let hit = if SIMD { block.closest(ray, &data, t_max) } else { block.closest_scalar(ray, t_max) };
+                    let hit = if SIMD { block.closest(ray, data, t_max) } else { block.closest_scalar(ray, t_max) };
                     if let Some((lane, t, u, v)) = hit {
                         t_max = t;
                         best = Some(Hit { t, u, v, prim: block.record_prim(lane) });
@@ -173,13 +190,26 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         if !traceable(ray) {
             return false;
         }
-        let rb = K::prepare(ray);
         let data = B::prepare(ray);
+        self.any_from::<SIMD, C>(0, ray, &data, counters)
+    }
+
+    /// The any-hit loop from node `start` (see [`Traversal::closest_from`]): whether anything
+    /// below `start` is hit in `[ray.t_min, ray.t_max]`.
+    #[inline(always)]
+    pub(crate) fn any_from<const SIMD: bool, C: Counters>(
+        &self,
+        start: u32,
+        ray: &Ray,
+        data: &B::RayData,
+        counters: &mut C,
+    ) -> bool {
+        let rb = K::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
         let mut storage = <K::Node as MultiNode>::Stack::<u32>::uninit();
         let stack = storage.entries();
         let mut sp = 1;
-        stack[0].write(0);
+        stack[0].write(start);
         while sp > 0 {
             sp -= 1;
             // SAFETY: below the stack pointer (invariant).
@@ -190,11 +220,8 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
                 if C::ENABLED {
                     counters.tests(block_count(block));
                 }
-                let hit = if SIMD {
-                    block.any(ray, &data, ray.t_max)
-                } else {
-                    block.closest_scalar(ray, ray.t_max).is_some()
-                };
+                let hit =
+                    if SIMD { block.any(ray, data, ray.t_max) } else { block.closest_scalar(ray, ray.t_max).is_some() };
                 if hit {
                     return true;
                 }
@@ -227,6 +254,6 @@ impl<B: LeafBlock, K: BoxTest> TraversalLoop for Traversal<'_, B, K> {
 }
 
 /// The triangles in a block (its used lanes), for the counters.
-fn block_count<B: LeafBlock>(block: &B) -> u64 {
+pub(crate) fn block_count<B: LeafBlock>(block: &B) -> u64 {
     (0..LANES).filter(|&l| block.record_prim(l) != u32::MAX).count() as u64
 }

@@ -10,14 +10,26 @@
 //! the conformance rules. `mbvh-8` tests its nodes in AVX2 where the CPU has it, asked once
 //! when the method is bound ([`mbvh::Avx2::detect`]), and with the scalar 8-wide test
 //! elsewhere.
+//!
+//! `mbvh-8-p16` traces the 8-wide tree's ray streams (the incoherent AO and diffuse rays) and
+//! each point's 16 soft-shadow rays by packets of 16 rays, one AVX-512 register per ray
+//! coordinate, lanes finished by single rays below a threshold ([`mbvh::packet`]: the hybrid
+//! traversal that Embree's `embree-16` incoherent rows run); primary and hard-shadow tiles go
+//! ray by ray through the same tree as `mbvh-8`. Without AVX-512 (or below it by
+//! `Options::simd`) the packets run in the portable lanes, the same answers bit for bit.
 
+use cones::Cone;
+use cones::shadows::SAMPLES;
 use kdtree::isa::SimdLevel;
 use kdtree::{Hit, KdTree, Ray};
-use mbvh::{Avx2, Avx512, BoxTest, DefaultTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, MultiBvh, Traversal};
-use scenes::Scene;
+use mbvh::{
+    Avx2, Avx512, BoxTest, DefaultTest, LeafBlock, Mbvh, Mbvh8, Mbvh16, MultiBvh, Node8, PacketLanes, PacketTraversal,
+    Portable16, Traversal,
+};
+use scenes::{Camera, Scene, Tile};
 
 use crate::error::Error;
-use crate::method::{SingleRays, TileCounters, Tracer};
+use crate::method::{Method, ShadowJob, SingleRays, TileCounters, Tracer};
 use crate::registry::{Binding, KernelNames};
 
 /// The registry's name of the 4-wide BVH structure.
@@ -103,6 +115,83 @@ fn bind_wide<'s, N: DefaultTest, T: BoxTest<Node = N> + 's>(
     }
 }
 
+/// `mbvh-8-p16`: the 8-wide BVH `bvh` with the triangle test of `tree`, ray streams and
+/// soft-shadow points by packets of 16 rays ([`PacketTraversal`]), in AVX-512 if this CPU has
+/// it and `simd` allows it, else in the portable lanes (the kernel then named
+/// `mbvh-8-p16-portable`); single rays (primary and hard-shadow tiles, and lanes below the
+/// hybrid threshold) through `mbvh-8`'s node test (AVX2 or scalar, as [`bind8`] picks).
+pub fn bind8_p16<'s>(bvh: &'s Mbvh8, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
+    let avx512 = Avx512::detect().filter(|_| simd >= SimdLevel::Avx512);
+    let avx2 = Avx2::detect().filter(|_| simd >= SimdLevel::Avx2);
+    let portable = KernelNames::whole("mbvh-8-p16-portable");
+    match (tree.intersector(), avx512, avx2) {
+        (kdtree::Intersector::Wald, Some(t), Some(a)) => {
+            Ok(Binding::method(Packets(bvh.wald().with_test(a).packets(t))))
+        }
+        (kdtree::Intersector::Watertight, Some(t), Some(a)) => {
+            Ok(Binding::method(Packets(bvh.watertight().with_test(a).packets(t))))
+        }
+        (kdtree::Intersector::Wald, _, Some(a)) => {
+            Ok(Binding::method(Packets(bvh.wald().with_test(a).packets(Portable16))).named(portable))
+        }
+        (kdtree::Intersector::Watertight, _, Some(a)) => {
+            Ok(Binding::method(Packets(bvh.watertight().with_test(a).packets(Portable16))).named(portable))
+        }
+        (kdtree::Intersector::Wald, _, None) => {
+            Ok(Binding::method(Packets(bvh.wald().packets(Portable16))).named(portable))
+        }
+        (kdtree::Intersector::Watertight, _, None) => {
+            Ok(Binding::method(Packets(bvh.watertight().packets(Portable16))).named(portable))
+        }
+    }
+}
+
+/// The 8-wide tree as a [`Method`] traced by 16-ray packets: streams and soft-shadow points
+/// by packets, primary and hard-shadow tiles ray by ray.
+#[derive(Debug)]
+struct Packets<'s, B, K: BoxTest<Node = Node8>, L>(PacketTraversal<'s, B, K, L>);
+
+impl<B: LeafBlock, K: BoxTest<Node = Node8>, L: PacketLanes> Method for Packets<'_, B, K, L> {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    fn primary_tile<C: TileCounters>(
+        &self,
+        scratch: &mut (),
+        camera: &Camera,
+        tile: &Tile,
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        SingleRays(self.0.single()).primary_tile(scratch, camera, tile, out, counters);
+    }
+
+    fn shadow_tile<C: TileCounters>(
+        &self,
+        scratch: &mut (),
+        job: &ShadowJob<'_>,
+        out: &mut [bool],
+        counters: &mut C,
+    ) -> (u64, u64) {
+        SingleRays(self.0.single()).shadow_tile(scratch, job, out, counters)
+    }
+
+    fn soft_point<C: TileCounters>(&self, _: &mut (), rays: &[Ray; SAMPLES], _: &Cone, counters: &mut C) -> u16 {
+        let mut blocked = [false; SAMPLES];
+        self.0.occluded_stream(rays, &mut blocked, counters);
+        blocked.iter().enumerate().fold(0, |m, (i, &b)| m | u16::from(b) << i)
+    }
+
+    fn stream<C: TileCounters>(&self, _: &mut (), rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
+        self.0.intersect_stream(rays, out, counters);
+    }
+
+    fn stream_occluded<C: TileCounters>(&self, _: &mut (), rays: &[Ray], out: &mut [bool], counters: &mut C) {
+        self.0.occluded_stream(rays, out, counters);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,6 +212,13 @@ mod tests {
         assert_eq!(names(SimdLevel::Avx2).as_deref(), Some("mbvh-16-scalar-nodes"));
         if Avx512::detect().is_some() {
             assert_eq!(names(SimdLevel::Avx512), None, "named by its entry, mbvh-16");
+        }
+        let bvh = build8(&scene).unwrap();
+        let names = |simd| bind8_p16(&bvh, &tree, simd).unwrap().kernels.map(|k| k.primary);
+        assert_eq!(names(SimdLevel::Avx2).as_deref(), Some("mbvh-8-p16-portable"));
+        assert_eq!(names(SimdLevel::Scalar).as_deref(), Some("mbvh-8-p16-portable"));
+        if Avx512::detect().is_some() {
+            assert_eq!(names(SimdLevel::Avx512), None, "named by its entry, mbvh-8-p16");
         }
     }
 }

@@ -93,6 +93,7 @@ impl Registry {
         r.add(Entry::whole("mbvh-4", "ours", "4-wide BVH, single rays, SIMD over children and leaf triangles (Wald, Benthin & Boulos 2008)", multibvh::MBVH, |s, _| multibvh::bind(s.get(multibvh::MBVH)?, s.kdtree())));
         r.add_structure(StructureEntry { name: multibvh::MBVH8, build: |scene| Ok(Box::new(multibvh::build8(scene)?)) });
         r.add(Entry::whole("mbvh-8", "ours", "8-wide BVH, single rays, AVX2 over children (chosen at run time), SIMD over leaf triangles (Wald, Benthin & Boulos 2008)", multibvh::MBVH8, |s, o| multibvh::bind8(s.get(multibvh::MBVH8)?, s.kdtree(), o.simd)));
+        r.add(Entry::whole("mbvh-8-p16", "ours", "8-wide BVH, ray streams and soft-shadow points by 16-ray packets (AVX-512 over the packet, chosen at run time), single rays below 7 (closest hit) or 4 (any hit) active lanes and for primary and hard-shadow tiles (Benthin et al. 2012's hybrid traversal, Embree's incoherent embree-16)", multibvh::MBVH8, |s, o| multibvh::bind8_p16(s.get(multibvh::MBVH8)?, s.kdtree(), o.simd)));
         r.add_structure(StructureEntry { name: multibvh::MBVH16, build: |scene| Ok(Box::new(multibvh::build16(scene)?)) });
         r.add(Entry::whole("mbvh-16", "ours", "16-wide BVH, single rays, one ray against 16 children per AVX-512 step (chosen at run time), SIMD over leaf triangles (Wald, Benthin & Boulos 2008, as published)", multibvh::MBVH16, |s, o| multibvh::bind16(s.get(multibvh::MBVH16)?, s.kdtree(), o.simd)));
         r
