@@ -120,6 +120,12 @@ const LADDER: &[Rungs] = &[
         Column::Diffuse,
         [Some("mono"), Some("mbvh-4"), Some("mbvh-8"), Some("mbvh-16")],
     ),
+    rungs("8-wide BVH nodes, W-ray packets (hybrid)", Column::Ao, [Some("mbvh-8"), None, None, Some("mbvh-8-p16")]),
+    rungs(
+        "8-wide BVH nodes, W-ray packets (hybrid)",
+        Column::Diffuse,
+        [Some("mbvh-8"), None, None, Some("mbvh-8-p16")],
+    ),
     rungs("Embree packets", Column::Primary, [Some("embree-1"), Some("embree-4"), Some("embree-8"), Some("embree-16")]),
     rungs("Embree packets", Column::Shadow, [Some("embree-1"), Some("embree-4"), Some("embree-8"), Some("embree-16")]),
     rungs("Embree packets", Column::Soft16, [Some("embree-1"), Some("embree-4"), Some("embree-8"), Some("embree-16")]),
