@@ -727,11 +727,15 @@ mod tests {
     fn a_run_of_ours_has_no_mismatch() {
         let report = run(&config(&["ours"]), &trace::progress::Quiet).unwrap();
         assert_eq!(report.rows.len(), names(&["ours"]).unwrap().len());
-        // The packet kernels run at the widest width of this CPU, the lane frusta at 8 with
-        // AVX2 (their names say so: `kd-packets-w16`, `kd-lane-frusta-x4`).
+        // The packet kernels run at the widest width of this CPU, and so do the lane frusta
+        // (16 with AVX-512, 8 with AVX2, else 4: their names say so, `kd-packets-w16`,
+        // `kd-lane-frusta-x16`, `kd-lane-frusta`, `kd-lane-frusta-x4`).
         let simd = kdtree::isa::SimdLevel::active();
         let wide = packets::Width::for_level(simd).suffix();
-        let lanes = if simd >= kdtree::isa::SimdLevel::Avx2 { "kd-lane-frusta" } else { "kd-lane-frusta-x4" };
+        let lanes = match packets::LaneWidth::widest() {
+            packets::LaneWidth::Eight => "kd-lane-frusta".to_string(),
+            w => format!("kd-lane-frusta-x{}", w.lanes()),
+        };
         for r in &report.rows {
             // mbvh-4 and mbvh-8 trace other structures: at equal distance they may name the
             // other triangle of a tie (the harness's rules); the kd-tree methods name `mono`'s.
@@ -745,7 +749,7 @@ mod tests {
             let kernel = match r.method.as_str() {
                 m if bvh => m.to_string(),
                 "mono" => "kd-single".to_string(),
-                m if m.starts_with("lane-frusta-") => lanes.to_string(),
+                m if m.starts_with("lane-frusta-") => lanes.clone(),
                 m => m.strip_prefix("multi-frusta-").map_or(format!("kd-packets{wide}"), |t| format!("kd-frusta-{t}")),
             };
             assert_eq!(r.shadow_kernel.as_deref(), Some(kernel.as_str()));
