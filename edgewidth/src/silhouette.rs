@@ -328,6 +328,32 @@ pub fn silhouette_visibility(
     p: &ShadingPoint,
     scratch: &mut SilhouetteScratch,
 ) -> SilhouetteVisibility {
+    visibility(tree, silhouettes, light, p, scratch, None)
+}
+
+/// [`silhouette_visibility`] of a point whose hard shadow ray to the light's centre has been
+/// traced already (by [`hard_probe`]): `blocked` is its answer. The rays returned are the
+/// check rays only. Gives what [`silhouette_visibility`] gives, with one ray fewer.
+pub fn silhouette_search(
+    tree: &KdTree,
+    silhouettes: &Silhouettes,
+    light: &AreaLight,
+    p: &ShadingPoint,
+    blocked: bool,
+    scratch: &mut SilhouetteScratch,
+) -> SilhouetteVisibility {
+    visibility(tree, silhouettes, light, p, scratch, Some(blocked))
+}
+
+/// [`silhouette_visibility`], its centre ray's answer given (`known`) or traced here.
+fn visibility(
+    tree: &KdTree,
+    silhouettes: &Silhouettes,
+    light: &AreaLight,
+    p: &ShadingPoint,
+    scratch: &mut SilhouetteScratch,
+    known: Option<bool>,
+) -> SilhouetteVisibility {
     let none = SilhouetteVisibility { fraction: 0.0, rays: 0 };
     let center = light.center();
     let Some(profile) = Profile::of(light, p.point) else {
@@ -345,13 +371,7 @@ pub fn silhouette_visibility(
     }
     // The horizon: the receiver's tangent plane seen on the light plane is the line
     // `e . h = m_h` with `h` the normal's part across the ray, pointing down.
-    let across = normal - dir * dir.dot(normal);
-    let (h, m_h) = if across.length_squared() > 1e-12 {
-        let len = across.length();
-        (-across / len, to.dot(normal) / len)
-    } else {
-        (Vec3::ZERO, f32::INFINITY)
-    };
+    let (h, m_h) = horizon_line(normal, to, dir);
     let Some(ray) = p.shadow_ray(center) else {
         // The centre is below the horizon: one ray towards the middle of the part above it.
         if h == Vec3::ZERO {
@@ -369,7 +389,7 @@ pub fn silhouette_visibility(
         };
     };
     let horizon = if h == Vec3::ZERO { 1.0 } else { 1.0 - profile.tail(h, m_h) };
-    let blocked = tree.occluded(&ray);
+    let blocked = known.unwrap_or_else(|| tree.occluded(&ray));
     let mut search = Search {
         origin: ray.origin,
         dir: ray.dir,
@@ -386,7 +406,7 @@ pub fn silhouette_visibility(
     }
     scratch.mailbox = Mailbox::default();
     search.walk(tree, silhouettes, &mut scratch.stack, &mut scratch.mailbox);
-    let mut rays = 1;
+    let mut rays = u32::from(known.is_none());
     let fraction = if !blocked {
         search.free
     } else {
@@ -408,6 +428,114 @@ pub fn silhouette_visibility(
     };
     let fraction = if fraction.is_nan() { f32::from(u8::from(!blocked)) } else { fraction.clamp(0.0, 1.0) };
     SilhouetteVisibility { fraction, rays }
+}
+
+/// The receiver's tangent plane (unit `normal`) seen on the light plane from a point `to` away
+/// from the light's centre (`dir` its unit direction): the line `e . h = m_h`, `h` pointing
+/// below the horizon; `(0, inf)` when the normal is along the ray.
+fn horizon_line(normal: Vec3, to: Vec3, dir: Vec3) -> (Vec3, f32) {
+    let across = normal - dir * dir.dot(normal);
+    if across.length_squared() > 1e-12 {
+        let len = across.length();
+        (-across / len, to.dot(normal) / len)
+    } else {
+        (Vec3::ZERO, f32::INFINITY)
+    }
+}
+
+/// A pixel's hard shadow ray, as the gated frame pass ([`penumbra_mask`]) sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Probe {
+    /// Answered in full without a search (the light's centre below the horizon, the point
+    /// inside a spherical light, degenerate input): the visibility is final.
+    Done(SilhouetteVisibility),
+    /// The centre is visible; the visible fraction if no edge is near is the horizon's.
+    Lit(f32),
+    /// The centre is blocked; how far (in pixels) the penumbra may reach from the hard
+    /// shadow's edge there.
+    Blocked(f32),
+}
+
+impl Probe {
+    /// The answer when no search follows: the final visibility, the horizon's share, or 0.
+    pub fn fraction(self) -> f32 {
+        match self {
+            Probe::Done(v) => v.fraction,
+            Probe::Lit(f) => f,
+            Probe::Blocked(_) => 0.0,
+        }
+    }
+}
+
+/// The farthest a penumbra is taken to reach from a hard shadow's edge, in pixels.
+pub const MAX_REACH: f32 = 24.0;
+
+/// The hard shadow ray of [`silhouette_visibility`] alone, for a point whose pixel covers
+/// `pixel` world units across (at its distance from the camera): whether the light's centre
+/// is visible and, when it is blocked, how many pixels the penumbra may reach from there
+/// (PCSS's width: the light's extent on its plane times `t / (1 - t)` for the nearest
+/// blocker at `t` of the ray, stretched by the receiver's slant to the light, with a margin,
+/// at most [`MAX_REACH`]). One ray (a nearest-hit one), none for a `Done` without rays.
+pub fn hard_probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32) -> Probe {
+    let center = light.center();
+    let (Some(profile), Some(ray)) = (Profile::of(light, p.point), p.shadow_ray(center)) else {
+        return Probe::Done(silhouette_visibility(
+            tree,
+            &Silhouettes::EMPTY,
+            light,
+            p,
+            &mut SilhouetteScratch::default(),
+        ));
+    };
+    let normal = p.normal.normalize_or_zero();
+    let to = center - p.point;
+    let dir = to.normalize_or_zero();
+    if !(to.is_finite() && normal.is_finite()) || dir == Vec3::ZERO || normal == Vec3::ZERO {
+        return Probe::Done(SilhouetteVisibility { fraction: 0.0, rays: 0 });
+    }
+    match tree.intersect(&ray) {
+        None => {
+            let (h, m_h) = horizon_line(normal, to, dir);
+            let horizon = if h == Vec3::ZERO { 1.0 } else { 1.0 - profile.tail(h, m_h) };
+            Probe::Lit(if horizon.is_nan() { 1.0 } else { horizon.clamp(0.0, 1.0) })
+        }
+        Some(hit) => {
+            let t = hit.t.clamp(0.0, 1.0);
+            let width = profile.max_support() * t / (1.0 - t).max(1e-3);
+            let slant = normal.dot(dir).max(0.1);
+            let reach = 1.5 * width / (slant * pixel) + 1.5;
+            Probe::Blocked(if reach.is_nan() { MAX_REACH } else { reach.min(MAX_REACH) })
+        }
+    }
+}
+
+/// Which pixels of a `width` x `height` frame (row-major `probes`, `None` where no surface
+/// was hit) need the cone search: every pixel within a blocked pixel's reach of it, for each
+/// blocked pixel with a lit 8-neighbour (the hard shadow's edge, on its dark side). The
+/// rest keep [`Probe::fraction`]: far from a hard shadow's edge a point is taken to be in the
+/// umbra or fully lit. A penumbra whose hard shadow falls between pixel centres (an occluder
+/// thinner than a pixel's footprint) is missed, as hard shadows miss it.
+pub fn penumbra_mask(width: u32, height: u32, probes: &[Option<Probe>]) -> Vec<bool> {
+    let (w, h) = (width as usize, height as usize);
+    let mut mask = vec![false; probes.len()];
+    if probes.len() != w * h {
+        return mask;
+    }
+    let lit = |x: usize, y: usize| matches!(probes[y * w + x], Some(Probe::Lit(_)));
+    for y in 0..h {
+        for x in 0..w {
+            let Some(Probe::Blocked(reach)) = probes[y * w + x] else { continue };
+            let (x0, x1, y0, y1) = (x.saturating_sub(1), (x + 2).min(w), y.saturating_sub(1), (y + 2).min(h));
+            if !(y0..y1).any(|ny| (x0..x1).any(|nx| lit(nx, ny))) {
+                continue;
+            }
+            let r = reach.ceil() as usize;
+            for row in mask[y.saturating_sub(r) * w..(y + r + 1).min(h) * w].chunks_mut(w) {
+                row[x.saturating_sub(r)..(x + r + 1).min(w)].fill(true);
+            }
+        }
+    }
+    mask
 }
 
 /// The point of `light` seen from `p` in the direction of `q`, a point of the plane through
