@@ -9,6 +9,8 @@
 //! - `edge-width-silhouette`: one hard shadow ray to the centre, then the silhouette edges in
 //!   the light's cone projected onto the light (`edgewidth::silhouette`): both halves of the
 //!   penumbra, no leaks through thin occluders; a check ray per claimed exit in the dark half;
+//!   the edges are searched only for pixels within the penumbra's reach of a hard shadow's
+//!   edge (a frame pass of hard rays first), the others keep the hard answer;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
 //! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
 //!   12 only where the probes of the pixel or of a neighbour disagree
@@ -187,7 +189,8 @@ pub enum ShadowMethod {
     /// Edge widths traced four rays at a time.
     EdgeWidthPacket,
     /// Silhouette widths (`edgewidth::silhouette`): the variant of Eq. 5.1 that draws both
-    /// halves of the penumbra and lets no light through a closed occluder.
+    /// halves of the penumbra and lets no light through a closed occluder, searched only
+    /// near the hard shadow's edges (`silhouette::penumbra_mask`).
     Silhouette,
     /// `N` stratified samples of the light.
     Sampled(u32),
