@@ -9,6 +9,8 @@
 //! - `edge-width-silhouette`: one hard shadow ray to the centre, then the silhouette edges in
 //!   the light's cone projected onto the light (`edgewidth::silhouette`): both halves of the
 //!   penumbra, no leaks through thin occluders; a check ray per claimed exit in the dark half;
+//!   the edges are searched only for pixels within the penumbra's reach of a hard shadow's
+//!   edge (a frame pass of hard rays first), the others keep the hard answer;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
 //! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
 //!   12 only where the probes of the pixel or of a neighbour disagree
@@ -45,9 +47,10 @@ use edgewidth::analytic::sphere_visible_fraction;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
+use edgewidth::silhouette::{Probe, hard_probe, penumbra_mask, silhouette_search};
 use edgewidth::{
     AreaLight, EdgeScratch, LeakRemedies, SilhouetteScratch, Silhouettes, edge_width, occlusion_factor,
-    silhouette_visibility, width_from_light,
+    width_from_light,
 };
 use glam::{Vec2, Vec3};
 use kdtree::surface::Surfaces;
@@ -186,7 +189,8 @@ pub enum ShadowMethod {
     /// Edge widths traced four rays at a time.
     EdgeWidthPacket,
     /// Silhouette widths (`edgewidth::silhouette`): the variant of Eq. 5.1 that draws both
-    /// halves of the penumbra and lets no light through a closed occluder.
+    /// halves of the penumbra and lets no light through a closed occluder, searched only
+    /// near the hard shadow's edges (`silhouette::penumbra_mask`).
     Silhouette,
     /// `N` stratified samples of the light.
     Sampled(u32),
@@ -351,6 +355,8 @@ impl<'a> ShadowSetup<'a> {
         let mut vis = vec![0.0f32; n];
         let shadow_rays = if method == ShadowMethod::Adaptive {
             self.adaptive(&hits, &mut vis)
+        } else if method == ShadowMethod::Silhouette {
+            self.silhouette(&hits, &mut vis)
         } else {
             let sets = InterleavedSets::new(7);
             let chunks: Vec<_> = self.layout.chunks(&hits).into_iter().zip(self.layout.chunks_mut(&mut vis)).collect();
@@ -412,8 +418,6 @@ impl<'a> ShadowSetup<'a> {
             }
             _ => {
                 let mut scratch = EdgeScratch::default();
-                let mut silhouette_scratch = SilhouetteScratch::default();
-                let silhouettes = self.silhouettes.get().unwrap_or(&NO_SILHOUETTES);
                 for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
                     let Some(hit) = hit else {
                         *slot = 0.0;
@@ -432,11 +436,6 @@ impl<'a> ShadowSetup<'a> {
                             }
                             None => 0.0,
                         },
-                        ShadowMethod::Silhouette => {
-                            let v = silhouette_visibility(tree, silhouettes, &self.light, &p, &mut silhouette_scratch);
-                            rays += u64::from(v.rays);
-                            v.fraction
-                        }
                         ShadowMethod::Sampled(n) => {
                             rays += u64::from(n);
                             visible_fraction(tree, &self.light, &p, n, &mut Rng::new(pixel_seed(x, y, u64::from(n))))
@@ -449,6 +448,7 @@ impl<'a> ShadowSetup<'a> {
                         | ShadowMethod::SampledPackets(_)
                         | ShadowMethod::SampledLanes(_)
                         | ShadowMethod::InterleavedLanes
+                        | ShadowMethod::Silhouette
                         | ShadowMethod::Adaptive => {
                             unreachable!("handled above")
                         }
@@ -534,6 +534,65 @@ impl<'a> ShadowSetup<'a> {
         );
         let probed = hits.iter().filter(|h| h.is_some()).count() as u64;
         adaptive::PROBES.len() as u64 * probed + adaptive::REST.len() as u64 * refined
+    }
+
+    /// [`ShadowMethod::Silhouette`] over the frame (`hits` and `out` in tile order), in two
+    /// passes over the tiles: every hit's hard shadow ray (`silhouette::hard_probe`), then the
+    /// cone search (`silhouette::silhouette_search`) only for the pixels near a hard shadow's
+    /// edge (`silhouette::penumbra_mask`); the others keep the hard answer (times the
+    /// horizon's share). Returns the rays traced.
+    fn silhouette(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
+        let silhouettes = self.silhouettes.get().unwrap_or(&NO_SILHOUETTES);
+        // A pixel's footprint per unit of distance from the eye.
+        let pixel_angle = 2.0 * self.camera.tan_half_fovy / self.camera.height as f32;
+        let mut probes = vec![None; hits.len()];
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(&mut probes)).collect();
+        let probed: u64 = for_tiles(
+            &self.layout,
+            chunks,
+            || (),
+            |_, tile, (hits, probes)| {
+                let mut rays = 0u64;
+                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(probes.iter_mut()) {
+                    let Some(hit) = hit else { continue };
+                    let p = self.shading_point(x, y, hit);
+                    let probe = hard_probe(self.tree, &self.light, &p, pixel_angle * p.point.distance(self.camera.eye));
+                    rays += match probe {
+                        Probe::Done(v) => u64::from(v.rays),
+                        _ => 1,
+                    };
+                    *slot = Some(probe);
+                }
+                rays
+            },
+        );
+        let grid = self.layout.to_row_major(&probes);
+        let mask = penumbra_mask(self.camera.width, self.camera.height, &grid);
+        let w = self.camera.width;
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(out)).collect();
+        let searched: u64 =
+            for_tiles(&self.layout, chunks, SilhouetteScratch::default, |scratch, tile, (hits, out)| {
+                let mut rays = 0u64;
+                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
+                    let i = (y * w + x) as usize;
+                    let (Some(hit), Some(probe)) = (hit, grid[i]) else {
+                        *slot = 0.0;
+                        continue;
+                    };
+                    *slot = match probe {
+                        Probe::Lit(_) | Probe::Blocked(_) if mask[i] => {
+                            let p = self.shading_point(x, y, hit);
+                            let blocked = matches!(probe, Probe::Blocked(_));
+                            let v = silhouette_search(self.tree, silhouettes, &self.light, &p, blocked, scratch);
+                            rays += u64::from(v.rays);
+                            v.fraction
+                        }
+                        _ => probe.fraction(),
+                    };
+                }
+                rays
+            });
+        probed + searched
     }
 
     /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as
