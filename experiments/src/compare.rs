@@ -773,7 +773,7 @@ mod tests {
         assert_eq!(soft("mft-8").as_deref(), Some(strata.as_str()));
         assert_eq!(soft("cone-16").as_deref(), Some(strata.as_str()));
         assert_eq!(soft("multi-frusta-16").as_deref(), Some("kd-multi-frusta-16"));
-        assert_eq!(soft("lane-frusta-16").as_deref(), Some(lanes));
+        assert_eq!(soft("lane-frusta-16").as_deref(), Some(lanes.as_str()));
         let text = report.to_string();
         assert!(text.contains("| mft-cone-16 |") && text.contains("| mbvh-4 |") && text.contains("ao Mrays/s"));
         let quiet = CompareConfig { no_incoherent: true, ..config(&["mbvh-4"]) };
