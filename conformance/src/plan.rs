@@ -103,8 +103,8 @@ impl Plan {
                 if e.name == "mono" {
                     continue; // the reference itself
                 }
-                if e.name == "mft-x16" && tile % 8 != 0 {
-                    continue; // 16 regions of whole 2x2 packets need a multiple of 8
+                if e.tiled && !tile.is_multiple_of(e.tile_multiple) {
+                    continue; // a tile the method cannot take (mft-x16: a multiple of 8)
                 }
                 let method = if e.tiled { format!("{}-{tile}", e.name) } else { e.name.to_string() };
                 let options = Options { tile, ..Options::default() };

@@ -181,13 +181,9 @@ pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec
             })?);
             continue;
         }
-        // A group leaves out the tiles a method cannot take: MFT's 16 regions need whole 2x2
-        // packets, a tile that is a multiple of 8 (`mft-x16-4` is not run by `all`).
-        let fits =
-            |i: usize| !all[i].strip_prefix("mft-x16-").is_some_and(|t| t.parse::<u32>().is_ok_and(|t| t % 8 != 0));
         let matched: Vec<usize> = match token {
-            "all" => (0..all.len()).filter(|&i| fits(i)).collect(),
-            "ours" | "embree" => (0..all.len()).filter(|&i| family(i) == token && fits(i)).collect(),
+            "all" => (0..all.len()).collect(),
+            "ours" | "embree" => (0..all.len()).filter(|&i| family(i) == token).collect(),
             "bvh-crates" => (0..all.len()).filter(|&i| matches!(family(i), "bvh" | "obvhs")).collect(),
             name => all.iter().position(|n| n == name).into_iter().collect(),
         };

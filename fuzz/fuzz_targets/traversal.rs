@@ -70,9 +70,6 @@ fuzz_target!(|input: Input| {
         let want: Vec<Option<Hit>> = rays.iter().map(|r| tree.intersect(r)).collect();
         let want_any: Vec<bool> = rays.iter().map(|r| tree.occluded(r)).collect();
         for name in registry.names(&[4, 16]) {
-            if name == "mft-x16-4" {
-                continue; // 16 regions of whole 2x2 packets need a tile that is a multiple of 8
-            }
             let selected = registry.select(&name, Options::default()).expect("a registered name");
             let method = registry.bind(&selected, &structures).expect("binds on our tree");
             let (mut got, mut any) = (vec![None; rays.len()], vec![false; rays.len()]);

@@ -87,15 +87,7 @@ impl<V: SimdF32> TileTracer<V> {
     /// (see [`TreeTest`]).
     #[inline(always)]
     pub fn prepare_with<I: TreeTest>(&mut self, tree: &KdTree) -> [FrustumBound; 4] {
-        self.reset::<I>(true);
-        let quadrants = self.quadrants.clone();
-        crate::simd::array_fn(
-            #[inline(always)]
-            |q| {
-                let range = quadrants[q].clone();
-                bound::pyramid(tree, &self.packets[range.clone()], &mut self.done[range])
-            },
-        )
+        self.prepare_regions_with::<I, 4>(tree)
     }
 
     /// [`TileTracer::prepare_with`] for a tile split into `N` regions

@@ -40,6 +40,7 @@ where
         summary,
         tiled: P::TILED,
         packets: P::PACKETS,
+        tile_multiple: P::TILE_MULTIPLE,
         structure: KDTREE,
         bind: kernel::bind::<P, H, S, R>,
         per_point: None,

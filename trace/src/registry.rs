@@ -192,6 +192,9 @@ pub struct Entry {
     /// Whether the method traces primary rays as 2x2 packets (N and I are then counted per
     /// packet, single rays per 4 rays).
     pub packets: bool,
+    /// What the tile sizes a tiled method takes are a multiple of (4; 8 for `mft-x16`, whose
+    /// 16 regions hold whole 2x2 packets): [`Registry::names`] lists only those.
+    pub tile_multiple: u32,
     /// The structure it traces: [`KDTREE`] or a [`StructureEntry`]'s name.
     pub structure: &'static str,
     /// Makes the method.
@@ -212,7 +215,17 @@ impl Entry {
         structure: &'static str,
         bind: Bind,
     ) -> Entry {
-        Entry { name, family, summary, tiled: false, packets: false, structure, bind, per_point: None }
+        Entry {
+            name,
+            family,
+            summary,
+            tiled: false,
+            packets: false,
+            tile_multiple: 4,
+            structure,
+            bind,
+            per_point: None,
+        }
     }
 
     /// Its name in `--help`: `mft[-N]` for a tiled method.
@@ -314,12 +327,14 @@ impl Registry {
         self.structures.iter().find(|s| s.name == name)
     }
 
-    /// Every full method name, in registration order, the tiled ones once per size of `tiles`.
+    /// Every full method name, in registration order, the tiled ones once per size of `tiles`
+    /// that they take ([`Entry::tile_multiple`]).
     pub fn names(&self, tiles: &[u32]) -> Vec<String> {
         let mut out = Vec::new();
         for e in &self.entries {
             if e.tiled {
-                out.extend(tiles.iter().map(|t| format!("{}-{t}", e.name)));
+                let fits = tiles.iter().filter(|t| t.is_multiple_of(e.tile_multiple));
+                out.extend(fits.map(|t| format!("{}-{t}", e.name)));
             } else {
                 out.push(e.name.to_string());
             }
@@ -427,6 +442,10 @@ mod tests {
         assert!(e.contains("mft[-N]") && e.contains("mono"), "{e}");
         let names = r.names(&[8, 16]);
         assert_eq!(names[..3], ["mono", "packet", "samesign"]);
+        // Only the tiles a method takes: 16 regions of whole 2x2 packets need a multiple of 8.
+        let names = r.names(&[4, 8]);
+        assert!(names.iter().any(|n| n == "mft-4") && names.iter().any(|n| n == "mft-x16-8"));
+        assert!(!names.iter().any(|n| n == "mft-x16-4"));
         assert!(names.contains(&"mft-cone-8".to_string()));
     }
 

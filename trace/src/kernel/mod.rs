@@ -110,6 +110,9 @@ pub trait Primary: FromOptions + Sync {
     /// Whether it traces 2x2 packets (N and I are then counted per packet, single rays per
     /// 4 rays), and whose cost images are attributed per tile.
     const PACKETS: bool;
+    /// What the tile sizes it takes are a multiple of: 4, or 8 for a tile split into 16
+    /// regions of whole 2x2 packets ([`primary::MftX16`]).
+    const TILE_MULTIPLE: u32 = 4;
 
     /// Its identity: `kd-single`, `kd-mft-16`, ...
     fn name(&self) -> String;

@@ -205,6 +205,7 @@ macro_rules! tile_kernel {
         impl Primary for $kernel {
             type Scratch = TileScratch;
             const TILED: bool = $tiled;
+            const TILE_MULTIPLE: u32 = if $regions == 16 { 8 } else { 4 };
             const PACKETS: bool = true;
 
             fn name(&self) -> String {
