@@ -3,26 +3,13 @@
 
 use glam::Vec3;
 
-/// A surface material: only what the scenes use.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Material {
-    /// Name (from the OBJ `usemtl` or the built-in scene).
-    pub name: String,
-    /// Diffuse reflectance (linear RGB, each in [0, 1]).
-    pub diffuse: Vec3,
-}
-
-impl Default for Material {
-    fn default() -> Self {
-        Material { name: "default".into(), diffuse: Vec3::splat(0.75) }
-    }
-}
+pub use crate::material::Material;
 
 /// An indexed triangle mesh in world space.
 ///
 /// Invariants (checked by [`Mesh::check`]): every index is below `positions.len()`, every
 /// position is finite, `material_ids` and `prim_ids` have one entry per triangle, every
-/// material id is below `materials.len()`, and `normals`, when present, has one entry per
+/// material id is below `materials.len()`, every material passes [`Material::check`], and `normals`, when present, has one entry per
 /// position. The other methods assume them: on a mesh with a NaN or infinite position they
 /// return non-finite values (bounds, normals) but never panic.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -93,6 +80,9 @@ impl Mesh {
         if let Some(t) = self.material_ids.iter().position(|&m| m as usize >= self.materials.len()) {
             return Err(format!("triangle {t} uses material {} of {}", self.material_ids[t], self.materials.len()));
         }
+        for m in &self.materials {
+            m.check()?;
+        }
         Ok(())
     }
 
@@ -160,7 +150,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             normals: Some(vec![Vec3::Z; 4]),
             material_ids: vec![0, 1],
-            materials: vec![Material::default(), Material { name: "b".into(), diffuse: Vec3::X }],
+            materials: vec![Material::default(), Material::diffuse("b", Vec3::X)],
             prim_ids: vec![7, 9],
         }
     }

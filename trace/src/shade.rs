@@ -111,7 +111,7 @@ mod tests {
             triangles: vec![[0, 2, 1]],
             normals: None,
             material_ids: vec![0],
-            materials: vec![Material { name: "m".into(), diffuse: Vec3::ONE }],
+            materials: vec![Material::diffuse("m", Vec3::ONE)],
             prim_ids: vec![0],
         }
     }

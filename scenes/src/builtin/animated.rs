@@ -73,7 +73,7 @@ pub fn animated(base: &Scene, frame: u32) -> Scene {
 
 /// The id of a new material `name` of colour `diffuse` in `mesh`.
 fn add_material(mesh: &mut Mesh, name: &str, diffuse: Vec3) -> u32 {
-    mesh.materials.push(Material { name: name.to_string(), diffuse });
+    mesh.materials.push(Material::diffuse(name, diffuse));
     mesh.materials.len() as u32 - 1
 }
 

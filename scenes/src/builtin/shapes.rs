@@ -275,7 +275,7 @@ impl MeshBuilder {
         if let Some(i) = self.mesh.materials.iter().position(|m| m.name == name) {
             return i as u32;
         }
-        self.mesh.materials.push(Material { name: name.to_string(), diffuse });
+        self.mesh.materials.push(Material::diffuse(name, diffuse));
         self.mesh.materials.len() as u32 - 1
     }
 
