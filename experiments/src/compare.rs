@@ -135,6 +135,15 @@ pub struct CompareRow {
     pub ao_ms: Option<f64>,
     /// Median milliseconds of the diffuse stream (`null` when not measured).
     pub diffuse_ms: Option<f64>,
+    /// Mirror-reflection rays per second (millions), median; `null` with `--no-incoherent`.
+    pub reflect_mrays_per_s: Option<f64>,
+    /// Median milliseconds of the reflection stream (`null` when not measured).
+    pub reflect_ms: Option<f64>,
+    /// Reflection rays traced (one per primary hit).
+    pub reflect_rays: u64,
+    /// Reflection hits naming another triangle than `mono`'s (ties at equal distance
+    /// included).
+    pub reflect_mismatch: u64,
     /// AO rays traced (`--ao-rays` per primary hit).
     pub ao_rays: u64,
     /// Diffuse rays traced (one per primary hit).
@@ -371,7 +380,7 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         structures.insert(name, built);
     }
     let frame = Frame::new(&scene, &tree, camera, config.light_radius, config.ao_rays, !config.no_incoherent);
-    let (ao, diffuse) = (&frame.incoherent.ao, &frame.incoherent.diffuse);
+    let (ao, diffuse, reflect) = (&frame.incoherent.ao, &frame.incoherent.diffuse, &frame.incoherent.reflect);
 
     // The contenders and their kernels.
     let mut contenders = Vec::new();
@@ -394,21 +403,26 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut checks = Vec::new();
     let mut ao_occluded = vec![false; ao.len()];
     let mut diffuse_hits = vec![None; diffuse.len()];
-    let (mut ao_reference, mut diffuse_reference) = (Vec::new(), Vec::new());
+    let mut reflect_hits = vec![None; reflect.len()];
+    let (mut ao_reference, mut diffuse_reference, mut reflect_reference) = (Vec::new(), Vec::new(), Vec::new());
     let mut incoherent_checks = Vec::new();
     for (i, c) in contenders.iter_mut().enumerate() {
         c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None);
         checks.push(mismatches(&scene, &camera, &frame.reference, &c.layout.to_row_major(&c.hits)));
         c.method.tracer.stream_occluded(ao, &mut ao_occluded);
         c.method.tracer.stream(diffuse, &mut diffuse_hits);
+        c.method.tracer.stream(reflect, &mut reflect_hits);
         if i == 0 {
-            (ao_reference, diffuse_reference) = (ao_occluded.clone(), diffuse_hits.clone());
+            (ao_reference, diffuse_reference, reflect_reference) =
+                (ao_occluded.clone(), diffuse_hits.clone(), reflect_hits.clone());
         }
         let ao_mismatch = ao_occluded.iter().zip(&ao_reference).filter(|(a, b)| a != b).count() as u64;
-        let diffuse_mismatch =
-            diffuse_hits.iter().zip(&diffuse_reference).filter(|(a, b)| a.map(|h| h.prim) != b.map(|h| h.prim)).count()
-                as u64;
-        incoherent_checks.push((ao_mismatch, diffuse_mismatch));
+        let other_prim = |hits: &[Option<Hit>], reference: &[Option<Hit>]| {
+            hits.iter().zip(reference).filter(|(a, b)| a.map(|h| h.prim) != b.map(|h| h.prim)).count() as u64
+        };
+        let diffuse_mismatch = other_prim(&diffuse_hits, &diffuse_reference);
+        let reflect_mismatch = other_prim(&reflect_hits, &reflect_reference);
+        incoherent_checks.push((ao_mismatch, diffuse_mismatch, reflect_mismatch));
     }
 
     // Interleaved rounds: every primary pass, then every distinct shadow kernel, then every
@@ -428,6 +442,7 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
     let mut visible = vec![0.0f32; frame.layout.pixel_count()];
     let mut ao_secs = vec![Vec::new(); incoherent];
     let mut diffuse_secs = vec![Vec::new(); incoherent];
+    let mut reflect_secs = vec![Vec::new(); incoherent];
     for _ in 0..config.rounds {
         for (c, secs) in contenders.iter_mut().zip(&mut primary_secs) {
             secs.push(timed(|| c.method.tracer.primary(&c.layout, &camera, &mut c.hits, None)).0);
@@ -448,9 +463,10 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
             soft_rays[i] = stats.rays;
             bar.inc();
         }
-        for (c, (a, d)) in contenders.iter().take(incoherent).zip(ao_secs.iter_mut().zip(&mut diffuse_secs)) {
-            a.push(timed(|| c.method.tracer.stream_occluded(ao, &mut ao_occluded)).0);
-            d.push(timed(|| c.method.tracer.stream(diffuse, &mut diffuse_hits)).0);
+        for (i, c) in contenders.iter().take(incoherent).enumerate() {
+            ao_secs[i].push(timed(|| c.method.tracer.stream_occluded(ao, &mut ao_occluded)).0);
+            diffuse_secs[i].push(timed(|| c.method.tracer.stream(diffuse, &mut diffuse_hits)).0);
+            reflect_secs[i].push(timed(|| c.method.tracer.stream(reflect, &mut reflect_hits)).0);
             bar.inc();
         }
     }
@@ -464,9 +480,10 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
         .zip(checks)
         .zip(incoherent_checks)
         .enumerate()
-        .map(|(i, (((c, secs), mismatches), (ao_mismatch, diffuse_mismatch)))| {
+        .map(|(i, (((c, secs), mismatches), (ao_mismatch, diffuse_mismatch, reflect_mismatch)))| {
             let ao_s = ao_secs.get(i).map(|s| median(s));
             let diffuse_s = diffuse_secs.get(i).map(|s| median(s));
+            let reflect_s = reflect_secs.get(i).map(|s| median(s));
             let primary = median(secs);
             let shadow = (median(&shadow_secs[c.shadow]), shadow_rays[c.shadow], shadows.kernels[c.shadow].0.clone());
             let soft = c.soft.map(|i| (median(&soft_secs[i]), soft_rays[i], softs.kernels[i].0.clone()));
@@ -487,6 +504,10 @@ pub fn run(config: &CompareConfig, progress: &dyn Progress) -> Result<CompareRep
                 diffuse_mrays_per_s: diffuse_s.map(|s| mrays_per_s(diffuse.len() as u64, s)),
                 ao_ms: ao_s.map(|s| s * 1e3),
                 diffuse_ms: diffuse_s.map(|s| s * 1e3),
+                reflect_mrays_per_s: reflect_s.map(|s| mrays_per_s(reflect.len() as u64, s)),
+                reflect_ms: reflect_s.map(|s| s * 1e3),
+                reflect_rays: reflect.len() as u64,
+                reflect_mismatch,
                 ao_rays: ao.len() as u64,
                 diffuse_rays: diffuse.len() as u64,
                 ao_mismatch,
@@ -610,7 +631,7 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     let (w, ht) = h.size;
     let _ = writeln!(
         out,
-        "rttest compare: {}, view {}, {w}x{ht}, {} threads; medians of {} interleaved rounds (builds: {}); soft16 = 16 rays per point to a spherical light of radius {} Sponza units; ao = {} cosine rays per primary hit, a tenth of the scene's diagonal long; diffuse = 1 cosine ray per primary hit.",
+        "rttest compare: {}, view {}, {w}x{ht}, {} threads; medians of {} interleaved rounds (builds: {}); soft16 = 16 rays per point to a spherical light of radius {} Sponza units; ao = {} cosine rays per primary hit, a tenth of the scene's diagonal long; diffuse = 1 cosine ray per primary hit; reflect = 1 mirror reflection per primary hit (every surface a mirror).",
         h.scene, h.view, h.threads, h.rounds, h.build_rounds, h.light_radius, h.ao_rays
     );
     if let Some(note) = &h.embree_note {
@@ -619,13 +640,13 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
     let _ = writeln!(out);
     let _ = writeln!(
         out,
-        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | ao Mrays/s | diffuse Mrays/s | prim mismatch | ties | of which edge | of which coincident | hit vs miss | ao / diffuse mismatch | shadow kernel | soft16 kernel |"
+        "| method | build ms | primary Mrays/s | shadow Mrays/s | soft16 Mrays/s | ao Mrays/s | diffuse Mrays/s | reflect Mrays/s | prim mismatch | ties | of which edge | of which coincident | hit vs miss | ao / diffuse / reflect mismatch | shadow kernel | soft16 kernel |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|");
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|");
     for r in rows {
         let _ = writeln!(
             out,
-            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} | {} | {} |",
+            "| {} | {:.1} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} / {} | {} | {} |",
             r.method,
             r.build_ms,
             r.primary_mrays_per_s,
@@ -633,6 +654,7 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
             opt(r.soft16_mrays_per_s, 2),
             opt(r.ao_mrays_per_s, 2),
             opt(r.diffuse_mrays_per_s, 2),
+            opt(r.reflect_mrays_per_s, 2),
             r.mismatches.prim_mismatch,
             r.mismatches.prim_ties,
             r.mismatches.prim_edge_ties,
@@ -640,6 +662,7 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
             r.mismatches.prim_hit_vs_miss,
             r.ao_mismatch,
             r.diffuse_mismatch,
+            r.reflect_mismatch,
             r.shadow_kernel.as_deref().unwrap_or("-"),
             r.soft16_kernel.as_deref().unwrap_or("-"),
         );
@@ -653,12 +676,13 @@ fn table(h: &Header<'_>, rows: &[CompareRow]) -> String {
             },
         )
     };
-    let columns: [(&str, Column); 5] = [
+    let columns: [(&str, Column); 6] = [
         ("primary", |r| Some(r.primary_mrays_per_s)),
         ("shadow", |r| r.shadow_mrays_per_s),
         ("soft16", |r| r.soft16_mrays_per_s),
         ("ao", |r| r.ao_mrays_per_s),
         ("diffuse", |r| r.diffuse_mrays_per_s),
+        ("reflect", |r| r.reflect_mrays_per_s),
     ];
     for base in ["embree", "bvh", "obvhs"] {
         if !rows.iter().any(|r| r.family == base) {
@@ -757,8 +781,9 @@ mod tests {
             // The incoherent columns: every method timed on the same rays, same answers.
             assert!(r.ao_rays > 0 && r.diffuse_rays > 0 && r.ao_rays == 4 * r.diffuse_rays, "{}", r.method);
             assert!(r.ao_mrays_per_s.is_some_and(|v| v > 0.0) && r.diffuse_mrays_per_s.is_some_and(|v| v > 0.0));
+            assert!(r.reflect_rays == r.diffuse_rays && r.reflect_mrays_per_s.is_some_and(|v| v > 0.0));
             if !bvh {
-                assert_eq!((r.ao_mismatch, r.diffuse_mismatch), (0, 0), "{}", r.method);
+                assert_eq!((r.ao_mismatch, r.diffuse_mismatch, r.reflect_mismatch), (0, 0, 0), "{}", r.method);
             } else {
                 // Ties again (none at the time of writing); the conformance test judges them.
                 assert!(100 * (r.ao_mismatch + r.diffuse_mismatch) <= r.diffuse_rays, "{r:?}");

@@ -44,6 +44,7 @@ pub mod progress;
 pub mod registry;
 pub mod render;
 pub mod report;
+pub mod secondary;
 pub mod setup;
 pub mod shade;
 pub mod shadow_frusta;

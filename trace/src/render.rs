@@ -15,12 +15,13 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
+use cones::shadows::{SAMPLES, light_samples, shadow_rays};
 use edgewidth::packet::{EdgeScratch4, edge_width4_with};
 use edgewidth::{LeakRemedies, occlusion_factor, width_from_light};
 use glam::Vec3;
 use kdtree::Counts;
 use kdtree::surface::Surfaces;
-use kdtree::{Hit, Intersector, KdTree, WaldTest, WatertightTest};
+use kdtree::{Hit, Intersector, KdTree, Ray, WaldTest, WatertightTest};
 use packets::{PacketTreeTest, RayPacket};
 use rayon::prelude::*;
 use scenes::PointLight;
@@ -29,6 +30,7 @@ use scenes::{Camera, Image, ScalarImage, Scene, SphereLight};
 use crate::aov::{CostFrame, PixelCost};
 use crate::frame::{SoftStats, TileLayout, View};
 use crate::registry::Bound;
+use crate::secondary::{Generation, spawn_generation};
 use crate::{shade, soft};
 
 /// Which shadow rays a frame traces.
@@ -77,12 +79,24 @@ pub struct FrameBuffers {
     /// With soft or edge-width shadows, the visible fraction of the light per pixel (0 for
     /// pixels without a lit hit); empty otherwise.
     pub visible: Vec<f32>,
+    /// With secondary rays ([`Renderer::with_secondary`]), the weight of each pixel's own
+    /// shading (1 unless its material reflects or refracts); empty otherwise.
+    pub local: Vec<f32>,
+    /// The secondary rays' generations, the first spawned from the primary hits (empty
+    /// without secondary rays).
+    pub secondary: Vec<Generation>,
 }
 
 impl FrameBuffers {
     /// Buffers for `pixels` pixels.
     pub fn new(pixels: usize) -> FrameBuffers {
-        FrameBuffers { hits: vec![None; pixels], occluded: vec![false; pixels], visible: Vec::new() }
+        FrameBuffers {
+            hits: vec![None; pixels],
+            occluded: vec![false; pixels],
+            visible: Vec::new(),
+            local: Vec::new(),
+            secondary: Vec::new(),
+        }
     }
 }
 
@@ -101,17 +115,30 @@ pub struct FrameStats {
     pub primary_secs: f64,
     /// Seconds for the shadow pass (0 without shadows).
     pub shadow_secs: f64,
+    /// Secondary (reflection and refraction) rays traced, every generation.
+    pub secondary_rays: u64,
+    /// Secondary rays that hit a triangle.
+    pub secondary_hits: u64,
+    /// Shadow rays traced from the secondary hits.
+    pub secondary_shadow_rays: u64,
+    /// Seconds spawning the secondary rays from the hits (the shader proxy's ray
+    /// generation).
+    pub spawn_secs: f64,
+    /// Seconds tracing the secondary rays (the method's stream kernel).
+    pub secondary_secs: f64,
+    /// Seconds for the shadows at the secondary hits.
+    pub secondary_shadow_secs: f64,
 }
 
 impl FrameStats {
     /// All rays traced.
     pub fn rays(&self) -> u64 {
-        self.primary_rays + self.shadow_rays
+        self.primary_rays + self.shadow_rays + self.secondary_rays + self.secondary_shadow_rays
     }
 
-    /// Seconds spent tracing (both passes).
+    /// Seconds spent tracing (every pass, the spawning of secondary rays included).
     pub fn trace_secs(&self) -> f64 {
-        self.primary_secs + self.shadow_secs
+        self.primary_secs + self.shadow_secs + self.spawn_secs + self.secondary_secs + self.secondary_shadow_secs
     }
 }
 
@@ -128,7 +155,16 @@ pub struct Renderer<'a> {
     shadows: Shadows,
     light: SphereLight,
     tree: Option<&'a KdTree>,
+    /// Generations of secondary rays (0: none).
+    depth: u32,
+    /// The pixels in tile order and the order the first generation spawns from (each tile's
+    /// pixels in Morton order), made on first use.
+    spawn_order: OnceLock<SpawnOrder>,
 }
+
+/// The pixels of a frame in tile order, and the order its first generation of secondary
+/// rays is spawned in (each tile's pixels in Morton order, as tile-order indices).
+type SpawnOrder = (Vec<(u32, u32)>, Vec<u32>);
 
 impl<'a> Renderer<'a> {
     /// A renderer of `scene` seen by `camera` with `method`, in the method's tiles. Soft
@@ -140,7 +176,19 @@ impl<'a> Renderer<'a> {
         let (lo, hi) = scene.mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let light = soft::light_in_bounds(scene, lo, hi, 1.0);
         let (surfaces, own_surfaces) = (None, OnceLock::new());
-        Renderer { scene, surfaces, own_surfaces, method, camera, layout, shadows, light, tree: None }
+        Renderer {
+            scene,
+            surfaces,
+            own_surfaces,
+            method,
+            camera,
+            layout,
+            shadows,
+            light,
+            tree: None,
+            depth: 0,
+            spawn_order: OnceLock::new(),
+        }
     }
 
     /// The same renderer with the scene's surface records made elsewhere
@@ -162,6 +210,21 @@ impl<'a> Renderer<'a> {
     pub fn with_tree(mut self, tree: &'a KdTree) -> Self {
         self.tree = Some(tree);
         self
+    }
+
+    /// The same renderer with `depth` generations of secondary rays (the thesis's shader
+    /// proxy, [`crate::secondary`]; 0 for none, the default): reflections and refractions
+    /// from the hits on materials that reflect or refract, traced by the method's stream
+    /// kernel, their hits shaded with the frame's kind of shadows. The thesis renders with 1
+    /// ([`crate::secondary::DEFAULT_DEPTH`]). At most [`crate::secondary::MAX_DEPTH`].
+    pub fn with_secondary(mut self, depth: u32) -> Self {
+        self.depth = depth.min(crate::secondary::MAX_DEPTH);
+        self
+    }
+
+    /// Generations of secondary rays a frame traces.
+    pub fn secondary_depth(&self) -> u32 {
+        self.depth
     }
 
     /// The same renderer with the spherical light of soft shadows.
@@ -266,15 +329,153 @@ impl<'a> Renderer<'a> {
             }
         };
         let shadow_secs = if self.shadows == Shadows::None { 0.0 } else { start.elapsed().as_secs_f64() };
-        let stats = FrameStats {
+        let mut stats = FrameStats {
             primary_rays: layout.pixel_count() as u64,
             shadow_rays,
             hits,
             occluded,
             primary_secs,
             shadow_secs,
+            ..FrameStats::default()
         };
+        self.secondary_pass(buf, &mut stats);
         (stats, primary_counts, shadow_counts)
+    }
+
+    /// The secondary rays of a frame ([`Renderer::with_secondary`]): each generation spawned
+    /// from the hits before it, traced by the method's stream kernel, its hits' shadows
+    /// traced as the primary hits' are. Fills `buf.local` and `buf.secondary`; adds the
+    /// counts and times to `stats`.
+    fn secondary_pass(&self, buf: &mut FrameBuffers, stats: &mut FrameStats) {
+        buf.secondary.clear();
+        buf.local.clear();
+        if self.depth == 0 {
+            return;
+        }
+        let (scene, surfaces) = (self.scene, self.surfaces());
+        let (pixels, order) = self.spawn_order.get_or_init(|| {
+            let pixels: Vec<(u32, u32)> = self.layout.tiles().iter().flat_map(|t| t.pixels()).collect();
+            let mut order = Vec::with_capacity(pixels.len());
+            let mut base = 0u32;
+            for t in self.layout.tiles() {
+                order.extend(crate::shadow_frusta::morton_order(t.width(), t.height()).into_iter().map(|i| base + i));
+                base += t.pixel_count() as u32;
+            }
+            (pixels, order)
+        });
+        let start = Instant::now();
+        buf.local.resize(buf.hits.len(), 1.0);
+        let (hits, camera) = (&buf.hits, &self.camera);
+        let primary = |i: u32| {
+            let hit = hits.get(i as usize).copied().flatten()?;
+            let (x, y) = pixels[i as usize];
+            Some((hit, camera.pixel_ray(x, y).1))
+        };
+        let mut next = spawn_generation(surfaces, &scene.mesh, order, primary, &mut buf.local);
+        stats.spawn_secs += start.elapsed().as_secs_f64();
+        for level in 1..=self.depth {
+            let mut generation = std::mem::take(&mut next);
+            let start = Instant::now();
+            generation.hits = vec![None; generation.len()];
+            self.method.tracer.stream(&generation.rays, &mut generation.hits);
+            stats.secondary_secs += start.elapsed().as_secs_f64();
+            stats.secondary_rays += generation.len() as u64;
+            stats.secondary_hits += generation.hits.iter().filter(|h| h.is_some()).count() as u64;
+            let start = Instant::now();
+            stats.secondary_shadow_rays += self.point_shadows(&mut generation);
+            stats.secondary_shadow_secs += start.elapsed().as_secs_f64();
+            generation.local = vec![1.0; generation.len()];
+            if level < self.depth {
+                let start = Instant::now();
+                let all: Vec<u32> = (0..generation.len() as u32).collect();
+                let (rays, hits) = (&generation.rays, &generation.hits);
+                let point = |i: u32| Some((hits[i as usize]?, rays[i as usize].dir));
+                next = spawn_generation(surfaces, &scene.mesh, &all, point, &mut generation.local);
+                stats.spawn_secs += start.elapsed().as_secs_f64();
+            }
+            let done = next.is_empty();
+            buf.secondary.push(generation);
+            if done {
+                break;
+            }
+        }
+    }
+
+    /// The shadows at a generation's hits, the frame's kind ([`Shadows`]) traced by the
+    /// method's stream queries (edge widths by our kernels, as for the primary hits): the
+    /// visible fraction into `generation.visible`. Returns the shadow rays traced.
+    fn point_shadows(&self, generation: &mut Generation) -> u64 {
+        let surfaces = self.surfaces();
+        let n = generation.len();
+        generation.visible = vec![0.0; n];
+        let points = || {
+            generation.hits.iter().zip(&generation.rays).enumerate().filter_map(|(i, (h, r))| Some((i, (*h)?, r.dir)))
+        };
+        match self.shadows {
+            Shadows::None => {
+                for (i, ..) in points() {
+                    generation.visible[i] = 1.0;
+                }
+                0
+            }
+            Shadows::Hard => {
+                let light = &self.scene.point_light;
+                let mut owner = Vec::new();
+                let mut rays = Vec::new();
+                for (i, hit, dir) in points() {
+                    // Facing away from the light: shaded ambient whatever lies between.
+                    generation.visible[i] = 1.0;
+                    if let Some((a, b)) = shade::shadow_segment(surfaces, light, dir, &hit) {
+                        owner.push(i);
+                        rays.push(Ray::segment(a, b));
+                    }
+                }
+                let mut blocked = vec![false; rays.len()];
+                self.method.tracer.stream_occluded(&rays, &mut blocked);
+                for (&i, &b) in owner.iter().zip(&blocked) {
+                    generation.visible[i] = if b { 0.0 } else { 1.0 };
+                }
+                rays.len() as u64
+            }
+            Shadows::Soft16 => {
+                let mut owner = Vec::new();
+                let mut rays = Vec::new();
+                for (i, hit, dir) in points() {
+                    let Some((start, _)) = soft::shadow_start(surfaces, &self.light, &hit, dir) else { continue };
+                    let Some(samples) = light_samples(start, &self.light) else { continue };
+                    owner.push(i);
+                    rays.extend(shadow_rays(start, &samples));
+                }
+                let mut blocked = vec![false; rays.len()];
+                self.method.tracer.stream_occluded(&rays, &mut blocked);
+                for (&i, b) in owner.iter().zip(blocked.chunks(SAMPLES)) {
+                    let n = b.iter().filter(|&&b| b).count();
+                    generation.visible[i] = 1.0 - n as f32 / SAMPLES as f32;
+                }
+                rays.len() as u64
+            }
+            Shadows::EdgeWidth => {
+                let tree = self.tree.expect("Shadows::EdgeWidth needs Renderer::with_tree");
+                let center = PointLight { position: self.light.center, intensity: self.light.intensity };
+                let mut owner = Vec::new();
+                let mut rays = Vec::new();
+                for (i, hit, dir) in points() {
+                    let Some(ray) = shade::shadow_ray(surfaces, &center, dir, &hit) else { continue };
+                    let p = surfaces.get(hit.prim).point(&hit);
+                    owner.push(i);
+                    rays.push((ray, width_from_light(self.light.radius, (self.light.center - p).length(), 1.0)));
+                }
+                let mut seen = vec![0.0; rays.len()];
+                match tree.intersector() {
+                    Intersector::Wald => edge_width_rays::<WaldTest>(tree, &rays, &mut seen),
+                    Intersector::Watertight => edge_width_rays::<WatertightTest>(tree, &rays, &mut seen),
+                }
+                for (&i, &v) in owner.iter().zip(&seen) {
+                    generation.visible[i] = v;
+                }
+                rays.len() as u64
+            }
+        }
     }
 
     /// The edge-width pass ([`Shadows::EdgeWidth`]): the visible fraction of each pixel of
@@ -366,10 +567,13 @@ impl<'a> Renderer<'a> {
         let mut colors = vec![T::default(); self.layout.pixel_count()];
         let chunks = self.layout.chunks_mut(&mut colors);
         let visible = if buf.visible.len() == buf.hits.len() { Some(self.layout.chunks(&buf.visible)) } else { None };
+        let reflected = self.secondary_colors(buf);
+        let reflected = reflected.as_ref().map(|c| (self.layout.chunks(c), self.layout.chunks(&buf.local)));
         let inputs: Vec<_> = self.layout.chunks(&buf.hits).into_iter().zip(self.layout.chunks(&buf.occluded)).collect();
         self.layout.tiles().par_iter().zip(chunks).zip(inputs).enumerate().for_each(
             |(i, ((tile, out), (hits, occluded)))| {
                 let soft = visible.as_ref().map(|v| v[i]);
+                let reflected = reflected.as_ref().map(|(c, l)| (c[i], l[i]));
                 for (j, (((x, y), slot), hit)) in tile.pixels().zip(out).zip(hits).enumerate() {
                     let (origin, dir) = self.camera.pixel_ray(x, y);
                     let seen = match soft {
@@ -377,14 +581,51 @@ impl<'a> Renderer<'a> {
                         None if occluded[j] => 0.0,
                         None => 1.0,
                     };
-                    *slot = f(match hit {
+                    let color = match hit {
                         Some(hit) => shade::shade(mesh, light, origin, dir, hit, seen),
                         None => shade::BACKGROUND,
+                    };
+                    *slot = f(match reflected {
+                        Some((c, l)) if hit.is_some() => l[j] * color + c[j],
+                        _ => color,
                     });
                 }
             },
         );
         colors
+    }
+
+    /// What the secondary rays add to each pixel (tile order), weighted: `None` without
+    /// secondary rays. Each generation's colour is its hits' own shading, weighted by their
+    /// `local`, plus what the next generation adds; misses see the background.
+    fn secondary_colors(&self, buf: &FrameBuffers) -> Option<Vec<Vec3>> {
+        if buf.local.len() != buf.hits.len() {
+            return None;
+        }
+        let (mesh, light) = (&self.scene.mesh, &self.scene.point_light);
+        let mut added: Vec<Vec3> = Vec::new();
+        for (k, g) in buf.secondary.iter().enumerate().rev() {
+            let colors: Vec<Vec3> = (0..g.len())
+                .into_par_iter()
+                .map(|i| {
+                    let ray = &g.rays[i];
+                    let own = match &g.hits[i] {
+                        Some(hit) => g.local[i] * shade::shade(mesh, light, ray.origin, ray.dir, hit, g.visible[i]),
+                        None => shade::BACKGROUND,
+                    };
+                    own + added.get(i).copied().unwrap_or(Vec3::ZERO)
+                })
+                .collect();
+            let parents = if k == 0 { buf.hits.len() } else { buf.secondary[k - 1].len() };
+            added = vec![Vec3::ZERO; parents];
+            for ((&p, &w), c) in g.parent.iter().zip(&g.weight).zip(colors) {
+                added[p as usize] += w * c;
+            }
+        }
+        if added.is_empty() {
+            added = vec![Vec3::ZERO; buf.hits.len()];
+        }
+        Some(added)
     }
 
     /// The distance of each primary hit (`--aov depth`, `+inf` for misses).
@@ -404,6 +645,26 @@ impl<'a> Renderer<'a> {
             .collect();
         ScalarImage { width: self.camera.width, height: self.camera.height, values: self.layout.to_row_major(&values) }
     }
+}
+
+/// The visible fraction `1 - occlusion_factor(width, R)` of each edge-width ray `(ray, R)`
+/// into `out`, four at a time with `edge_width4_with::<I>`, in parallel over chunks.
+fn edge_width_rays<I: PacketTreeTest>(tree: &KdTree, rays: &[(Ray, f32)], out: &mut [f32]) {
+    let remedies = LeakRemedies::default();
+    out.par_chunks_mut(1024).zip(rays.par_chunks(1024)).for_each_init(EdgeScratch4::default, |scratch, (out, rays)| {
+        for (out, rays) in out.chunks_mut(4).zip(rays.chunks(4)) {
+            let mut lanes = [None; 4];
+            let mut r = [0.0f32; 4];
+            for (lane, &(ray, radius)) in rays.iter().enumerate() {
+                lanes[lane] = Some(ray);
+                r[lane] = radius;
+            }
+            let widths = edge_width4_with::<I>(tree, &RayPacket::from_lanes(lanes), r, &remedies, scratch);
+            for (lane, slot) in out.iter_mut().enumerate() {
+                *slot = 1.0 - occlusion_factor(widths[lane], r[lane]);
+            }
+        }
+    });
 }
 
 /// `scenes::image::encode_gamma` without a `powf` per channel: the 255 thresholds where its

@@ -220,6 +220,22 @@ pub struct RenderReport {
     pub primary_mrays_per_s: f64,
     /// `shadow_rays / shadow_secs / 1e6` (0 without shadows).
     pub shadow_mrays_per_s: f64,
+    /// Generations of secondary rays (`--secondary`; 0: none).
+    pub secondary_depth: u32,
+    /// Secondary (reflection and refraction) rays in the best frame, every generation.
+    pub secondary_rays: u64,
+    /// Secondary rays that hit.
+    pub secondary_hits: u64,
+    /// Shadow rays from the secondary hits.
+    pub secondary_shadow_rays: u64,
+    /// The best frame's seconds spawning the secondary rays (the shader proxy).
+    pub spawn_secs: f64,
+    /// The best frame's seconds tracing the secondary rays.
+    pub secondary_secs: f64,
+    /// The best frame's seconds tracing the secondary hits' shadows.
+    pub secondary_shadow_secs: f64,
+    /// `secondary_rays / secondary_secs / 1e6` (0 without secondary rays).
+    pub secondary_mrays_per_s: f64,
     /// Seconds to shade (or extract the AOV) into the image, once.
     pub shade_secs: f64,
     /// Seconds to write the image file.
@@ -423,6 +439,20 @@ impl fmt::Display for RenderReport {
             self.primary_mrays_per_s,
             self.shadow_mrays_per_s
         )?;
+        if self.secondary_depth > 0 {
+            writeln!(
+                f,
+                "secondary    depth {}: {} rays ({} hits), {:.4} s: {:.2} Mrays/s; spawning {:.4} s; {} shadow rays, {:.4} s",
+                self.secondary_depth,
+                self.secondary_rays,
+                self.secondary_hits,
+                self.secondary_secs,
+                self.secondary_mrays_per_s,
+                self.spawn_secs,
+                self.secondary_shadow_rays,
+                self.secondary_shadow_secs
+            )?;
+        }
         let w = &self.workload;
         if let (Some(rays), Some(ms), Some(m)) = (w.ao_rays, w.ao_ms, w.ao_mrays_per_s) {
             writeln!(f, "ao           {rays} rays, {ms:.2} ms (best of {} frames): {m:.2} Mrays/s", self.frames)?;

@@ -58,19 +58,23 @@ pub fn shadow_segment(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &
     Some((s.offset_origin(p, to_light), light.position))
 }
 
-/// The colour of the primary hit `hit` of the ray `origin + t * dir`.
+/// The colour of the hit `hit` of the ray `origin + t * dir` (a primary or a secondary
+/// ray): the thesis's fixed-function shading (4.2.1, steps 4 and 5) of its material.
+///
+/// - An ambient term.
+/// - Lambert's `N . L` with the point light's inverse-square attenuation.
+/// - For specular materials (`specular_blend > 0`), Phong's highlight
+///   `blend (R . V)^exp`, white and attenuated like the diffuse term.
 ///
 /// `visible` is the fraction of the light the point sees: 1 lit, 0 blocked (hard shadows:
 /// whether the shadow ray found a blocker; always 1 without shadows), the fraction of
 /// unblocked sample rays for soft shadows. A surface facing away from the light gets only the
-/// ambient term either way.
+/// ambient term either way. Reflection and refraction are not here: they are the weighted
+/// colours of the secondary rays ([`crate::secondary`]) that [`crate::render`] adds.
 pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit, visible: f32) -> Vec3 {
     let prim = hit.prim as usize;
-    let diffuse = mesh
-        .material_ids
-        .get(prim)
-        .and_then(|&m| mesh.materials.get(m as usize))
-        .map_or(Vec3::splat(0.75), |m| m.diffuse);
+    let material = mesh.material_ids.get(prim).and_then(|&m| mesh.materials.get(m as usize));
+    let diffuse = material.map_or(Vec3::splat(0.75), |m| m.diffuse);
     let mut color = AMBIENT * diffuse;
     if visible <= 0.0 {
         return color;
@@ -86,6 +90,16 @@ pub fn shade(mesh: &Mesh, light: &PointLight, origin: Vec3, dir: Vec3, hit: &Hit
     let cos = normal.dot(to_light) / dist2.sqrt();
     if cos > 0.0 {
         color += diffuse * light.intensity * (cos / dist2) * visible;
+        if let Some(m) = material.filter(|m| m.specular_blend > 0.0) {
+            // Phong: the light's mirror direction against the direction to the viewer.
+            let l = to_light / dist2.sqrt();
+            let r = crate::secondary::reflect(-l, normal);
+            let v = -dir.normalize_or_zero();
+            let rv = r.dot(v).max(0.0);
+            if rv > 0.0 {
+                color += light.intensity * (m.specular_blend * rv.powf(m.specular_exponent) / dist2 * visible);
+            }
+        }
     }
     color
 }
@@ -143,5 +157,29 @@ mod tests {
         assert!((dark.x - AMBIENT).abs() < 1e-6);
         let lit_far = shade(&mesh, &far, o, -Vec3::Y, &hit, 1.0);
         assert!(((lit.x - AMBIENT) / (lit_far.x - AMBIENT) - 4.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn phong_highlight_peaks_in_the_mirror_direction() {
+        let mut mesh = floor();
+        let diffuse_only = mesh.clone();
+        mesh.materials[0].specular_blend = 0.5;
+        mesh.materials[0].specular_exponent = 50.0;
+        let hit = Hit { t: 1.0, u: 1.0 / 3.0, v: 1.0 / 3.0, prim: 0 };
+        let p = Vec3::new(0.0, 0.0, -1.0 / 3.0);
+        let light = PointLight { position: p + Vec3::new(-1.0, 1.0, 0.0), intensity: Vec3::ONE };
+        // Seen from the mirror direction of the light: diffuse plus blend / dist2 (R . V = 1).
+        let eye = p + Vec3::new(1.0, 1.0, 0.0);
+        let at = |eye: Vec3, mesh: &Mesh| {
+            let d = p - eye;
+            shade(mesh, &light, eye, d, &Hit { t: 1.0, ..hit }, 1.0)
+        };
+        let peak = at(eye, &mesh) - at(eye, &diffuse_only);
+        assert!((peak.x - 0.5 / 2.0).abs() < 1e-4, "{peak}");
+        // Away from it the highlight falls off; in shadow there is none.
+        let off = at(p + Vec3::new(0.3, 1.0, 0.0), &mesh) - at(p + Vec3::new(0.3, 1.0, 0.0), &diffuse_only);
+        assert!(off.x < 0.1 * peak.x, "{off}");
+        let d = p - eye;
+        assert_eq!(shade(&mesh, &light, eye, d, &hit, 0.0), shade(&diffuse_only, &light, eye, d, &hit, 0.0));
     }
 }

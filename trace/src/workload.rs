@@ -9,7 +9,11 @@
 //!   method: a uniform point of the unit disk lifted onto the hemisphere), of length a tenth
 //!   of the scene's bounding-box diagonal (`t` in `[0, 1]` with the direction scaled to that
 //!   length): any-hit queries;
-//! - one diffuse-bounce ray, cosine-distributed the same way, unbounded: a closest-hit query.
+//! - one diffuse-bounce ray, cosine-distributed the same way, unbounded: a closest-hit query;
+//! - one mirror-reflection ray, every surface taken as a perfect mirror
+//!   ([`crate::secondary::spawn`], the renderer's spawn rule), unbounded: a closest-hit query,
+//!   the `reflect` column of `rttest compare` (the secondary rays of the thesis's shader
+//!   proxy, 3.3, which the omni-directional packets of 4.1.2 were made for).
 //!
 //! The random numbers come from the workspace's seeded `Rng` (SplitMix64), drawn in the order
 //! of the hits given, so the rays depend only on the scene, the camera, the hits and the seed:
@@ -17,6 +21,7 @@
 //! ([`crate::FrameTracer::stream`], [`crate::FrameTracer::stream_occluded`]).
 
 use glam::Vec3;
+use kdtree::surface::Surface;
 use kdtree::{Hit, Ray};
 use scenes::builtin::shapes::Rng;
 use scenes::{Camera, Scene};
@@ -37,6 +42,9 @@ pub struct Incoherent {
     pub ao: Vec<Ray>,
     /// Diffuse-bounce rays, one per primary hit (closest hit, unbounded, unit direction).
     pub diffuse: Vec<Ray>,
+    /// Mirror-reflection rays, one per primary hit whose triangle is not degenerate (closest
+    /// hit, unbounded, unit direction).
+    pub reflect: Vec<Ray>,
 }
 
 /// A cosine-distributed unit direction about the unit normal `n` (Malley's method) from two
@@ -95,6 +103,10 @@ impl Incoherent {
             }
             let d = cosine_direction(n, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
             out.diffuse.push(Ray::new(origin, d, 0.0, f32::INFINITY));
+            let mirror = scenes::Material { reflectivity: 1.0, ..scenes::Material::default() };
+            if let Some((ray, _)) = crate::secondary::spawn(&Surface::new(&tri), &mirror, dir, hit).reflection {
+                out.reflect.push(ray);
+            }
         }
         out
     }
@@ -140,6 +152,11 @@ mod tests {
             rays.diffuse.iter().map(key).collect::<Vec<_>>(),
             expected.diffuse.iter().map(key).collect::<Vec<_>>()
         );
+        assert!(!expected.reflect.is_empty());
+        assert_eq!(
+            rays.reflect.iter().map(key).collect::<Vec<_>>(),
+            expected.reflect.iter().map(key).collect::<Vec<_>>()
+        );
     }
 
     #[test]
@@ -157,14 +174,15 @@ mod tests {
         let b = Incoherent::generate(&scene, &camera, pixels.iter().copied(), &hits, diag, 4, SEED);
         assert_eq!(a.ao.len(), 4 * n_hits);
         assert_eq!(a.diffuse.len(), n_hits);
+        assert_eq!(a.reflect.len(), n_hits);
         assert!(a.ao.iter().zip(&b.ao).all(|(p, q)| p.origin == q.origin && p.dir == q.dir));
         for r in &a.ao {
             assert!((r.dir.length() - 0.1 * diag).abs() < 1e-3 * diag);
             assert_eq!((r.t_min, r.t_max), (0.0, 1.0));
         }
-        // Seen from outside, a closed cube: the rays leave it, so nothing blocks a diffuse ray
-        // at its own surface (no self-hit at t ~ 0).
-        for r in &a.diffuse {
+        // Seen from outside, a closed cube: the rays leave it, so nothing blocks a diffuse or
+        // reflected ray at its own surface (no self-hit at t ~ 0).
+        for r in a.diffuse.iter().chain(&a.reflect) {
             assert!(tree.intersect(r).is_none_or(|h| h.t > 1e-3), "{r:?}");
         }
     }

@@ -431,6 +431,12 @@ pub struct RenderArgs {
     /// Ambient-occlusion rays per primary hit for `--workload ao` (1 to 64).
     #[arg(long, default_value_t = 4, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
     pub ao_rays: u32,
+    /// Generations of secondary rays (the thesis's shader proxy, 3.3): reflection and
+    /// refraction rays from hits on materials that reflect or refract, traced by the
+    /// method's stream kernel, shaded with the same --shadows. 0 for none; the thesis
+    /// renders with 1.
+    #[arg(long, default_value_t = 0, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub secondary: u32,
 }
 
 /// The short help of a `--method` option: the names of the registry every command uses, so
@@ -967,7 +973,10 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     })?;
     let shadows = Shadows::from(args.shadows);
     let light = trace::soft::scene_light(&built.scene, &built.tree, args.light_radius);
-    let renderer = Renderer::new(&built.scene, &method, camera, shadows).with_light(light).with_tree(&built.tree);
+    let renderer = Renderer::new(&built.scene, &method, camera, shadows)
+        .with_light(light)
+        .with_tree(&built.tree)
+        .with_secondary(args.secondary);
     let mut buffers = renderer.buffers();
     let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
     let stats = timing.best;
@@ -1015,6 +1024,18 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
         mrays_per_s: mrays_per_s(stats.rays(), stats.trace_secs()),
         primary_mrays_per_s: mrays_per_s(stats.primary_rays, timing.primary_secs),
         shadow_mrays_per_s: mrays_per_s(stats.shadow_rays, timing.shadow_secs),
+        secondary_depth: args.secondary,
+        secondary_rays: stats.secondary_rays,
+        secondary_hits: stats.secondary_hits,
+        secondary_shadow_rays: stats.secondary_shadow_rays,
+        spawn_secs: stats.spawn_secs,
+        secondary_secs: stats.secondary_secs,
+        secondary_shadow_secs: stats.secondary_shadow_secs,
+        secondary_mrays_per_s: if stats.secondary_rays == 0 {
+            0.0
+        } else {
+            mrays_per_s(stats.secondary_rays, stats.secondary_secs)
+        },
         shade_secs,
         write_secs,
         out: write.then(|| out.display().to_string()),
