@@ -53,6 +53,9 @@ impl Case {
 /// a stream may carry.
 ///
 /// - the camera's rays, row by row: runs of one origin (packets, frusta, cones);
+/// - the camera's mirror reflections, every surface taken as a mirror
+///   (`trace::secondary::spawn`, the renderer's secondary rays), 2x2 blocks of pixels four
+///   rays at a time: packets of neighbouring origins on surfaces (`packets::omni_lanes`);
 /// - 300 rays from scattered origins in the scene's box, a third axis-parallel with `0.0` and
 ///   `-0.0` components, every fifth with a negative `t_min`, every seventh unbounded;
 /// - 200 rays from points on triangles (origins on surfaces), in random directions;
@@ -68,6 +71,7 @@ pub fn ray_list(scene: &Scene, camera: Option<&Camera>, seed: u64) -> Vec<Ray> {
         for y in 0..camera.height {
             rays.extend((0..camera.width).map(|x| primary_ray(camera, x, y)));
         }
+        rays.extend(reflections(scene, camera));
     }
     let nonzero = |d: Vec3| if d == Vec3::ZERO { Vec3::X } else { d };
     for i in 0..300 {
@@ -104,6 +108,32 @@ pub fn ray_list(scene: &Scene, camera: Option<&Camera>, seed: u64) -> Vec<Ray> {
         }
     }
     rays
+}
+
+/// The mirror reflections of `camera`'s primary hits (single rays on a default tree), every
+/// surface a perfect mirror, pixels in 2x2 blocks.
+fn reflections(scene: &Scene, camera: &Camera) -> Vec<Ray> {
+    let mesh = &scene.mesh;
+    let Ok(tree) = KdTree::build(&mesh.positions, &mesh.triangles, &BuildConfig::default()) else { return Vec::new() };
+    let surfaces = trace::shade::surfaces(mesh);
+    let mirror = Material { reflectivity: 1.0, ..Material::default() };
+    let mut out = Vec::new();
+    for y0 in (0..camera.height).step_by(2) {
+        for x0 in (0..camera.width).step_by(2) {
+            for (x, y) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
+                if x >= camera.width || y >= camera.height {
+                    continue;
+                }
+                let ray = primary_ray(camera, x, y);
+                let Some(hit) = tree.intersect(&ray) else { continue };
+                if let Some((r, _)) = trace::secondary::spawn(surfaces.get(hit.prim), &mirror, ray.dir, &hit).reflection
+                {
+                    out.push(r);
+                }
+            }
+        }
+    }
+    out
 }
 
 /// A scene of a triangle soup: one mesh vertex per corner, lights and a default view from

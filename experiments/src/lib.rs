@@ -22,6 +22,7 @@ pub mod culling;
 pub mod dynamic;
 pub mod ladder;
 pub mod leaks;
+pub mod pipeline;
 pub mod sah_sweep;
 pub mod scaling;
 pub mod shadow_plot;

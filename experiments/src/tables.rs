@@ -51,6 +51,12 @@ pub struct TablesConfig {
     pub no_ladder: bool,
     /// Only the width ladder: none of the thesis's tables.
     pub only_ladder: bool,
+    /// Leave out Table 3.1 and the garage's Table 6.2 ([`crate::pipeline`]).
+    pub no_pipeline: bool,
+    /// Only Table 3.1 and the garage's Table 6.2.
+    pub only_pipeline: bool,
+    /// The scene of [`crate::pipeline`] (the thesis's garage).
+    pub pipeline_scene: String,
 }
 
 impl Default for TablesConfig {
@@ -67,6 +73,9 @@ impl Default for TablesConfig {
             no_scaling: false,
             no_ladder: false,
             only_ladder: false,
+            no_pipeline: false,
+            only_pipeline: false,
+            pipeline_scene: "garage".into(),
         }
     }
 }
@@ -327,11 +336,36 @@ pub struct TablesReport {
     threads: usize,
     table51: String,
     ladder: Option<crate::ladder::LadderReport>,
+    pipeline: Option<crate::pipeline::PipelineReport>,
 }
 
 /// Measures Tables 4.1-4.6, 6.2 and 5.1 (see the module documentation) on the current rayon
 /// pool.
 pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesReport, Error> {
+    let pipeline = ((!config.no_pipeline && !config.only_ladder) || config.only_pipeline)
+        .then(|| {
+            let rounds = config.frames.max(3);
+            let pipeline = crate::pipeline::PipelineConfig::thesis(
+                &config.pipeline_scene,
+                config.size,
+                rounds,
+                crate::scaling::cores(),
+            );
+            crate::pipeline::run(&pipeline, progress)
+        })
+        .transpose()?;
+    if config.only_pipeline {
+        return Ok(TablesReport {
+            config: config.clone(),
+            rows: Vec::new(),
+            soft_rows: Vec::new(),
+            scaling_rows: Vec::new(),
+            threads: rayon::current_num_threads(),
+            table51: String::new(),
+            ladder: None,
+            pipeline,
+        });
+    }
     let ladder = (!config.no_ladder || config.only_ladder)
         .then(|| {
             let scenes = scene_list(config);
@@ -350,6 +384,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
             threads: rayon::current_num_threads(),
             table51: String::new(),
             ladder,
+            pipeline,
         });
     }
     let registry = baselines::registry();
@@ -387,6 +422,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
         threads: rayon::current_num_threads(),
         table51,
         ladder,
+        pipeline,
     })
 }
 
@@ -395,7 +431,8 @@ impl std::fmt::Display for TablesReport {
         let config = &self.config;
         let ladder = self.ladder.as_ref();
         let text = if config.csv {
-            let mut text = if config.only_ladder { String::new() } else { csv(&self.rows) };
+            let only = config.only_ladder || config.only_pipeline;
+            let mut text = if only { String::new() } else { csv(&self.rows) };
             if !self.soft_rows.is_empty() {
                 text.push('\n');
                 text.push_str(&soft_csv(&self.soft_rows));
@@ -412,7 +449,8 @@ impl std::fmt::Display for TablesReport {
             }
             text
         } else {
-            let mut text = if config.only_ladder { String::new() } else { markdown(&self.rows, config, self.threads) };
+            let only = config.only_ladder || config.only_pipeline;
+            let mut text = if only { String::new() } else { markdown(&self.rows, config, self.threads) };
             if !self.soft_rows.is_empty() {
                 text.push_str(&soft_markdown(&self.soft_rows, config, self.threads));
             }
@@ -421,6 +459,9 @@ impl std::fmt::Display for TablesReport {
             }
             if let Some(ladder) = ladder {
                 text.push_str(&ladder.to_string());
+            }
+            if let Some(pipeline) = &self.pipeline {
+                text.push_str(&pipeline.to_string());
             }
             text
         };

@@ -53,6 +53,7 @@ pub mod lane_frusta;
 pub mod method;
 pub mod mirror;
 pub mod omni;
+pub mod omni_lanes;
 pub mod packet;
 pub mod samesign;
 pub mod shadow_frustum;

@@ -109,6 +109,9 @@ pub(crate) enum Step<V> {
     /// The front child with the lanes' intervals `[near, front_far]`, the back child with
     /// `[back_near, far]`.
     Split { front: usize, back: usize, front_far: V, back_near: V },
+    /// `first`, then `second`, each with its own lane intervals (rays of one packet whose
+    /// origins lie on different sides of the plane: `crate::omni_lanes`).
+    Spans { first: usize, second: usize, first_span: (V, V), second_span: (V, V) },
 }
 
 /// Listing 4.1's child order: front and back from the common origin's side of the plane
@@ -181,6 +184,9 @@ impl<V: SimdF32, O: ChildOrder, T: TriangleTest + PacketTest<V>, const ANY_HIT: 
             Step::Both { first, second } => Visit::Both { first, second, deferred: *span },
             Step::Split { front, back, front_far, back_near } => {
                 descend_split(span, (front, back), (front_far, back_near))
+            }
+            Step::Spans { first, second, first_span, second_span } => {
+                descend_spans(span, (first, second), (first_span, second_span))
             }
         }
     }
@@ -277,6 +283,29 @@ pub(crate) fn descend_split<V: SimdF32>(
     } else {
         span.1 = front_far;
         Visit::Both { first: front, second: back, deferred: (back_near, far) }
+    }
+}
+
+/// [`descend_split`] with each child's own lane intervals: enters `first` over `first_span`
+/// unless no lane is active in it, and defers `second` over `second_span` when lanes are
+/// active in both.
+#[inline(always)]
+pub(crate) fn descend_spans<V: SimdF32>(
+    span: &mut (V, V),
+    (first, second): (usize, usize),
+    (first_span, second_span): ((V, V), (V, V)),
+) -> Visit<(V, V)> {
+    let in_first = first_span.0.cmple(first_span.1);
+    let in_second = second_span.0.cmple(second_span.1);
+    if !in_second.any() {
+        *span = first_span;
+        Visit::One(first)
+    } else if !in_first.any() {
+        *span = second_span;
+        Visit::One(second)
+    } else {
+        *span = first_span;
+        Visit::Both { first, second, deferred: second_span }
     }
 }
 

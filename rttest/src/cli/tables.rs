@@ -45,8 +45,19 @@ pub struct TablesArgs {
     #[arg(long, conflicts_with = "only_ladder")]
     pub no_ladder: bool,
     /// Only the width ladder, none of the thesis's tables.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "only_pipeline")]
     pub only_ladder: bool,
+    /// Leave out Table 3.1 and the garage's Table 6.2 (the thesis's whole renderer: MFT
+    /// primaries, reflections and glass, edge-width shadows; beside it hard shadows by ours
+    /// and by Embree).
+    #[arg(long, conflicts_with = "only_pipeline")]
+    pub no_pipeline: bool,
+    /// Only Table 3.1 and the garage's Table 6.2.
+    #[arg(long)]
+    pub only_pipeline: bool,
+    /// The scene of Table 3.1 and the garage's Table 6.2.
+    #[arg(long, value_name = "NAME|PATH", default_value = "garage")]
+    pub pipeline_scene: String,
 }
 
 impl From<&TablesArgs> for TablesConfig {
@@ -63,6 +74,9 @@ impl From<&TablesArgs> for TablesConfig {
             no_scaling: a.no_scaling,
             no_ladder: a.no_ladder,
             only_ladder: a.only_ladder,
+            no_pipeline: a.no_pipeline,
+            only_pipeline: a.only_pipeline,
+            pipeline_scene: a.pipeline_scene.clone(),
         }
     }
 }

@@ -2,9 +2,9 @@
 //! and any hit, in order.
 //!
 //! - [`Single`]: each ray alone (`kd-single`);
-//! - [`Packets`]: each four consecutive rays as an omni-directional 2x2 packet where they
-//!   share an origin (and start at it), else as a same-sign packet split by direction signs
-//!   (`kd-omni-packets`);
+//! - [`Packets`]: each four consecutive rays as an omni-directional packet, from their common
+//!   origin or each from its own (`packets::omni_lanes`, the thesis's secondary packets), a
+//!   same-sign packet only where a ray starts behind its origin (`kd-omni-packets`);
 //! - [`SameSign`]: each four as a same-sign packet (`kd-samesign-packets`);
 //! - [`Runs`]: each run of up to [`STREAM_FRUSTUM_RAYS`] rays sharing an origin (and starting
 //!   at it) traced by a tile kernel (one frustum or cone, or four quarter-runs as MFT frusta
@@ -14,7 +14,7 @@ use std::marker::PhantomData;
 
 use kdtree::{Hit, KdTree, Ray};
 use packets::PacketTreeTest;
-use packets::{OmniPacket, RayPacket, TileTracer, omni, samesign};
+use packets::{OmniPacket, RayPacket, TileTracer, omni, omni_lanes, samesign};
 
 use super::primary::TileKernel;
 use super::{NoOptions, Stream, TreeWith};
@@ -63,13 +63,18 @@ impl Stream for Single {
     }
 }
 
-/// Rays `rays` (at most four) as one omni-directional packet if they share an origin (and
-/// start at it), else as a same-sign packet: their closest hits into `out`.
+/// Rays `rays` (at most four) as one omni-directional packet: from their common origin
+/// (Listing 4.1), or each from its own where they do not share one (the thesis's secondary
+/// packets, `packets::omni_lanes`); as a same-sign packet only where a ray starts behind its
+/// origin (`t_min < 0`). Their closest hits into `out`.
 #[inline]
 fn four<I: PacketTreeTest, C: TileCounters>(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
     let packet = RayPacket::new(rays);
     let hits = match OmniPacket::new(packet) {
         Some(omni_packet) => omni::intersect_with::<I, _, C>(tree, &omni_packet, counters),
+        None if omni_lanes::starts_at_origins(&packet) => {
+            omni_lanes::intersect_with::<I, _, C>(tree, &packet, counters)
+        }
         None => samesign::intersect_with::<I, _, C>(tree, &packet, counters),
     };
     for (lane, slot) in out.iter_mut().enumerate() {
@@ -96,8 +101,10 @@ fn any_by_closest<C: TileCounters>(
     }
 }
 
-/// Omni-directional 2x2 packets where four consecutive rays share an origin, else same-sign
-/// packets; any hits as omni-directional any-hit packets (thesis 4.1.2).
+/// Each four consecutive rays as an omni-directional packet (thesis 4.1.2), from their common
+/// origin or each from its own (`packets::omni_lanes`: the secondary rays of neighbouring
+/// pixels), closest and any hit; same-sign packets only for rays starting behind their
+/// origin.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Packets;
 
@@ -137,6 +144,9 @@ impl Stream for Packets {
             let packet = RayPacket::new(rays);
             let found = match OmniPacket::new(packet) {
                 Some(p) => omni::occluded_with::<I, _, C>(tree, &p, c).found,
+                None if omni_lanes::starts_at_origins(&packet) => {
+                    omni_lanes::occluded_with::<I, _, C>(tree, &packet, c).found
+                }
                 None => samesign::intersect_with::<I, _, C>(tree, &packet, c).found,
             };
             for (lane, slot) in out.iter_mut().enumerate() {
