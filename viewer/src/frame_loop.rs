@@ -221,7 +221,8 @@ impl<'a> FrameLoop<'a> {
             let renderer = Renderer::new(self.scene, &bound, camera, shadows)
                 .with_light(self.light)
                 .with_tree(self.tree)
-                .with_surfaces(&self.surfaces);
+                .with_surfaces(&self.surfaces)
+                .with_secondary(u32::from(state.secondary && state.shadows != ShadowMode::Soft));
             if state.shadows == ShadowMode::Soft && !restart {
                 let t = Instant::now();
                 info.rays = self.soft.pass(&bound, &renderer, self.scene, &self.light, &mut self.buffers);

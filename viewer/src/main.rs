@@ -3,7 +3,8 @@
 //! Keys: W/A/S/D move, Q/E down/up, drag with the left mouse button to turn; 1-9 the
 //! scene's named views; M/N next/previous method (every `trace::Registry` method, tiled ones
 //! with 16x16 tiles); H shadows (none, hard, edge width, silhouette widths, soft: refined while the camera
-//! rests); C cost overlay (none, nodes, leaves, isects, culled per ray; its scale is fixed
+//! rests); R secondary rays on or off (reflections and refractions; not in the progressive soft
+//! mode); C cost overlay (none, nodes, leaves, isects, culled per ray; its scale is fixed
 //! per method, overlay and named view); L locks the overlay's scale; Escape quits.
 //!
 //! The window and its events live on the main thread; frames are traced on a render thread
@@ -210,6 +211,7 @@ fn pressed_action(key: Key) -> Option<Action> {
         Key::M => Action::NextMethod,
         Key::N => Action::PrevMethod,
         Key::H => Action::NextShadows,
+        Key::R => Action::ToggleSecondary,
         Key::C => Action::NextOverlay,
         Key::L => Action::LockScale,
         Key::Key1 => Action::View(0),

@@ -132,6 +132,9 @@ pub enum Action {
     PrevMethod,
     /// Next shadow mode (H).
     NextShadows,
+    /// Secondary rays on or off (R): one generation of reflections and refractions from
+    /// the reflective and transparent materials (`trace::secondary`).
+    ToggleSecondary,
     /// Next cost overlay: none, nodes, leaves, isects, culled (C).
     NextOverlay,
     /// Lock or unlock the cost overlay's colour scale (L): locked, it is kept whatever the
@@ -186,6 +189,8 @@ pub struct ViewerState {
     pub method: usize,
     /// The shadows.
     pub shadows: ShadowMode,
+    /// Whether frames trace one generation of secondary rays ([`Action::ToggleSecondary`]).
+    pub secondary: bool,
     /// The cost overlay, if any.
     pub overlay: Option<Cost>,
     /// Whether the overlay's colour scale is locked ([`Action::LockScale`]). Unlocked, the
@@ -222,6 +227,7 @@ impl ViewerState {
             methods,
             method,
             shadows: ShadowMode::Hard,
+            secondary: false,
             overlay: None,
             scale_locked: false,
             view_jumps: 0,
@@ -244,6 +250,7 @@ impl ViewerState {
                 Action::NextMethod => self.method = (self.method + 1) % n,
                 Action::PrevMethod => self.method = (self.method + n - 1) % n,
                 Action::NextShadows => self.shadows = self.shadows.next(),
+                Action::ToggleSecondary => self.secondary = !self.secondary,
                 Action::LockScale => self.scale_locked = !self.scale_locked,
                 Action::NextOverlay => {
                     self.overlay = match self.overlay {
@@ -321,6 +328,9 @@ mod tests {
         s.apply(&press(Action::PrevMethod));
         assert_eq!(s.method_name(), "mft-16");
         assert_eq!(s.shadows, ShadowMode::Hard);
+        assert!(!s.secondary);
+        assert!(s.apply(&press(Action::ToggleSecondary)).settings && s.secondary);
+        assert!(s.apply(&press(Action::ToggleSecondary)).settings && !s.secondary);
         let mut cycle = Vec::new();
         for _ in 0..5 {
             assert!(s.apply(&press(Action::NextShadows)).settings);
