@@ -62,7 +62,7 @@ fn twins_are_found() {
 #[test]
 fn every_baseline_on_the_builtin_scenes_soups_and_hard_cases() {
     let registry = baselines::registry();
-    let mut cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
+    let mut cases = conformance::builtin_cases(31, 23, scenes::builtin::MATERIAL_VARIANTS, &["grove", "garage"]);
     cases.extend(conformance::soup_cases(4));
     conformance::assert_conforms(&registry, &plan(&registry), &cases);
     let p = plan(&registry);

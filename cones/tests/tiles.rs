@@ -53,7 +53,7 @@ fn check_soft_shadows(scene: &scenes::Scene, tree: &KdTree, camera: &Camera, lig
 #[test]
 fn cone_soft_shadows_match_single_rays_on_the_builtin_scenes() {
     let mut penumbra = 0;
-    for &name in scenes::builtin::NAMES {
+    for &name in scenes::builtin::NAMES.iter().filter(|n| !scenes::builtin::MATERIAL_VARIANTS.contains(n)) {
         let scene = scenes::load_scene(name).unwrap();
         let tree = build(&scene, Intersector::Wald);
         let diag = (tree.bounds().max - tree.bounds().min).length();

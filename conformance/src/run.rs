@@ -373,7 +373,8 @@ mod tests {
     }
 
     fn cases() -> Vec<Case> {
-        let mut cases = builtin_cases(13, 9, &["atrium", "arena", "atrium-rotated", "grove"], &[]);
+        let mut cases =
+            builtin_cases(13, 9, &["atrium", "arena", "atrium-rotated", "grove", "garage", "atrium-mirror"], &[]);
         cases.extend(soup_cases(1));
         cases
     }

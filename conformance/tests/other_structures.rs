@@ -42,7 +42,7 @@ fn plan(registry: &Registry) -> Plan {
 #[test]
 fn other_structures_on_the_builtin_scenes() {
     let registry = Registry::ours();
-    let cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
+    let cases = conformance::builtin_cases(31, 23, scenes::builtin::MATERIAL_VARIANTS, &["grove", "garage"]);
     conformance::assert_conforms(&registry, &plan(&registry), &cases);
 }
 

@@ -8,11 +8,12 @@
 use conformance::Plan;
 use trace::Registry;
 
-/// The built-in scenes at every view (grove, 60k triangles, at the default view only).
+/// The built-in scenes at every view (grove and garage, the largest, at the default view only;
+/// not the material variants, whose geometry is another scene's).
 #[test]
 fn every_method_on_the_builtin_scenes() {
     let registry = Registry::ours();
-    let cases = conformance::builtin_cases(31, 23, &[], &["grove"]);
+    let cases = conformance::builtin_cases(31, 23, scenes::builtin::MATERIAL_VARIANTS, &["grove", "garage"]);
     conformance::assert_conforms(&registry, &Plan::ours(&registry), &cases);
 }
 

@@ -333,9 +333,10 @@ mod tests {
     #[test]
     fn culled_shadows_equal_unculled_on_every_builtin_scene_and_view() {
         let mut culled_somewhere = false;
-        for &name in scenes::builtin::NAMES {
+        for &name in scenes::builtin::NAMES.iter().filter(|n| !scenes::builtin::MATERIAL_VARIANTS.contains(n)) {
             let scene = scenes::load_scene(name).unwrap();
-            let views: Vec<_> = if name == "grove" { vec![scene.default_view().clone()] } else { scene.views.clone() };
+            let large = ["grove", "garage"].contains(&name);
+            let views: Vec<_> = if large { vec![scene.default_view().clone()] } else { scene.views.clone() };
             for view in views {
                 let camera = view.camera(48, 32).unwrap();
                 let (kept, _) = assert_identical(&scene, &camera, &format!("{name}/{}", view.name));

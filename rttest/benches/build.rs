@@ -28,7 +28,7 @@ fn bench_mesh(
 fn builtin_scenes(c: &mut Criterion) {
     let mut group = c.benchmark_group("build");
     group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2));
-    for name in scenes::builtin::NAMES {
+    for name in scenes::builtin::NAMES.iter().filter(|n| !scenes::builtin::MATERIAL_VARIANTS.contains(n)) {
         let scene = scenes::load_scene(name).expect("built-in scene");
         bench_mesh(&mut group, BenchmarkId::from_parameter(name), &scene.mesh, &BuildConfig::default());
     }

@@ -1,9 +1,10 @@
 //! The shared scene and image crate of the workspace.
 //!
-//! Everything that touches files lives here: meshes and their OBJ loader, the built-in
-//! procedural scenes that mirror the thesis's benchmark scenes (Tsakok 2008, Figure 4.1),
-//! pinhole cameras, lights, floating-point images with PNG/PFM output, heat maps with a
-//! legend (`colormap`, `font`), error metrics and tile iteration. The kd-tree and traversal
+//! Everything that touches files lives here: meshes and their OBJ loader (with MTL material
+//! libraries), materials (the thesis's shader parameters), the built-in procedural scenes that
+//! mirror the thesis's benchmark scenes (Tsakok 2008, Figure 4.1 and Table 6.2), pinhole
+//! cameras, lights, floating-point images with PNG/PFM output, heat maps with a legend
+//! (`colormap`, `font`), error metrics and tile iteration. The kd-tree and traversal
 //! crates never read files; they take the positions and triangles of a [`Mesh`].
 //!
 //! One camera convention serves every tracer (see [`Camera`]), so that other tracers can
@@ -21,6 +22,7 @@ pub mod load;
 pub mod material;
 pub mod mesh;
 pub mod metrics;
+pub mod mtl;
 pub mod obj;
 pub mod scene;
 pub mod tile;

@@ -6,10 +6,17 @@
 //! The tests check that it reads the same positions and triangles as `tobj` (a fan from each
 //! polygon's first corner, as `tobj` triangulates) on small files and on the shared scenes.
 //!
-//! Only geometry is read: `v` lines (extra `w` or colour values are ignored), `f` lines (the
-//! position index of each corner, absolute or negative-relative; texture and normal indices are
-//! ignored) and `usemtl` names. Everything else (`vt`, `vn`, `g`, `o`, `s`, `mtllib`, `l`, ...)
-//! is skipped.
+//! Only geometry and material names are read: `v` lines (extra `w` or colour values are
+//! ignored), `f` lines (the position index of each corner, absolute or negative-relative;
+//! texture and normal indices are ignored), `usemtl` names and `mtllib` names (several on a
+//! line, several lines, up to a `#` comment). Everything else (`vt`, `vn`, `g`, `o`, `s`,
+//! `l`, ...) is skipped.
+//!
+//! [`load_obj`] then reads the named material libraries (see [`crate::mtl`]) from the OBJ
+//! file's folder and gives each `usemtl` name the material they define. A library that is not
+//! there is no error (the materials keep the default, and [`LoadReport`] lists it); a library
+//! that is there but malformed is. Geometry, triangle order and `prim_ids` never depend on the
+//! libraries.
 
 use std::collections::HashMap;
 use std::io::Read;
@@ -17,7 +24,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use crate::{Material, Mesh, SceneError};
+use crate::{Material, Mesh, SceneError, mtl};
 
 /// What the loader read and what it dropped.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -31,6 +38,15 @@ pub struct LoadReport {
     /// Degenerate triangles dropped: coincident corner indices or an exactly zero cross
     /// product of the edges in f32.
     pub degenerate_dropped: usize,
+    /// The material libraries that `mtllib` lines name, as written, in file order, each once.
+    pub material_libraries: Vec<String>,
+    /// Those of [`Self::material_libraries`] that [`load_obj`] did not find (relative to the
+    /// OBJ file's folder): not an error, their materials keep the default. [`parse_obj`],
+    /// which reads no other file, leaves this empty.
+    pub missing_material_libraries: Vec<String>,
+    /// Materials of the mesh that a library defines; the others ([`parse_obj`]: all) are
+    /// `Material::default()` under their `usemtl` name.
+    pub materials_from_libraries: usize,
 }
 
 impl LoadReport {
@@ -49,24 +65,53 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 ///
 /// Polygons are triangulated as fans from their first corner, `prim_ids` number the triangles
 /// in file order counting the dropped degenerate ones, and each `usemtl` name becomes a
-/// [`Material`] with the default diffuse colour (faces before any `usemtl` use a material
-/// named `default`). Errors name the file and, for malformed content, the line. A vertex
+/// [`Material`]: the one the `mtllib` libraries define under that name (read from the OBJ
+/// file's folder, later libraries overriding earlier ones), else the default diffuse one
+/// under that name (faces before any `usemtl` use a material named `default`). Errors name the
+/// file and, for malformed content, the line (of the OBJ or of the `.mtl` file). A vertex
 /// coordinate that is NaN or infinite (`nan`, `inf`, or a number beyond `f32`, such as
-/// `1e39`) is such an error, naming the line and the vertex.
+/// `1e39`) is such an error, naming the line and the vertex. A library that does not exist is
+/// not an error: [`LoadReport::missing_material_libraries`] names it.
 pub fn load_obj(path: &Path) -> Result<(Mesh, LoadReport), SceneError> {
     let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
-    if bytes.starts_with(&GZIP_MAGIC) {
+    let (mut mesh, mut report) = if bytes.starts_with(&GZIP_MAGIC) {
         let mut text = Vec::with_capacity(bytes.len() * 6);
         flate2::read::MultiGzDecoder::new(&bytes[..])
             .read_to_end(&mut text)
             .map_err(|e| SceneError::Parse { path: path.to_path_buf(), message: format!("corrupt gzip data: {e}") })?;
-        parse_obj(&text, path)
+        parse_obj(&text, path)?
     } else {
-        parse_obj(&bytes, path)
-    }
+        parse_obj(&bytes, path)?
+    };
+    apply_material_libraries(&mut mesh, &mut report, path.parent().unwrap_or(Path::new("")))?;
+    Ok((mesh, report))
 }
 
-/// Parses OBJ text already in memory; `origin` is only used in error messages.
+/// Reads the libraries of `report.material_libraries` from `folder` and replaces each mesh
+/// material that one defines (by name) with its definition; records the missing libraries.
+fn apply_material_libraries(mesh: &mut Mesh, report: &mut LoadReport, folder: &Path) -> Result<(), SceneError> {
+    let mut defined: HashMap<String, Material> = HashMap::new();
+    for name in &report.material_libraries {
+        let path = folder.join(name);
+        match std::fs::read(&path) {
+            Ok(bytes) => defined.extend(mtl::parse_mtl(&bytes, &path)?.into_iter().map(|m| (m.name.clone(), m))),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => report.missing_material_libraries.push(name.clone()),
+            Err(source) => return Err(SceneError::Io { path, source }),
+        }
+    }
+    for material in &mut mesh.materials {
+        if let Some(definition) = defined.get(&material.name) {
+            *material = definition.clone();
+            report.materials_from_libraries += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Parses OBJ text already in memory; `origin` is only used in error messages. Reads no
+/// other file: `mtllib` names are listed in [`LoadReport::material_libraries`], and every
+/// material is `Material::default()` under its `usemtl` name ([`load_obj`] reads the
+/// libraries).
 pub fn parse_obj(text: &[u8], origin: &Path) -> Result<(Mesh, LoadReport), SceneError> {
     let err = |line: usize, message: String| SceneError::Parse {
         path: origin.to_path_buf(),
@@ -83,6 +128,7 @@ pub fn parse_obj(text: &[u8], origin: &Path) -> Result<(Mesh, LoadReport), Scene
     // checked once all vertices are known: (face number, line, zero-based index).
     let mut forward_refs: Vec<(usize, usize, u64)> = Vec::new();
     let mut corners: Vec<u32> = Vec::new();
+    let mut libraries: Vec<String> = Vec::new();
 
     for (line_no, raw) in text.split(|&b| b == b'\n').enumerate() {
         let line_no = line_no + 1;
@@ -161,6 +207,14 @@ pub fn parse_obj(text: &[u8], origin: &Path) -> Result<(Mesh, LoadReport), Scene
                     material_ids.push(material);
                 }
             }
+            Some("mtllib") => {
+                // The names up to a comment.
+                for name in words.take_while(|w| !w.starts_with('#')) {
+                    if !libraries.iter().any(|l| l == name) {
+                        libraries.push(name.to_string());
+                    }
+                }
+            }
             Some("usemtl") => {
                 let name = line.trim_start().strip_prefix("usemtl").unwrap_or_default().trim();
                 current_material = if name.is_empty() { "default".to_string() } else { name.to_string() };
@@ -196,6 +250,8 @@ pub fn parse_obj(text: &[u8], origin: &Path) -> Result<(Mesh, LoadReport), Scene
         faces,
         triangles: mesh.triangles.len(),
         degenerate_dropped: source_triangles - mesh.triangles.len(),
+        material_libraries: libraries,
+        ..LoadReport::default()
     };
     if mesh.triangles.is_empty() {
         return Err(SceneError::Empty { path: origin.to_path_buf() });
@@ -255,7 +311,10 @@ mod tests {
         let (mesh, report) = parse(PENTAGON).unwrap();
         assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3], [0, 3, 4], [5, 1, 2]]);
         assert_eq!(mesh.prim_ids, vec![0, 1, 2, 3, 4, 5]);
-        assert_eq!(report, LoadReport { vertices: 6, faces: 3, triangles: 6, degenerate_dropped: 0 });
+        assert_eq!(
+            report,
+            LoadReport { vertices: 6, faces: 3, triangles: 6, degenerate_dropped: 0, ..LoadReport::default() }
+        );
         assert_eq!(mesh.materials, vec![Material::default()]);
         mesh.check().unwrap();
     }
@@ -353,6 +412,73 @@ mod tests {
         assert!(matches!(load_obj(&corrupt), Err(SceneError::Parse { .. })));
     }
 
+    #[test]
+    fn mtllib_names_are_listed_by_the_parser_which_reads_no_file() {
+        let text =
+            "mtllib a.mtl b.mtl\nmtllib sub/c.mtl a.mtl # c again\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n";
+        let (mesh, report) = parse(text).unwrap();
+        assert_eq!(report.material_libraries, ["a.mtl", "b.mtl", "sub/c.mtl"]);
+        assert!(report.missing_material_libraries.is_empty());
+        assert_eq!(report.materials_from_libraries, 0);
+        assert_eq!(mesh.materials, vec![Material { name: "red".into(), ..Material::default() }]);
+    }
+
+    #[test]
+    fn material_libraries_load_relative_to_the_obj_folder() {
+        let dir = std::env::temp_dir().join(format!("scenes-obj-mtllib-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("scene/mats")).unwrap();
+        let obj = format!(
+            "mtllib first.mtl mats/second.mtl\nmtllib gone.mtl\n{}usemtl glass\nf 1 2 3 4\nusemtl paint\nf 1 2 3\n\
+             usemtl nowhere\nf 1 2 4\nusemtl glass\nf 6 2 3\n",
+            PENTAGON.lines().filter(|l| l.starts_with('v')).map(|l| format!("{l}\n")).collect::<String>()
+        );
+        std::fs::write(dir.join("scene/car.obj"), &obj).unwrap();
+        std::fs::write(dir.join("scene/first.mtl"), "newmtl glass\nKd 0.1 0.1 0.1\nillum 2\n").unwrap();
+        // The second library redefines glass (later libraries win) and defines paint.
+        std::fs::write(
+            dir.join("scene/mats/second.mtl"),
+            "newmtl glass\nKs 0.1 0.1 0.1\nd 0.2\nNi 1.5\nillum 7\nnewmtl paint\nKd 0.6 0 0\nKs 0.5 0.5 0.5\nillum 3\n",
+        )
+        .unwrap();
+        let (mesh, report) = load_obj(&dir.join("scene/car.obj")).unwrap();
+        mesh.check().unwrap();
+        assert_eq!(report.material_libraries, ["first.mtl", "mats/second.mtl", "gone.mtl"]);
+        assert_eq!(report.missing_material_libraries, ["gone.mtl"]);
+        assert_eq!(report.materials_from_libraries, 2);
+        let shaders: Vec<(&str, crate::Shader)> =
+            mesh.materials.iter().map(|m| (m.name.as_str(), m.shader())).collect();
+        use crate::Shader::*;
+        assert_eq!(shaders, [("glass", TransparentReflective), ("paint", Reflective), ("nowhere", Diffuse)]);
+        assert_eq!(mesh.materials[2], Material { name: "nowhere".into(), ..Material::default() });
+        assert_eq!(mesh.materials[1].diffuse, Vec3::new(0.6, 0.0, 0.0));
+        assert_eq!(mesh.material_ids, vec![0, 0, 1, 2, 0]);
+        // The geometry is exactly what the parser alone reads.
+        let (plain, _) = parse(&obj).unwrap();
+        assert_eq!(
+            (&mesh.positions, &mesh.triangles, &mesh.prim_ids),
+            (&plain.positions, &plain.triangles, &plain.prim_ids)
+        );
+        assert_eq!(mesh.material_ids, plain.material_ids);
+
+        // A malformed library is an error naming it and its line.
+        std::fs::write(dir.join("scene/mats/second.mtl"), "newmtl paint\n\nKd 0.6 0 1.5\n").unwrap();
+        let e = load_obj(&dir.join("scene/car.obj")).unwrap_err().to_string();
+        assert!(e.contains("second.mtl") && e.contains("line 3") && e.contains("'paint'"), "{e}");
+        // A library that is a folder is an I/O error naming it, not a missing library.
+        std::fs::remove_file(dir.join("scene/mats/second.mtl")).unwrap();
+        std::fs::create_dir(dir.join("scene/mats/second.mtl")).unwrap();
+        let e = load_obj(&dir.join("scene/car.obj")).unwrap_err();
+        assert!(matches!(&e, SceneError::Io { path, .. } if path.ends_with("mats/second.mtl")), "{e}");
+        // Every library missing: the load succeeds with default materials, all listed.
+        std::fs::remove_dir_all(dir.join("scene/mats")).unwrap();
+        std::fs::remove_file(dir.join("scene/first.mtl")).unwrap();
+        let (mesh, report) = load_obj(&dir.join("scene/car.obj")).unwrap();
+        assert_eq!(report.missing_material_libraries, ["first.mtl", "mats/second.mtl", "gone.mtl"]);
+        assert_eq!(report.materials_from_libraries, 0);
+        assert!(mesh.materials.iter().all(|m| m.shader() == crate::Shader::Diffuse && m.diffuse == Vec3::splat(0.75)));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// Loads the shared benchmark scenes if present and checks their triangle counts against
     /// `SOURCES.md` (and, for Sponza, against tobj). Skips with a note when they are absent.
     #[test]
@@ -382,6 +508,8 @@ mod tests {
             assert_eq!(report.vertices, vertices, "{file}");
             assert_eq!(report.faces, source_triangles, "{file}");
             assert_eq!(report.source_triangles(), source_triangles, "{file}");
+            // SOURCES.md: geometry only, no mtllib or usemtl.
+            assert!(report.material_libraries.is_empty() && mesh.materials.len() == 1, "{file}");
             assert!(mesh.prim_ids.windows(2).all(|w| w[0] < w[1]), "{file}: prim ids not increasing");
             assert!(mesh.prim_ids.last().is_some_and(|&p| (p as usize) < source_triangles), "{file}");
             if file.starts_with("conference") {

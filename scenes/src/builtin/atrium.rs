@@ -256,6 +256,25 @@ fn add_banners(b: &mut MeshBuilder) {
     }
 }
 
+/// The names of the atrium's floor tile materials, which only the tiles use (the slab under
+/// them shows in the joints).
+const FLOOR_TILES: [&str; 2] = ["floor tile light", "floor tile dark"];
+
+/// `atrium-mirror`: `atrium` with polished, reflective floor tiles (`M_R`: reflectivity 0.5, a
+/// specular highlight; their diffuse colours kept), for the secondary-ray pass (thesis 4.2.1,
+/// chapter 6). The geometry, triangle order, material ids, views and lights are `atrium`'s;
+/// only the tiles' two materials differ.
+pub fn atrium_mirror() -> Scene {
+    let mut scene = atrium();
+    scene.name = "atrium-mirror".to_string();
+    for m in scene.mesh.materials.iter_mut().filter(|m| FLOOR_TILES.contains(&m.name.as_str())) {
+        m.reflectivity = 0.5;
+        m.specular_blend = 0.5;
+        m.specular_exponent = 80.0;
+    }
+    scene
+}
+
 /// The rotation of `atrium-rotated`: 17, 29 and 11 degrees about X, Y and Z, which leaves no
 /// face of the atrium axis-aligned (the thesis's "Transformed Kitchen" idea, 4.1).
 pub fn atrium_rotation() -> Quat {
@@ -325,6 +344,39 @@ mod tests {
         assert!(cam.forward.x > 0.9);
         let (lo, hi) = scene.mesh.bounds().unwrap();
         assert!(cam.eye.cmpgt(lo).all() && cam.eye.cmplt(hi).all());
+    }
+
+    #[test]
+    fn the_mirror_atrium_differs_only_in_its_floor_tiles() {
+        use crate::Shader;
+        let (plain, mirror) = (atrium(), atrium_mirror());
+        assert_eq!(mirror.name, "atrium-mirror");
+        let (a, b) = (&plain.mesh, &mirror.mesh);
+        assert_eq!((&a.positions, &a.triangles, &a.prim_ids), (&b.positions, &b.triangles, &b.prim_ids));
+        assert_eq!((&a.material_ids, &a.normals), (&b.material_ids, &b.normals));
+        assert_eq!(
+            (plain.views, plain.point_light, plain.area_light),
+            (mirror.views, mirror.point_light, mirror.area_light)
+        );
+        assert_eq!(a.materials.len(), b.materials.len());
+        let mut reflective = Vec::new();
+        for (i, (m, n)) in a.materials.iter().zip(&b.materials).enumerate() {
+            assert_eq!((&m.name, m.diffuse, m.shader()), (&n.name, n.diffuse, Shader::Diffuse));
+            if n != m {
+                assert_eq!(n.shader(), Shader::Reflective, "{}", n.name);
+                reflective.push(i as u32);
+            }
+        }
+        assert_eq!(reflective.len(), FLOOR_TILES.len());
+        // The reflective materials are on the floor tiles alone: triangles at floor level.
+        let mut tiles = 0;
+        for (t, id) in b.material_ids.iter().enumerate() {
+            if reflective.contains(id) {
+                tiles += 1;
+                assert!(b.triangle(t).iter().all(|p| (-0.031..=0.0).contains(&p.y)), "triangle {t}");
+            }
+        }
+        assert_eq!(tiles, 12 * 2 * WALL_X as usize * 2 * WALL_Z as usize);
     }
 
     #[test]

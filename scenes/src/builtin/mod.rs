@@ -4,21 +4,26 @@
 //! They stand in for the thesis's benchmark scenes (Tsakok 2008, Figure 4.1), which we may
 //! not ship: `atrium` for Sponza (67k), `arena` for the Quake III level (12.8k),
 //! `atrium-rotated` for the non-axis-aligned "Transformed Kitchen", and `grove` for Fairy
-//! (174k, many small details). The small scenes exercise special cases. Y is up everywhere
-//! and `prim_ids[i] = i`.
+//! (174k, many small details). For the secondary rays (reflection and refraction, chapter 6),
+//! `garage` stands in for the two Ferrari F40s in a garage of Table 6.2 (89 754 polygons;
+//! reflective metal, car paint and glass), and `atrium-mirror` is `atrium` with a reflective
+//! floor. The other scenes' materials are diffuse (`M_D`). The small scenes exercise special
+//! cases. Y is up everywhere and `prim_ids[i] = i`.
 
 use crate::Scene;
 
 mod animated;
 mod arena;
 mod atrium;
+mod garage;
 mod grove;
 pub mod shapes;
 mod small;
 mod stage;
 
 pub use animated::animated;
-pub use atrium::{atrium, atrium_at_detail, atrium_rotated};
+pub use atrium::{atrium, atrium_at_detail, atrium_mirror, atrium_rotated};
+pub use garage::garage;
 pub use grove::{MAX_GROVES, grove_grid};
 
 /// Names of the built-in scenes, the default first.
@@ -31,12 +36,20 @@ pub const NAMES: &[&str] = &[
     "arena",
     "atrium-rotated",
     "grove",
+    "garage",
+    "atrium-mirror",
     "triangle",
     "cube",
     "sphere",
     "touching-boxes",
     "axis-plane-triangle",
 ];
+
+/// The names of [`NAMES`] whose geometry, triangle order, views and lights are those of another
+/// name, only their materials differing (`atrium-mirror` is `atrium` with a reflective
+/// floor): tests of geometry and traversal, which would repeat the other name's work, skip
+/// them.
+pub const MATERIAL_VARIANTS: &[&str] = &["atrium-mirror"];
 
 /// The built-in scene called `name` (one of [`NAMES`], `atrium-xN` with N a power of two up to
 /// 64: the atrium with each triangle split into N, or `grove-xN` with N from 1 to 64: N
@@ -47,6 +60,8 @@ pub fn by_name(name: &str) -> Option<Scene> {
         "arena" => Some(arena::arena()),
         "atrium-rotated" => Some(atrium_rotated()),
         "grove" => Some(grove::grove()),
+        "garage" => Some(garage()),
+        "atrium-mirror" => Some(atrium_mirror()),
         "triangle" => Some(small::triangle()),
         "cube" => Some(small::cube()),
         "sphere" => Some(small::sphere()),
@@ -83,6 +98,8 @@ mod tests {
         ("arena", 10_000, 15_000, true),
         ("atrium-rotated", 60_000, 70_000, true),
         ("grove", 150_000, 200_000, true),
+        ("garage", 85_000, 95_000, true),
+        ("atrium-mirror", 60_000, 70_000, true),
         ("triangle", 1, 1, false),
         ("cube", 12, 12, true),
         ("sphere", 1_000, 2_000, true),
@@ -96,6 +113,7 @@ mod tests {
         for (&name, &(expected, ..)) in NAMES.iter().zip(EXPECTED) {
             assert_eq!(name, expected);
         }
+        assert!(MATERIAL_VARIANTS.iter().all(|v| NAMES.contains(v)));
         assert!(by_name("no-such-scene").is_none());
         assert!(by_name("atrium-x3").is_none());
         assert!(by_name("atrium-x").is_none());

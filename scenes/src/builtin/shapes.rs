@@ -203,6 +203,70 @@ impl Part {
         Part { positions: positions.into_iter().map(|p| p * radius).collect(), triangles }
     }
 
+    /// A superellipsoid (Barr 1981) with semi-axes `radii`, centred on the origin, Y up: the
+    /// point at latitude `v` and longitude `u` is `(rx C(v, e_v) C(u, e_h), ry S(v, e_v),
+    /// rz C(v, e_v) S(u, e_h))` with `C(w, e) = sign(cos w) |cos w|^e` (and `S` with `sin`).
+    /// Exponents of 1 give an ellipsoid, smaller ones a rounded box (`e_v` shapes the vertical
+    /// profile, `e_h` the plan). `segments` (at least 3) vertices around each of `rings - 1`
+    /// rings (`rings` at least 2) between two poles: `2 * segments * (rings - 1)` triangles.
+    pub fn superellipsoid(radii: Vec3, e_v: f32, e_h: f32, segments: u32, rings: u32) -> Part {
+        let (segments, rings) = (segments.max(3), rings.max(2));
+        let power = |c: f32, e: f32| c.signum() * c.abs().powf(e);
+        let mut part = Part::default();
+        part.positions.push(Vec3::new(0.0, -radii.y, 0.0));
+        for k in 1..rings {
+            let v = -std::f32::consts::FRAC_PI_2 + std::f32::consts::PI * k as f32 / rings as f32;
+            let (cv, sv) = (power(v.cos(), e_v), power(v.sin(), e_v));
+            for j in 0..segments {
+                let u = std::f32::consts::TAU * j as f32 / segments as f32;
+                let (cu, su) = (power(u.cos(), e_h), power(u.sin(), e_h));
+                part.positions.push(radii * Vec3::new(cv * cu, sv, cv * su));
+            }
+        }
+        part.positions.push(Vec3::new(0.0, radii.y, 0.0));
+        let north = part.positions.len() as u32 - 1;
+        let at = |k: u32, j: u32| 1 + (k - 1) * segments + j % segments;
+        for j in 0..segments {
+            part.triangles.push([0, at(1, j), at(1, j + 1)]);
+        }
+        for k in 1..rings - 1 {
+            for j in 0..segments {
+                let (a, b, c, d) = (at(k, j), at(k, j + 1), at(k + 1, j + 1), at(k + 1, j));
+                part.triangles.push([a, d, c]);
+                part.triangles.push([a, c, b]);
+            }
+        }
+        for j in 0..segments {
+            part.triangles.push([at(rings - 1, j), north, at(rings - 1, j + 1)]);
+        }
+        part
+    }
+
+    /// A torus around the Y axis: a tube of radius `minor` whose centre runs on the circle of
+    /// radius `major > minor` in the XZ plane; `segments` steps around Y and `sides` around the
+    /// tube (each at least 3): `2 * segments * sides` triangles.
+    pub fn torus(major: f32, minor: f32, segments: u32, sides: u32) -> Part {
+        let (segments, sides) = (segments.max(3), sides.max(3));
+        let mut part = Part::default();
+        for i in 0..segments {
+            let theta = std::f32::consts::TAU * i as f32 / segments as f32;
+            for j in 0..sides {
+                let phi = std::f32::consts::TAU * j as f32 / sides as f32;
+                let r = major + minor * phi.cos();
+                part.positions.push(Vec3::new(r * theta.cos(), minor * phi.sin(), r * theta.sin()));
+            }
+        }
+        let at = |i: u32, j: u32| (i % segments) * sides + j % sides;
+        for i in 0..segments {
+            for j in 0..sides {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                part.triangles.push([a, d, c]);
+                part.triangles.push([a, c, b]);
+            }
+        }
+        part
+    }
+
     /// Closes an open surface that is a height field over the XZ plane (such as a terrain
     /// grid, normals up) into a solid: vertical walls down from its boundary to height `floor`
     /// and a flat bottom (a fan around the bottom's centre). `floor` must lie below the surface.
@@ -276,6 +340,16 @@ impl MeshBuilder {
             return i as u32;
         }
         self.mesh.materials.push(Material::diffuse(name, diffuse));
+        self.mesh.materials.len() as u32 - 1
+    }
+
+    /// The id of the material called `material.name`, added as given on first use (an
+    /// existing material of that name is kept as it is).
+    pub fn add_material(&mut self, material: Material) -> u32 {
+        if let Some(i) = self.mesh.materials.iter().position(|m| m.name == material.name) {
+            return i as u32;
+        }
+        self.mesh.materials.push(material);
         self.mesh.materials.len() as u32 - 1
     }
 
@@ -435,6 +509,19 @@ mod tests {
             assert_eq!(sphere.triangles.len(), 20 * 4usize.pow(s));
             assert_closed_outward(&sphere, "icosphere");
         }
+        for (e_v, e_h) in [(1.0, 1.0), (0.6, 0.35), (0.3, 0.2), (1.5, 0.8)] {
+            let blob = Part::superellipsoid(Vec3::new(2.0, 0.5, 1.0), e_v, e_h, 40, 24);
+            assert_eq!(blob.triangles.len(), 2 * 40 * 23);
+            assert_closed_outward(&blob, &format!("superellipsoid {e_v} {e_h}"));
+        }
+        let ellipsoid = Part::superellipsoid(Vec3::new(1.0, 2.0, 3.0), 1.0, 1.0, 128, 64).signed_volume();
+        assert!((ellipsoid - 8.0 * std::f32::consts::PI).abs() < 0.05 * ellipsoid, "{ellipsoid}");
+        let torus = Part::torus(2.0, 0.5, 48, 16);
+        assert_eq!(torus.triangles.len(), 2 * 48 * 16);
+        assert_closed_outward(&torus, "torus");
+        let ring = std::f32::consts::PI * 0.25 * std::f32::consts::TAU * 2.0;
+        assert!((torus.signed_volume() - ring).abs() < 0.05 * ring, "{}", torus.signed_volume());
+        assert_closed_outward(&Part::torus(1.0, 0.2, 3, 3), "coarsest torus");
         let v = Part::icosphere(1.0, 4).signed_volume();
         assert!((v - 4.0 / 3.0 * std::f32::consts::PI).abs() < 0.03, "{v}");
     }
@@ -512,10 +599,15 @@ mod tests {
         b.add_box(Vec3::ZERO, Vec3::ONE, red);
         let red_again = b.material("red", Vec3::Y);
         assert_eq!(red, red_again);
+        let shiny = Material { reflectivity: 0.5, ..Material::diffuse("red", Vec3::Z) };
+        assert_eq!(b.add_material(shiny.clone()), red, "the first definition of a name stays");
+        let mirror = b.add_material(Material { name: "mirror".into(), ..shiny });
         let blue = b.material("blue", Vec3::Z);
         b.add(&Part::icosphere(1.0, 1), blue);
         let mesh = b.finish();
         mesh.check().unwrap();
+        assert_eq!(mesh.materials[red as usize], Material::diffuse("red", Vec3::X));
+        assert_eq!(mesh.materials[mirror as usize].reflectivity, 0.5);
         assert_eq!(mesh.triangle_count(), 12 + 80);
         assert_eq!(mesh.prim_ids, (0..92).collect::<Vec<u32>>());
         assert_eq!(checks::open_edge(&mesh.triangles), None);
