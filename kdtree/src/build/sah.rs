@@ -32,13 +32,17 @@ impl Costs {
     /// The SIMD groups of `n` triangles, `ceil(n / W)`: the tests one ray makes in a leaf of
     /// `n` (`n` itself, exactly, for `W = 1`). `n` is a whole number.
     ///
-    /// The quotient is at least 0 and below `2^53`, so truncating it to an integer is exact
-    /// and one more when it had a fraction is its ceiling, without the library call that
-    /// `f64::ceil` is on x86-64 without SSE 4.1.
+    /// `n` itself for `W = 1`, without the division. Otherwise the quotient is at least 0
+    /// and below `2^53`, so truncating it to an integer is exact and one more when it had a
+    /// fraction is its ceiling, without the library call that `f64::ceil` is on x86-64
+    /// without SSE 4.1.
     #[inline(always)]
     pub fn groups(&self, n: f64) -> f64 {
+        if self.width == 1.0 {
+            return n;
+        }
         let q = n / self.width;
-        let t = q as u64 as f64;
+        let t = q as i64 as f64;
         if t < q { t + 1.0 } else { t }
     }
 
