@@ -1,9 +1,10 @@
 //! Small nodes (at most [`SMALL`] triangles) without event lists: the triangles' clipped
-//! boxes are kept instead, and each candidate plane's counts are taken by testing every box
-//! (`O(N^2)`, but branch-free and vectorised, and cheaper than keeping sorted lists at these
-//! sizes). The counts and cost terms are those of the sweep ([`super::sah`]) computed the same
-//! way, and ties are broken the same way (lowest cost, then axis order, then lowest position,
-//! then planar triangles left), so the tree is the same as with the event lists.
+//! boxes are kept instead (cheaper than splitting sorted lists at these sizes), and each
+//! searched axis sorts its at most `2 * SMALL` box ends as keys and sweeps them once, as
+//! the event sweep does. The counts and cost terms are those of the sweep ([`super::sah`])
+//! computed the same way, and ties are broken the same way (lowest cost, then axis order,
+//! then lowest position, then planar triangles left), so the tree is the same as with the
+//! event lists.
 
 use glam::Vec3;
 
