@@ -394,11 +394,17 @@ fn clip_to_box(
     let mut cur = 0;
     for k in 0..3 {
         // The current polygon's extent: planes it no longer crosses are skipped.
+        // Plain comparisons, not `f64::min` / `max` (which also handle NaN, never met here:
+        // coordinates are finite): the extremes only feed the comparisons below.
         let poly = &bufs[cur];
         let (mut tmin, mut tmax) = (poly.v[0][k], poly.v[0][k]);
         for v in &poly.v[1..poly.len] {
-            tmin = tmin.min(v[k]);
-            tmax = tmax.max(v[k]);
+            if v[k] < tmin {
+                tmin = v[k];
+            }
+            if v[k] > tmax {
+                tmax = v[k];
+            }
         }
         let e = if widen_planes { poly.err[k] } else { 0.0 };
         let (lo_k, hi_k) = (widen(lo[k], e, false), widen(hi[k], e, true));

@@ -16,8 +16,8 @@
 //!   ([`sah`]) and hands its children their event lists still sorted ([`split`]); only the
 //!   few straddling triangles are clipped again and their new events sorted and merged.
 //! - Small nodes (at most [`small::SMALL`] triangles) drop the event lists and keep the
-//!   triangles' clipped boxes, counting each candidate directly ([`small`]); they choose the
-//!   same planes, so the tree is the same.
+//!   triangles' clipped boxes, sorting their ends per axis and sweeping them ([`small`]);
+//!   they choose the same planes, so the tree is the same.
 //! - Parallel (rayon) over subtrees above [`PAR_MIN_TRIS`] triangles, sequential with reused
 //!   buffers below. Which nodes run in parallel depends only on their triangle counts, and
 //!   the subtrees are assembled in a fixed depth-first order, so the tree is bit-identical
