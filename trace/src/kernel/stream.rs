@@ -2,9 +2,10 @@
 //! and any hit, in order.
 //!
 //! - [`Single`]: each ray alone (`kd-single`);
-//! - [`Packets`]: each four consecutive rays as an omni-directional packet, from their common
-//!   origin or each from its own (`packets::omni_lanes`, the thesis's secondary packets), a
-//!   same-sign packet only where a ray starts behind its origin (`kd-omni-packets`);
+//! - [`Packets`]: each `W` consecutive rays (4, 8, 16 by the SIMD level) as an
+//!   omni-directional packet, from their common origin or each from its own
+//!   (`packets::omni_lanes`, the thesis's secondary packets), a same-sign packet only where a
+//!   ray starts behind its origin (`kd-omni-packets`, `-w8`, `-w16`);
 //! - [`SameSign`]: each four as a same-sign packet (`kd-samesign-packets`);
 //! - [`Runs`]: each run of up to [`STREAM_FRUSTUM_RAYS`] rays sharing an origin (and starting
 //!   at it) traced by a tile kernel (one frustum or cone, or four quarter-runs as MFT frusta
@@ -12,13 +13,18 @@
 
 use std::marker::PhantomData;
 
+use kdtree::TreeTest;
 use kdtree::{Hit, KdTree, Ray};
 use packets::PacketTreeTest;
-use packets::{OmniPacket, RayPacket, TileTracer, omni, omni_lanes, samesign};
+use packets::simd::{SimdF32, SimdMask};
+use packets::triangle4::PacketTest;
+use packets::{OmniPacket, PacketHit, RayPacket, TileTracer, Width, omni, omni_lanes, samesign};
 
 use super::primary::TileKernel;
-use super::{NoOptions, Stream, TreeWith};
+use super::{FromOptions, NoOptions, Stream, TreeWith};
+use crate::error::Error;
 use crate::method::{Method, SingleRays, TileCounters};
+use crate::registry::Options;
 
 /// Rays per frustum of a ray stream: up to 16 packets.
 pub const STREAM_FRUSTUM_RAYS: usize = 64;
@@ -101,20 +107,58 @@ fn any_by_closest<C: TileCounters>(
     }
 }
 
-/// Each four consecutive rays as an omni-directional packet (thesis 4.1.2), from their common
-/// origin or each from its own (`packets::omni_lanes`: the secondary rays of neighbouring
-/// pixels), closest and any hit; same-sign packets only for rays starting behind their
-/// origin.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Packets;
+/// Each `width` consecutive rays as an omni-directional packet (thesis 4.1.2), from their
+/// common origin or each from its own (`packets::omni_lanes`: the secondary rays of
+/// neighbouring pixels), closest and any hit; same-sign packets only for rays starting behind
+/// their origin. 4 rays at the SSE level (`kd-omni-packets`), 8 with AVX2 (`-w8`), 16 with
+/// AVX-512 (`-w16`), from the method's SIMD level ([`Options::simd`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Packets {
+    /// Rays per packet.
+    pub width: Width,
+}
 
-impl NoOptions for Packets {}
+impl Default for Packets {
+    /// The thesis's 2x2 packets.
+    fn default() -> Self {
+        Packets { width: Width::Four }
+    }
+}
+
+impl FromOptions for Packets {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(Packets { width: Width::for_level(options.simd) })
+    }
+}
+
+/// `rays` (at most `V::LANES`) as one packet of `V`'s width: omni-directional from a common
+/// origin, or from each ray's own ([`packets::omni_lanes`]), or same-sign where a ray starts
+/// behind its origin; closest hits, or any hits with `ANY_HIT`.
+#[inline(always)]
+fn group<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: TileCounters, const ANY_HIT: bool>(
+    tree: &KdTree,
+    rays: &[Ray],
+    counters: &mut C,
+) -> PacketHit<V> {
+    let packet = RayPacket::<V>::from_rays(rays);
+    match (OmniPacket::new(packet), ANY_HIT) {
+        (Some(p), false) => omni::intersect_with::<I, V, C>(tree, &p, counters),
+        (Some(p), true) => omni::occluded_with::<I, V, C>(tree, &p, counters),
+        (None, false) if omni_lanes::starts_at_origins(&packet) => {
+            omni_lanes::intersect_with::<I, V, C>(tree, &packet, counters)
+        }
+        (None, true) if omni_lanes::starts_at_origins(&packet) => {
+            omni_lanes::occluded_with::<I, V, C>(tree, &packet, counters)
+        }
+        (None, _) => samesign::intersect_with::<I, V, C>(tree, &packet, counters),
+    }
+}
 
 impl Stream for Packets {
     type Scratch = ();
 
     fn name(&self) -> String {
-        "kd-omni-packets".into()
+        format!("kd-omni-packets{}", self.width.suffix())
     }
 
     fn scratch(&self) {}
@@ -127,9 +171,14 @@ impl Stream for Packets {
         out: &mut [Option<Hit>],
         c: &mut C,
     ) {
-        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
-            four::<I, C>(tree, rays, out, c);
-        }
+        packets::at_width!(self.width, V => {
+            for (rays, out) in rays.chunks(V::LANES).zip(out.chunks_mut(V::LANES)) {
+                let hits = group::<I, V, C, false>(tree, rays, c);
+                for (lane, slot) in out.iter_mut().enumerate() {
+                    *slot = hits.get(lane);
+                }
+            }
+        });
     }
 
     fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
@@ -140,19 +189,14 @@ impl Stream for Packets {
         out: &mut [bool],
         c: &mut C,
     ) {
-        for (rays, out) in rays.chunks(4).zip(out.chunks_mut(4)) {
-            let packet = RayPacket::new(rays);
-            let found = match OmniPacket::new(packet) {
-                Some(p) => omni::occluded_with::<I, _, C>(tree, &p, c).found,
-                None if omni_lanes::starts_at_origins(&packet) => {
-                    omni_lanes::occluded_with::<I, _, C>(tree, &packet, c).found
+        packets::at_width!(self.width, V => {
+            for (rays, out) in rays.chunks(V::LANES).zip(out.chunks_mut(V::LANES)) {
+                let found = group::<I, V, C, true>(tree, rays, c).found.bitmask();
+                for (lane, slot) in out.iter_mut().enumerate() {
+                    *slot = found >> lane & 1 != 0;
                 }
-                None => samesign::intersect_with::<I, _, C>(tree, &packet, c).found,
-            };
-            for (lane, slot) in out.iter_mut().enumerate() {
-                *slot = found.bitmask() >> lane & 1 != 0;
             }
-        }
+        });
     }
 }
 
