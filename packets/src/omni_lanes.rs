@@ -17,7 +17,11 @@
 //! - A lane whose origin lies on the plane (or a NaN distance) gets its whole interval on both
 //!   sides, as Listing 4.1's both-children case.
 //!
-//! With one common origin every lane agrees, and the walk is [`crate::omni`]'s step for step.
+//! On an axis where every lane's direction has the same sign, the packet takes the near child
+//! by that sign (Listing 2.4's order) instead: it is every lane's own near child whatever its
+//! origin (a lane moving away from a plane behind it has an empty near interval), so no lane
+//! is taken far side first. Measured on the garage's and Sponza's reflection rays, taking the
+//! origins' side on such axes too was 1.5x slower at 4 lanes than same-sign packets.
 //! The rest of the walk is [`crate::omni`]'s: the leaf test, the stack, the pop rule, every
 //! width.
 
@@ -38,7 +42,7 @@ pub fn intersect_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counter
     counters: &mut C,
 ) -> PacketHit<V> {
     debug_assert!(starts_at_origins(rays));
-    traverse::<V, _, _, C, false>(tree, I::records(tree), rays, &OmniLanes, counters)
+    traverse::<V, _, _, C, false>(tree, I::records(tree), rays, &OmniLanes::new(rays), counters)
 }
 
 /// Which of the packet's rays are blocked (any hit), as [`intersect_with`].
@@ -49,7 +53,7 @@ pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters
     counters: &mut C,
 ) -> PacketHit<V> {
     debug_assert!(starts_at_origins(rays));
-    traverse::<V, _, _, C, true>(tree, I::records(tree), rays, &OmniLanes, counters)
+    traverse::<V, _, _, C, true>(tree, I::records(tree), rays, &OmniLanes::new(rays), counters)
 }
 
 /// Whether every valid lane starts at its origin (`t_min >= 0`), which the omni-directional
@@ -59,8 +63,33 @@ pub fn starts_at_origins<V: SimdF32>(rays: &RayPacket<V>) -> bool {
     !(rays.t_min.cmplt(V::ZERO) & rays.valid).any()
 }
 
-/// The child order of this module: each lane's front from its own origin.
-struct OmniLanes;
+/// The child order of this module. On an axis where every valid lane's direction has the same
+/// sign, the near child by that sign (Listing 2.4's order, corrected): right for every lane
+/// whatever its origin, so no lane is ever taken far side first. On the other axes, each
+/// lane's front from its own origin, the packet taking first the child most active lanes
+/// start in.
+struct OmniLanes {
+    /// Bit `axis`: the valid lanes' direction signs agree on that axis.
+    agree: usize,
+    /// Bit `axis`: ... and are negative (the upper child is near).
+    upper: usize,
+}
+
+impl OmniLanes {
+    #[inline(always)]
+    fn new<V: SimdF32>(rays: &RayPacket<V>) -> OmniLanes {
+        let valid = rays.valid.bitmask();
+        let (mut agree, mut upper) = (0, 0);
+        for a in 0..3 {
+            let negative = rays.d[a].is_negative_bitmask() & valid;
+            if negative == 0 || negative == valid {
+                agree |= 1 << a;
+                upper |= usize::from(negative != 0) << a;
+            }
+        }
+        OmniLanes { agree, upper }
+    }
+}
 
 impl ChildOrder for OmniLanes {
     #[inline(always)]
@@ -68,6 +97,17 @@ impl ChildOrder for OmniLanes {
         let axis = node.axis() & 3;
         let dist = V::splat(node.split()) - rays.o[axis];
         let inv = rays.inv[axis];
+        if (self.agree >> axis) & 1 != 0 {
+            // The same-sign step: a plane behind a lane's origin empties its near interval;
+            // a lane lying in the plane (`d` NaN) keeps its whole interval on both sides.
+            let d = dist * inv;
+            let in_plane = d.cmpne(d);
+            let upper = (self.upper >> axis) & 1;
+            let (front, back) = (node.left_child() + upper, node.left_child() + 1 - upper);
+            let front_far = V::select(in_plane, far, far.min(widen_up(d)));
+            let back_near = V::select(in_plane, near, near.max(widen_down(d)));
+            return Step::Split { front, back, front_far, back_near };
+        }
         // Modification 1, per lane: a plane behind the origin (decided by the signs of
         // `dist` and `1 / d`, not of their product, as in `omni::Omni`) is at +inf.
         let (below, above) = (dist.cmpgt(V::ZERO), dist.cmplt(V::ZERO));
@@ -96,7 +136,7 @@ mod tests {
     use crate::simd::PortableF32;
     use crate::test_support::{self, Rng};
     use glam::Vec4;
-    use kdtree::{Counts, NoCounters, Ray, WaldTest, WatertightTest};
+    use kdtree::{NoCounters, Ray, WaldTest, WatertightTest};
 
     /// `rays` (each from its own origin) as one packet of `V`'s width, both queries, against
     /// single rays: the same distance bit for bit (the same triangle unless two tie at it) and
@@ -168,9 +208,9 @@ mod tests {
         }
     }
 
-    /// With one origin every lane agrees: the walk is `omni`'s step for step.
+    /// With one origin the answers are the omni walk's, bit for bit.
     #[test]
-    fn a_common_origin_is_the_omni_walk() {
+    fn a_common_origin_gives_the_omni_walks_answers() {
         let mut rng = Rng(0x0e1a_0001);
         for scene in test_support::hard_scenes() {
             let tree = &scene.trees[0];
@@ -178,11 +218,9 @@ mod tests {
                 let rays = scene.rays(&mut rng, 4, round % 6, true);
                 let packet = RayPacket::<Vec4>::from_rays(&rays);
                 let Some(omni) = crate::OmniPacket::new(packet) else { continue };
-                let (mut a, mut b) = (Counts::default(), Counts::default());
-                let x = intersect_with::<WaldTest, Vec4, _>(tree, &packet, &mut a);
-                let y = crate::omni::intersect_with::<WaldTest, Vec4, _>(tree, &omni, &mut b);
+                let x = intersect_with::<WaldTest, Vec4, _>(tree, &packet, &mut NoCounters);
+                let y = crate::omni::intersect_with::<WaldTest, Vec4, _>(tree, &omni, &mut NoCounters);
                 assert_eq!(test_support::packet_hit_bits(&x), test_support::packet_hit_bits(&y), "{}", scene.name);
-                assert_eq!(a, b, "{}: the same steps and tests", scene.name);
             }
         }
     }

@@ -380,7 +380,7 @@ impl<'a> Renderer<'a> {
             self.method.tracer.stream(&generation.rays, &mut generation.hits);
             stats.secondary_secs += start.elapsed().as_secs_f64();
             stats.secondary_rays += generation.len() as u64;
-            stats.secondary_hits += generation.hits.iter().filter(|h| h.is_some()).count() as u64;
+            stats.secondary_hits += generation.hits.par_iter().filter(|h| h.is_some()).count() as u64;
             let start = Instant::now();
             stats.secondary_shadow_rays += self.point_shadows(&mut generation);
             stats.secondary_shadow_secs += start.elapsed().as_secs_f64();
@@ -407,75 +407,77 @@ impl<'a> Renderer<'a> {
     fn point_shadows(&self, generation: &mut Generation) -> u64 {
         let surfaces = self.surfaces();
         let n = generation.len();
-        generation.visible = vec![0.0; n];
-        let points = || {
-            generation.hits.iter().zip(&generation.rays).enumerate().filter_map(|(i, (h, r))| Some((i, (*h)?, r.dir)))
-        };
-        match self.shadows {
-            Shadows::None => {
-                for (i, ..) in points() {
-                    generation.visible[i] = 1.0;
-                }
-                0
-            }
+        let (hits, rays) = (&generation.hits, &generation.rays);
+        // Each point's shadow query, made in parallel, in point order with its point's index.
+        fn gather<T: Send>(n: usize, make: impl Fn(usize) -> Option<T> + Sync + Send) -> (Vec<u32>, Vec<T>) {
+            (0..n).into_par_iter().filter_map(|i| Some((i as u32, make(i)?))).unzip()
+        }
+        let point = |i: usize| Some((hits[i]?, rays[i].dir));
+        // Misses stay 0; a lit point is 1 unless its query says otherwise.
+        let mut visible: Vec<f32> = hits.par_iter().map(|h| if h.is_some() { 1.0 } else { 0.0 }).collect();
+        let traced = match self.shadows {
+            Shadows::None => 0,
             Shadows::Hard => {
                 let light = &self.scene.point_light;
-                let mut owner = Vec::new();
-                let mut rays = Vec::new();
-                for (i, hit, dir) in points() {
-                    // Facing away from the light: shaded ambient whatever lies between.
-                    generation.visible[i] = 1.0;
-                    if let Some((a, b)) = shade::shadow_segment(surfaces, light, dir, &hit) {
-                        owner.push(i);
-                        rays.push(Ray::segment(a, b));
-                    }
-                }
-                let mut blocked = vec![false; rays.len()];
-                self.method.tracer.stream_occluded(&rays, &mut blocked);
+                // Facing away from the light: no ray, shaded ambient whatever lies between.
+                let (owner, segments) = gather(n, |i| {
+                    let (hit, dir) = point(i)?;
+                    let (a, b) = shade::shadow_segment(surfaces, light, dir, &hit)?;
+                    Some(Ray::segment(a, b))
+                });
+                let mut blocked = vec![false; segments.len()];
+                self.method.tracer.stream_occluded(&segments, &mut blocked);
                 for (&i, &b) in owner.iter().zip(&blocked) {
-                    generation.visible[i] = if b { 0.0 } else { 1.0 };
+                    visible[i as usize] = if b { 0.0 } else { 1.0 };
                 }
-                rays.len() as u64
+                segments.len() as u64
             }
             Shadows::Soft16 => {
-                let mut owner = Vec::new();
-                let mut rays = Vec::new();
-                for (i, hit, dir) in points() {
-                    let Some((start, _)) = soft::shadow_start(surfaces, &self.light, &hit, dir) else { continue };
-                    let Some(samples) = light_samples(start, &self.light) else { continue };
-                    owner.push(i);
-                    rays.extend(shadow_rays(start, &samples));
+                let light = &self.light;
+                let (owner, points) = gather(n, |i| {
+                    let (hit, dir) = point(i)?;
+                    let (start, _) = soft::shadow_start(surfaces, light, &hit, dir)?;
+                    Some(shadow_rays(start, &light_samples(start, light)?))
+                });
+                // Points without rays (facing away, inside the light) see nothing of it.
+                for (v, h) in visible.iter_mut().zip(hits) {
+                    *v = if h.is_some() { 0.0 } else { *v };
                 }
-                let mut blocked = vec![false; rays.len()];
-                self.method.tracer.stream_occluded(&rays, &mut blocked);
+                let samples: Vec<Ray> = points.par_iter().flat_map_iter(|r| r.iter().copied()).collect();
+                let mut blocked = vec![false; samples.len()];
+                self.method.tracer.stream_occluded(&samples, &mut blocked);
                 for (&i, b) in owner.iter().zip(blocked.chunks(SAMPLES)) {
-                    let n = b.iter().filter(|&&b| b).count();
-                    generation.visible[i] = 1.0 - n as f32 / SAMPLES as f32;
+                    let k = b.iter().filter(|&&b| b).count();
+                    visible[i as usize] = 1.0 - k as f32 / SAMPLES as f32;
                 }
-                rays.len() as u64
+                samples.len() as u64
             }
             Shadows::EdgeWidth => {
                 let tree = self.tree.expect("Shadows::EdgeWidth needs Renderer::with_tree");
-                let center = PointLight { position: self.light.center, intensity: self.light.intensity };
-                let mut owner = Vec::new();
-                let mut rays = Vec::new();
-                for (i, hit, dir) in points() {
-                    let Some(ray) = shade::shadow_ray(surfaces, &center, dir, &hit) else { continue };
+                let light = &self.light;
+                let center = PointLight { position: light.center, intensity: light.intensity };
+                let (owner, queries) = gather(n, |i| {
+                    let (hit, dir) = point(i)?;
+                    let ray = shade::shadow_ray(surfaces, &center, dir, &hit)?;
                     let p = surfaces.get(hit.prim).point(&hit);
-                    owner.push(i);
-                    rays.push((ray, width_from_light(self.light.radius, (self.light.center - p).length(), 1.0)));
+                    Some((ray, width_from_light(light.radius, (light.center - p).length(), 1.0)))
+                });
+                for (v, h) in visible.iter_mut().zip(hits) {
+                    *v = if h.is_some() { 0.0 } else { *v };
                 }
-                let mut seen = vec![0.0; rays.len()];
+                let mut seen = vec![0.0; queries.len()];
                 match tree.intersector() {
-                    Intersector::Wald => edge_width_rays::<WaldTest>(tree, &rays, &mut seen),
-                    Intersector::Watertight => edge_width_rays::<WatertightTest>(tree, &rays, &mut seen),
+                    Intersector::Wald => edge_width_rays::<WaldTest>(tree, &queries, &mut seen),
+                    Intersector::Watertight => edge_width_rays::<WatertightTest>(tree, &queries, &mut seen),
                 }
                 for (&i, &v) in owner.iter().zip(&seen) {
-                    generation.visible[i] = v;
+                    visible[i as usize] = v;
                 }
-                rays.len() as u64
+                queries.len() as u64
             }
-        }
+        };
+        generation.visible = visible;
+        traced
     }
 
     /// The edge-width pass ([`Shadows::EdgeWidth`]): the visible fraction of each pixel of

@@ -242,23 +242,34 @@ pub fn spawn_generation(
             (reflections, locals)
         })
         .collect();
-    let total = parts.iter().map(|(g, _)| g.len()).sum();
-    let mut out = Generation {
-        rays: Vec::with_capacity(total),
-        parent: Vec::with_capacity(total),
-        weight: Vec::with_capacity(total),
+    let out = Generation {
+        rays: concat(&parts.iter().map(|p| &p.0.rays[..]).collect::<Vec<_>>()),
+        parent: concat(&parts.iter().map(|p| &p.0.parent[..]).collect::<Vec<_>>()),
+        weight: concat(&parts.iter().map(|p| &p.0.weight[..]).collect::<Vec<_>>()),
         ..Generation::default()
     };
-    for (mut g, locals) in parts {
-        out.rays.append(&mut g.rays);
-        out.parent.append(&mut g.parent);
-        out.weight.append(&mut g.weight);
-        for (i, w) in locals {
+    for (_, locals) in &parts {
+        for &(i, w) in locals {
             if let Some(slot) = local.get_mut(i as usize) {
                 *slot = w;
             }
         }
     }
+    out
+}
+
+/// The slices `parts` one after the other, copied in parallel.
+fn concat<T: Copy + Send + Sync>(parts: &[&[T]]) -> Vec<T> {
+    let Some(first) = parts.iter().find_map(|p| p.first().copied()) else { return Vec::new() };
+    let mut out = vec![first; parts.iter().map(|p| p.len()).sum()];
+    let mut rest = &mut out[..];
+    let mut slots = Vec::with_capacity(parts.len());
+    for p in parts {
+        let (slot, tail) = std::mem::take(&mut rest).split_at_mut(p.len());
+        slots.push(slot);
+        rest = tail;
+    }
+    slots.into_par_iter().zip(parts.par_iter()).for_each(|(slot, p)| slot.copy_from_slice(p));
     out
 }
 
