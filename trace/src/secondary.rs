@@ -258,19 +258,23 @@ pub fn spawn_generation(
     out
 }
 
-/// The slices `parts` one after the other, copied in parallel.
+/// The slices `parts` one after the other, gathered in parallel straight into the new vector
+/// (rayon's indexed collect: no fill first).
 fn concat<T: Copy + Send + Sync>(parts: &[&[T]]) -> Vec<T> {
-    let Some(first) = parts.iter().find_map(|p| p.first().copied()) else { return Vec::new() };
-    let mut out = vec![first; parts.iter().map(|p| p.len()).sum()];
-    let mut rest = &mut out[..];
-    let mut slots = Vec::with_capacity(parts.len());
+    let mut offsets = Vec::with_capacity(parts.len() + 1);
+    offsets.push(0);
     for p in parts {
-        let (slot, tail) = std::mem::take(&mut rest).split_at_mut(p.len());
-        slots.push(slot);
-        rest = tail;
+        offsets.push(offsets[offsets.len() - 1] + p.len());
     }
-    slots.into_par_iter().zip(parts.par_iter()).for_each(|(slot, p)| slot.copy_from_slice(p));
-    out
+    let total = offsets[parts.len()];
+    (0..total)
+        .into_par_iter()
+        .map(|j| {
+            // The last part starting at or before `j` (empty parts share the next one's start).
+            let k = offsets.partition_point(|&o| o <= j) - 1;
+            parts[k][j - offsets[k]]
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -415,6 +419,15 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn concat_keeps_the_order_across_empty_parts() {
+        let parts: [&[u32]; 5] = [&[], &[1, 2], &[], &[], &[3, 4, 5]];
+        assert_eq!(concat(&parts), vec![1, 2, 3, 4, 5]);
+        assert!(concat::<u32>(&[&[], &[]]).is_empty());
+        let long: Vec<u32> = (0..10_000).collect();
+        assert_eq!(concat(&[&long[..3000], &[], &long[3000..]]), long);
     }
 
     #[test]

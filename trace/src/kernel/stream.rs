@@ -69,25 +69,6 @@ impl Stream for Single {
     }
 }
 
-/// Rays `rays` (at most four) as one omni-directional packet: from their common origin
-/// (Listing 4.1), or each from its own where they do not share one (the thesis's secondary
-/// packets, `packets::omni_lanes`); as a same-sign packet only where a ray starts behind its
-/// origin (`t_min < 0`). Their closest hits into `out`.
-#[inline]
-fn four<I: PacketTreeTest, C: TileCounters>(tree: &KdTree, rays: &[Ray], out: &mut [Option<Hit>], counters: &mut C) {
-    let packet = RayPacket::new(rays);
-    let hits = match OmniPacket::new(packet) {
-        Some(omni_packet) => omni::intersect_with::<I, _, C>(tree, &omni_packet, counters),
-        None if omni_lanes::starts_at_origins(&packet) => {
-            omni_lanes::intersect_with::<I, _, C>(tree, &packet, counters)
-        }
-        None => samesign::intersect_with::<I, _, C>(tree, &packet, counters),
-    };
-    for (lane, slot) in out.iter_mut().enumerate() {
-        *slot = hits.get(lane);
-    }
-}
-
 /// Whether `stream` finds a hit for each ray, in chunks of [`STREAM_FRUSTUM_RAYS`]: the any-hit
 /// query of the kernels without one of their own.
 #[inline]
@@ -244,9 +225,14 @@ impl Stream for SameSign {
 }
 
 /// Runs of rays sharing an origin traced by the tile kernel `K` (frusta, MFT, cones), loaded
-/// as 2x2 packets in a tracer of four packets a quadrant; other rays as [`Packets`].
+/// as 2x2 packets in a tracer of four packets a quadrant; other rays (the secondary rays of
+/// neighbouring pixels) as [`Packets`] at the method's width.
 #[derive(Debug)]
-pub struct Runs<K>(PhantomData<fn() -> K>);
+pub struct Runs<K> {
+    /// The kernel of the rays outside runs.
+    pub packets: Packets,
+    kernel: PhantomData<fn() -> K>,
+}
 
 impl<K> Clone for Runs<K> {
     fn clone(&self) -> Self {
@@ -258,11 +244,15 @@ impl<K> Copy for Runs<K> {}
 
 impl<K> Default for Runs<K> {
     fn default() -> Self {
-        Runs(PhantomData)
+        Runs { packets: Packets::default(), kernel: PhantomData }
     }
 }
 
-impl<K> NoOptions for Runs<K> {}
+impl<K> FromOptions for Runs<K> {
+    fn from_options(options: &Options) -> Result<Self, Error> {
+        Ok(Runs { packets: Packets::from_options(options)?, kernel: PhantomData })
+    }
+}
 
 /// Scratch of [`Runs`]: the tracer (made on first use) and a run's packets.
 #[derive(Debug, Default)]
@@ -314,8 +304,9 @@ impl<K: TileKernel> Stream for Runs<K> {
                 start += run;
                 continue;
             }
-            let end = (start + 4).min(rays.len());
-            four::<I, C>(tree, &rays[start..end], &mut out[start..end], counters);
+            // One packet of the method's width, whatever their origins.
+            let end = (start + self.packets.width.lanes()).min(rays.len());
+            self.packets.stream::<I, C>(tree, &mut (), &rays[start..end], &mut out[start..end], counters);
             start = end;
         }
     }
