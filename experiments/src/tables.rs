@@ -354,19 +354,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
             crate::pipeline::run(&pipeline, progress)
         })
         .transpose()?;
-    if config.only_pipeline {
-        return Ok(TablesReport {
-            config: config.clone(),
-            rows: Vec::new(),
-            soft_rows: Vec::new(),
-            scaling_rows: Vec::new(),
-            threads: rayon::current_num_threads(),
-            table51: String::new(),
-            ladder: None,
-            pipeline,
-        });
-    }
-    let ladder = (!config.no_ladder || config.only_ladder)
+    let ladder = (!config.only_pipeline && (!config.no_ladder || config.only_ladder))
         .then(|| {
             let scenes = scene_list(config);
             crate::ladder::run(
@@ -375,7 +363,7 @@ pub fn run(config: &TablesConfig, progress: &dyn Progress) -> Result<TablesRepor
             )
         })
         .transpose()?;
-    if config.only_ladder {
+    if config.only_ladder || config.only_pipeline {
         return Ok(TablesReport {
             config: config.clone(),
             rows: Vec::new(),

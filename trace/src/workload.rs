@@ -88,6 +88,8 @@ impl Incoherent {
         let mut rng = Rng::new(seed);
         let mut out = Incoherent::default();
         let length = AO_LENGTH * diagonal;
+        // Every surface a perfect mirror (the reflect rays).
+        let mirror = scenes::Material { reflectivity: 1.0, ..scenes::Material::default() };
         for ((x, y), hit) in pixels.zip(hits) {
             let Some(hit) = hit else { continue };
             let (_, dir) = camera.pixel_ray(x, y);
@@ -103,7 +105,6 @@ impl Incoherent {
             }
             let d = cosine_direction(n, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
             out.diffuse.push(Ray::new(origin, d, 0.0, f32::INFINITY));
-            let mirror = scenes::Material { reflectivity: 1.0, ..scenes::Material::default() };
             if let Some((ray, _)) = crate::secondary::spawn(&Surface::new(&tri), &mirror, dir, hit).reflection {
                 out.reflect.push(ray);
             }
