@@ -208,6 +208,56 @@ mod tests {
         }
     }
 
+    /// The AVX2 and AVX-512 lane types give their portable twin's answers bit for bit
+    /// (where the CPU runs them; the twins themselves are checked against single rays above).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn wide_lane_types_are_their_portable_twins_bit_for_bit() {
+        use crate::simd_x86::{F32x8, F32x16, with_avx2, with_avx512};
+        let mut rng = Rng(0x0e1a_7717);
+        for scene in test_support::hard_scenes() {
+            for tree in scene.trees.iter().filter(|t| t.intersector() == kdtree::Intersector::Wald) {
+                for round in 0..30 {
+                    let own = |rays: Vec<Ray>| -> Vec<Ray> {
+                        rays.into_iter().map(|r| Ray::new(r.origin, r.dir, r.t_min.max(0.0), r.t_max)).collect()
+                    };
+                    let (r8, r16) = (
+                        own(scene.rays(&mut rng, 8, round % 6, false)),
+                        own(scene.rays(&mut rng, 16, round % 6, false)),
+                    );
+                    let want8 = test_support::packet_hit_bits(&intersect_with::<WaldTest, PortableF32<8>, _>(
+                        tree,
+                        &RayPacket::from_rays(&r8),
+                        &mut NoCounters,
+                    ));
+                    let want16 = test_support::packet_hit_bits(&intersect_with::<WaldTest, PortableF32<16>, _>(
+                        tree,
+                        &RayPacket::from_rays(&r16),
+                        &mut NoCounters,
+                    ));
+                    if let Some(got) = with_avx2(|| {
+                        test_support::packet_hit_bits(&intersect_with::<WaldTest, F32x8, _>(
+                            tree,
+                            &RayPacket::from_rays(&r8),
+                            &mut NoCounters,
+                        ))
+                    }) {
+                        assert_eq!(got, want8, "{} round {round}: 8 lanes", scene.name);
+                    }
+                    if let Some(got) = with_avx512(|| {
+                        test_support::packet_hit_bits(&intersect_with::<WaldTest, F32x16, _>(
+                            tree,
+                            &RayPacket::from_rays(&r16),
+                            &mut NoCounters,
+                        ))
+                    }) {
+                        assert_eq!(got, want16, "{} round {round}: 16 lanes", scene.name);
+                    }
+                }
+            }
+        }
+    }
+
     /// With one origin the answers are the omni walk's, bit for bit.
     #[test]
     fn a_common_origin_gives_the_omni_walks_answers() {
