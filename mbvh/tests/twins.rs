@@ -171,10 +171,12 @@ fn wild() -> impl Strategy<Value = f32> {
         Just(0.0f32),
         Just(f32::MIN_POSITIVE),
         Just(1e-40f32),
-        1e-38f32..1e-30,
-        1e-6f32..1e-3,
-        0.1f32..10.0,
-        1e30f32..1e36,
+        // Log-uniform: proptest 1.12's f32 sampler can trip its own assertion on ranges as
+        // wide as 1e30..1e36 (found by this test in the workspace run), never on exponents.
+        (-38.0f32..-30.0).prop_map(|e| 10f32.powf(e)),
+        (-6.0f32..-3.0).prop_map(|e| 10f32.powf(e)),
+        (-1.0f32..1.0).prop_map(|e| 10f32.powf(e)),
+        (30.0f32..36.0).prop_map(|e| 10f32.powf(e)),
         Just(3e38f32),
         Just(f32::MAX),
     ];
