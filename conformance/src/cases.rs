@@ -126,7 +126,8 @@ fn reflections(scene: &Scene, camera: &Camera) -> Vec<Ray> {
                 }
                 let ray = primary_ray(camera, x, y);
                 let Some(hit) = tree.intersect(&ray) else { continue };
-                if let Some((r, _)) = trace::secondary::spawn(surfaces.get(hit.prim), &mirror, ray.dir, &hit).reflection
+                if let Some((r, _)) =
+                    trace::secondary::spawn(surfaces.get(hit.prim), &mirror, ray.origin, ray.dir, &hit).reflection
                 {
                     out.push(r);
                 }

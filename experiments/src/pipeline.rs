@@ -16,11 +16,14 @@
 //! packets for the primary and shadow passes, its stream for the secondary rays).
 //!
 //! The configurations and pool sizes are timed in interleaved rounds; each stage's time is
-//! the median over the rounds. The stages are those a frame times apart: primary rays (ray
-//! generation, traversal and intersection together), primary shadows, spawning the
-//! secondary rays (the shader proxy), secondary rays, secondary shadows and shading. Table
-//! 3.1 splits traversal from intersection with a profiler; here they are one stage, and
-//! `rttest render --counters` gives the steps and tests per ray.
+//! the median over the rounds. The stages are those a frame times apart: primary rays,
+//! primary shadows, spawning the secondary rays (the shader proxy), secondary rays,
+//! secondary shadows and shading. Table 3.1 splits traversal from intersection with a
+//! profiler; here one more frame per configuration clocks the leaf visits of the primary and
+//! secondary passes ([`trace::Renderer::intersection_shares`], `kdtree::clock`), and each
+//! timed stage is split by that share. Ray generation stays in the primary traversal (the
+//! frustum kernels make a tile's rays as they go). Embree's kernels are not clocked: their
+//! rows keep traversal and intersection together.
 
 use std::fmt::Write as _;
 
@@ -85,12 +88,16 @@ pub struct StageRow {
     pub speedup: f64,
     /// Median milliseconds of the primary pass (ray generation, traversal, intersection).
     pub primary_ms: f64,
+    /// The share of the primary pass in leaf visits (intersection), where clocked.
+    pub primary_intersection: Option<f64>,
     /// Median milliseconds of the primary hits' shadows.
     pub shadow_ms: f64,
     /// Median milliseconds spawning the secondary rays.
     pub spawn_ms: f64,
     /// Median milliseconds tracing the secondary rays.
     pub secondary_ms: f64,
+    /// The share of the secondary rays' time in leaf visits (intersection), where clocked.
+    pub secondary_intersection: Option<f64>,
     /// Median milliseconds of the secondary hits' shadows.
     pub secondary_shadow_ms: f64,
     /// Median milliseconds of the shading (every hit, the secondary colours summed in).
@@ -104,15 +111,25 @@ pub struct StageRow {
 }
 
 impl StageRow {
-    /// The stages as (name, milliseconds), in pipeline order.
-    pub fn stages(&self) -> [(&'static str, f64); 6] {
+    /// The stages as (name, milliseconds), in pipeline order. Traversal and intersection are
+    /// the pass split by its clocked share; without one (Embree), the traversal row holds the
+    /// whole pass and the intersection row is `None`.
+    pub fn stages(&self) -> [(&'static str, Option<f64>); 8] {
+        let split = |ms: f64, share: Option<f64>| match share {
+            Some(s) => (Some(ms * (1.0 - s)), Some(ms * s)),
+            None => (Some(ms), None),
+        };
+        let (primary_traversal, primary_intersection) = split(self.primary_ms, self.primary_intersection);
+        let (secondary_traversal, secondary_intersection) = split(self.secondary_ms, self.secondary_intersection);
         [
-            ("primary rays", self.primary_ms),
-            ("primary shadows", self.shadow_ms),
-            ("spawning secondary rays", self.spawn_ms),
-            ("secondary rays", self.secondary_ms),
-            ("secondary shadows", self.secondary_shadow_ms),
-            ("shading", self.shade_ms),
+            ("primary traversal (and ray generation)", primary_traversal),
+            ("primary intersection", primary_intersection),
+            ("primary shadows", Some(self.shadow_ms)),
+            ("spawning secondary rays", Some(self.spawn_ms)),
+            ("secondary traversal", secondary_traversal),
+            ("secondary intersection", secondary_intersection),
+            ("secondary shadows", Some(self.secondary_shadow_ms)),
+            ("shading", Some(self.shade_ms)),
         ]
     }
 }
@@ -191,8 +208,13 @@ pub fn run(config: &PipelineConfig, progress: &dyn Progress) -> Result<PipelineR
         }
     }
     let threads = rayon::current_num_threads();
-    let stages: Vec<StageRow> =
+    let mut stages: Vec<StageRow> =
         samples.iter().zip(&renderers).zip(&config.configs).map(|((s, _), c)| row(scene, c, threads, s)).collect();
+    // One more frame each, its leaf visits clocked: the split of Table 3.1.
+    for ((r, b), row) in renderers.iter().zip(&buffers).zip(&mut stages) {
+        let shares = r.intersection_shares(b);
+        (row.primary_intersection, row.secondary_intersection) = (shares.primary, shares.secondary);
+    }
     // Table 6.2: the first configuration on every pool size, interleaved.
     let mut scaling = Vec::new();
     if let (Some(first), Some(c)) = (renderers.first(), config.configs.first()) {
@@ -243,9 +265,11 @@ fn row(
         fps: if frame_ms > 0.0 { 1e3 / frame_ms } else { 0.0 },
         speedup: 1.0,
         primary_ms: ms(&|s| s.1.primary_secs),
+        primary_intersection: None,
         shadow_ms: ms(&|s| s.1.shadow_secs),
         spawn_ms: ms(&|s| s.1.spawn_secs),
         secondary_ms: ms(&|s| s.1.secondary_secs),
+        secondary_intersection: None,
         secondary_shadow_ms: ms(&|s| s.1.secondary_shadow_secs),
         shade_ms: ms(&|s| s.2),
         primary_rays: last.primary_rays,
@@ -277,8 +301,12 @@ impl std::fmt::Display for PipelineReport {
         for (i, (name, _)) in StageRow::stages(&self.stages[0]).iter().enumerate() {
             let mut line = format!("| {name} |");
             for r in &self.stages {
-                let ms = r.stages()[i].1;
-                let _ = write!(line, " {ms:.2} ms ({:.1}%) |", 100.0 * ms / r.frame_ms.max(1e-12));
+                match r.stages()[i].1 {
+                    Some(ms) => {
+                        let _ = write!(line, " {ms:.2} ms ({:.1}%) |", 100.0 * ms / r.frame_ms.max(1e-12));
+                    }
+                    None => line.push_str(" (in traversal) |"),
+                }
             }
             let _ = writeln!(out, "{line}");
         }
@@ -340,11 +368,20 @@ mod tests {
         assert_eq!(report.stages.len(), 2);
         assert_eq!(report.scaling.iter().map(|r| r.threads).collect::<Vec<_>>(), vec![1, 2]);
         for r in report.stages.iter().chain(&report.scaling) {
-            let sum: f64 = r.stages().iter().map(|s| s.1).sum();
+            let sum: f64 = r.stages().iter().filter_map(|s| s.1).sum();
             assert!(r.frame_ms > 0.0 && sum > 0.0, "{r:?}");
             assert_eq!(r.primary_rays, 32 * 24);
         }
+        // Both are kd kernels: the primary pass is split, the secondary where rays were traced.
+        for r in &report.stages {
+            let share = r.primary_intersection.unwrap();
+            assert!(share > 0.0 && share < 1.0, "{r:?}");
+            let (traversal, intersection) = (r.stages()[0].1.unwrap(), r.stages()[1].1.unwrap());
+            assert!((traversal + intersection - r.primary_ms).abs() < 1e-9);
+            assert_eq!(r.secondary_intersection.is_some(), r.secondary_rays > 0, "{r:?}");
+        }
         let text = report.to_string();
         assert!(text.contains("Table 3.1") && text.contains("Table 6.2") && text.contains("spawning secondary rays"));
+        assert!(text.contains("primary intersection") && text.contains("secondary traversal"));
     }
 }

@@ -31,6 +31,14 @@ pub trait Counters: Default + AddAssign {
     fn leaf_packets(&mut self, considered: u64, culled: u64) {
         let _ = (considered, culled);
     }
+    /// Runs one leaf's visit (its triangle tests), `visit`, which the kd descent
+    /// ([`crate::descent::descend`]) hands every leaf it reaches. [`crate::clock::LeafClock`]
+    /// times it, to split a pass's time into traversal and intersection (thesis Table 3.1);
+    /// every other counter just runs it.
+    #[inline(always)]
+    fn leaf_visit<R>(&mut self, visit: impl FnOnce(&mut Self) -> R) -> R {
+        visit(self)
+    }
 }
 
 /// Counting switched off: every method is empty and compiles away.

@@ -185,7 +185,7 @@ pub fn descend<D: Descent, C: Counters>(
                     }
                     Visit::Neither => None,
                 }
-            } else if group.leaf(node, &span, stack, counters) == Flow::Stop {
+            } else if counters.leaf_visit(|c| group.leaf(node, &span, stack, c)) == Flow::Stop {
                 return;
             } else {
                 None

@@ -26,6 +26,7 @@
 
 pub mod aabb;
 pub mod build;
+pub mod clock;
 pub mod counters;
 pub mod descent;
 pub mod intersect;
@@ -47,6 +48,7 @@ mod validate;
 
 pub use aabb::Aabb;
 pub use build::{BuildConfig, BuildError, BuildStrategy, CostModel, first_phase_bytes, human_bytes};
+pub use clock::LeafClock;
 pub use counters::{Counters, Counts, NoCounters};
 pub use intersect::{PreparedRays, TreeTest, WaldTest, WatertightTest};
 pub use node::KdNode;

@@ -1,25 +1,44 @@
-//! Mirror reflections as omni-directional packets (thesis 4.1.2: "omnidirectional ray packets
-//! are used for the packet traversal of secondary rays").
+//! Mirror reflections from the virtual eye (thesis 4.1.2: "omnidirectional ray packets are
+//! used for the packet traversal of secondary rays").
 //!
 //! Rays reflected off one plane from one eye all come, in exact arithmetic, from one point:
 //! the eye mirrored in the plane (the *virtual eye*). So the reflections of a primary packet
 //! off a planar mirror are a packet with a common origin, whatever their direction signs:
-//! exactly what the omni-directional traversal takes, without splitting. A reflected ray is
-//! `virtual_eye + t * reflect(d)` for `t` past the primary hit distance `t_hit` (the point
-//! where it leaves the mirror, since reflection keeps lengths). Its interval starts past the
-//! mirror by the distance of the workspace's one spawn offset
-//! ([`kdtree::ray::offset_origin`]) at the mirror point, so the mirror itself is never hit
-//! again and the offset scales like every other spawned ray's.
+//! exactly what the omni-directional traversal takes without splitting, and what the frustum,
+//! MFT and cone kernels bound (a run of them in a ray stream is traced as frusta,
+//! `trace::kernel::stream::Runs`). A reflected ray is `virtual_eye + t * reflect(d)` for `t`
+//! past the primary hit distance `t_hit` (the point where it leaves the mirror, since
+//! reflection keeps lengths). This is the workspace's spawn rule for reflections
+//! (`trace::secondary::spawn`), so every method traces the same rays.
 //!
-//! The plane of each lane is that of the triangle it hit, computed in f64 and rounded, so
-//! lanes that hit coplanar triangles share a virtual eye bit for bit; lanes with different
-//! virtual eyes go in different packets ([`reflections`] groups them).
+//! **Where the interval starts.** Past the mirror point by as much as the workspace's one
+//! spawn offset ([`kdtree::ray::offset_origin`]) would lift a ray off the surface, plus a
+//! bound on the rounding of the virtual eye, of the reflected direction and of the hit
+//! distance (16 ulps of the largest of the eye's, the virtual eye's and the path's
+//! magnitudes), both measured along the normal and divided by the cosine to the normal: the
+//! start lies that far off the plane, so neither the mirror triangle nor its coplanar
+//! neighbours are hit again. A reflection flatter than [`MIN_COS`] (the divisor would carry
+//! the start far along the surface) gets no virtual eye: the caller starts it on the surface.
+//!
+//! The plane of each lane is its triangle's, from the normal computed in `f64` from the
+//! vertices ([`Surface::offset_normal`]) and vertex `a`, so lanes that hit coplanar
+//! axis-aligned triangles share a virtual eye bit for bit; lanes with different virtual eyes
+//! go in different packets ([`reflections`] groups them).
 
 use glam::{DVec3, Vec3};
-use kdtree::ray::{offset_origin, surface_point};
+use kdtree::surface::Surface;
 use kdtree::{Hit, KdTree, Ray};
 
 use crate::packet::{OmniPacket, RayPacket};
+
+/// The least cosine between a primary ray and its mirror's normal for which the reflection
+/// leaves from the virtual eye: flatter ones start on the surface (the start's distance along
+/// the ray grows as one over the cosine).
+pub const MIN_COS: f64 = 1.0 / 16.0;
+
+/// Ulps of the largest magnitude on the path (eye, virtual eye, path length) that the start of
+/// a reflected ray keeps off the mirror's plane beyond the spawn offset.
+const ROUNDING_ULPS: f64 = 16.0;
 
 /// A mirror plane `normal . p = offset` (unit normal).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,11 +51,17 @@ pub struct Mirror {
 
 impl Mirror {
     /// The plane of triangle `tri` (`None` for a degenerate triangle, or one with a NaN or
-    /// infinite vertex).
+    /// infinite vertex): that of its [`Surface`] record.
     pub fn of_triangle(tri: &[Vec3; 3]) -> Option<Mirror> {
-        let [a, b, c] = tri.map(|p| p.as_dvec3());
-        let normal = (b - a).cross(c - a).try_normalize()?;
-        Some(Mirror { normal, offset: normal.dot(a) })
+        Mirror::of_surface(&Surface::new(tri))
+    }
+
+    /// The plane of a triangle's record: its `f64` normal ([`Surface::offset_normal`]) through
+    /// vertex `a` (`None` for a degenerate or non-finite triangle).
+    pub fn of_surface(surface: &Surface) -> Option<Mirror> {
+        let normal = surface.offset_normal.as_dvec3().try_normalize()?;
+        let offset = normal.dot(surface.a.as_dvec3());
+        offset.is_finite().then_some(Mirror { normal, offset })
     }
 
     /// `eye` reflected in the plane: the common origin of the reflected rays.
@@ -51,14 +76,24 @@ impl Mirror {
         (d - 2.0 * d.dot(self.normal) * self.normal).as_vec3()
     }
 
-    /// The reflected ray of a primary ray `dir` from `eye` that hit the mirror triangle `tri`
-    /// at `hit`: from the virtual eye, starting past the mirror by the distance
-    /// [`offset_origin`] would move a ray leaving the mirror point.
-    pub fn reflected_ray(&self, eye: Vec3, dir: Vec3, tri: &[Vec3; 3], hit: &Hit) -> Ray {
-        let reflected = self.reflect(dir);
-        let p = surface_point(tri, hit);
-        let offset = (offset_origin(tri, hit, reflected) - p).length() / reflected.length();
-        Ray::new(self.virtual_eye(eye), reflected, hit.t + offset, f32::INFINITY)
+    /// The reflection of the ray from `eye` along `dir` that met the mirror at `t_hit` (in
+    /// units of `dir`): from the virtual eye, its interval starting past the mirror as the
+    /// module documentation says, `spawn_offset` being the mirror triangle's spawn offset
+    /// ([`Surface::offset`]). `None` for a reflection flatter than [`MIN_COS`], or any
+    /// non-finite input or result: such a ray starts on the surface instead.
+    pub fn reflected_ray(&self, eye: Vec3, dir: Vec3, t_hit: f32, spawn_offset: f32) -> Option<Ray> {
+        let d = dir.as_dvec3();
+        let length = d.length();
+        let cos = d.dot(self.normal).abs() / length;
+        if !(cos >= MIN_COS && t_hit >= 0.0 && t_hit.is_finite() && spawn_offset.is_finite()) {
+            return None;
+        }
+        let origin = self.virtual_eye(eye);
+        let path = f64::from(t_hit) * length;
+        let scale = f64::from(origin.abs().max_element().max(eye.abs().max_element())) + path;
+        let lift = f64::from(spawn_offset) + ROUNDING_ULPS * f64::from(f32::EPSILON) * scale;
+        let t_min = (f64::from(t_hit) + lift / (cos * length)) as f32;
+        Ray::try_new(origin, self.reflect(dir), t_min, f32::INFINITY).ok()
     }
 }
 
@@ -66,8 +101,8 @@ impl Mirror {
 /// `hits`) whose hit triangle `is_mirror` accepts, grouped into omni-directional packets by
 /// virtual eye: at most four packets, each with the lanes of one virtual eye (others
 /// invalid). Lane `l` of every returned packet is lane `l` of the primary packet. A lane
-/// whose reflected ray is not finite (a NaN or infinite `eye`, direction or hit) is left out,
-/// like a lane that hit no mirror.
+/// whose reflection has no virtual eye (flatter than [`MIN_COS`], or a NaN or infinite
+/// `eye`, direction or hit) is left out, like a lane that hit no mirror.
 pub fn reflections(
     tree: &KdTree,
     eye: Vec3,
@@ -77,9 +112,8 @@ pub fn reflections(
 ) -> Vec<OmniPacket> {
     let rays: [Option<Ray>; 4] = std::array::from_fn(|lane| {
         let hit = hits[lane].filter(|h| is_mirror(h.prim))?;
-        let tri = tree.triangle(hit.prim);
-        let mirror = Mirror::of_triangle(&tri)?;
-        Some(mirror.reflected_ray(eye, dirs[lane], &tri, &hit)).filter(Ray::is_valid)
+        let surface = Surface::new(&tree.triangle(hit.prim));
+        Mirror::of_surface(&surface)?.reflected_ray(eye, dirs[lane], hit.t, surface.offset)
     });
     let mut out = Vec::new();
     let mut taken = [false; 4];
@@ -116,10 +150,12 @@ mod tests {
         let t = 2.0 / -dir.y;
         let p = eye + t * dir;
         // The barycentrics of `p` on `tri`: `p = u Z + v X`.
-        let hit = Hit { t, u: p.z, v: p.x, prim: 0 };
-        let ray = m.reflected_ray(eye, dir, &tri, &hit);
+        let ray = m.reflected_ray(eye, dir, t, Surface::new(&tri).offset).unwrap();
         assert!((ray.origin + t * ray.dir - p).length() < 1e-5);
-        assert!(ray.dir.y > 0.0 && ray.t_min > t);
+        assert!(ray.dir.y > 0.0 && ray.t_min > t && ray.at(ray.t_min).y > 0.0);
+        // Flatter than MIN_COS: no virtual eye.
+        let flat = Vec3::new(1.0, -0.05, 0.0);
+        assert_eq!(m.reflected_ray(eye, flat, 1.0, 1e-6), None);
     }
 
     #[test]
@@ -142,6 +178,57 @@ mod tests {
         for eye in [Vec3::new(f32::NAN, 2.0, 0.3), Vec3::new(0.3, f32::INFINITY, 0.3)] {
             assert!(reflections(&tree, eye, &[down; 4], &[hit; 4], |_| true).is_empty(), "{eye}");
         }
+    }
+
+    /// A floor of many coplanar triangles, flat or tilted, at every scale and far from the
+    /// origin, seen from eyes near and far: no reflection from the virtual eye ever hits the
+    /// floor again (the floor is the whole scene, so any hit would be the mirror itself or a
+    /// coplanar neighbour), and each starts on the incoming side.
+    #[test]
+    fn reflections_never_hit_their_own_plane_at_any_scale() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut unit = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let planes =
+            [(Vec3::X, Vec3::Z), (Vec3::new(1.0, 0.3, 0.0).normalize(), Vec3::new(0.0, 0.45, 1.0).normalize())];
+        let mut checked = 0;
+        for scale in [1e-30f32, 1e-3, 1.0, 1e5, 1e18] {
+            for centre in [Vec3::ZERO, Vec3::new(1e5, -3e5, 2e5)] {
+                for (u, v) in planes {
+                    let n = u.cross(v).normalize();
+                    let at = |i: f32, j: f32| (centre + u * i + v * j) * scale;
+                    let mut tris = Vec::new();
+                    for i in -8..8 {
+                        for j in -8..8 {
+                            let (i, j) = (i as f32, j as f32);
+                            tris.push([at(i, j), at(i + 1.0, j), at(i + 1.0, j + 1.0)]);
+                            tris.push([at(i, j), at(i + 1.0, j + 1.0), at(i, j + 1.0)]);
+                        }
+                    }
+                    let tree = KdTree::build_soup(&tris, &BuildConfig::default()).unwrap();
+                    for k in 0..200 {
+                        let height = if k % 2 == 0 { 0.5 + 4.0 * unit() } else { 1e3 };
+                        let eye = at(16.0 * unit() - 8.0, 16.0 * unit() - 8.0) + n * (height * scale);
+                        let target = at(12.0 * unit() - 6.0, 12.0 * unit() - 6.0);
+                        let dir = target - eye;
+                        let Some(hit) = tree.intersect(&Ray::new(eye, dir, 0.0, f32::INFINITY)) else { continue };
+                        let surface = Surface::new(&tree.triangle(hit.prim));
+                        let Some(mirror) = Mirror::of_surface(&surface) else { continue };
+                        let Some(ray) = mirror.reflected_ray(eye, dir, hit.t, surface.offset) else { continue };
+                        let start = ray.at(ray.t_min);
+                        assert!((start - target).dot(n) > 0.0, "scale {scale}: starts behind the mirror");
+                        assert_eq!(tree.intersect(&ray), None, "scale {scale}, centre {centre}, eye {eye}: {ray:?}");
+                        assert!(!tree.occluded(&ray));
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 3000, "{checked}");
     }
 
     /// Reflections off the atrium's floor tiles, traced as omni-directional packets, give the

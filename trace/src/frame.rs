@@ -16,7 +16,7 @@
 
 use kdtree::Counts;
 use kdtree::surface::Surfaces;
-use kdtree::{Hit, NoCounters, Ray};
+use kdtree::{Hit, LeafClock, NoCounters, Ray};
 use rayon::prelude::*;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
@@ -283,6 +283,24 @@ pub fn stream_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [Option<Hit>])
         .for_each_init(|| method.scratch(), |s, (out, rays)| method.stream(s, rays, out, &mut NoCounters));
 }
 
+/// [`stream_pass`] with counters `C`, summed over the chunks.
+pub fn stream_pass_counted<M: Method, C: TileCounters>(method: &M, rays: &[Ray], out: &mut [Option<Hit>]) -> C {
+    out.par_chunks_mut(STREAM_CHUNK)
+        .zip(rays.par_chunks(STREAM_CHUNK))
+        .map_init(
+            || method.scratch(),
+            |s, (out, rays)| {
+                let mut c = C::default();
+                method.stream(s, rays, out, &mut c);
+                c
+            },
+        )
+        .reduce(C::default, |mut a, b| {
+            a += b;
+            a
+        })
+}
+
 /// Whether each ray of an arbitrary list is blocked, in order, in parallel like
 /// [`stream_pass`].
 pub fn stream_occluded_pass<M: Method>(method: &M, rays: &[Ray], out: &mut [bool]) {
@@ -344,6 +362,11 @@ pub trait FrameTracer: Sync {
     ) -> Counts;
     /// [`stream_pass`].
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]);
+    /// [`primary_pass`] with its leaf visits clocked ([`LeafClock`], Table 3.1's split of
+    /// traversal and intersection): the number of hits and the clock. Not for timing.
+    fn primary_clocked(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, LeafClock);
+    /// [`stream_pass`] with its leaf visits clocked, as [`FrameTracer::primary_clocked`].
+    fn stream_clocked(&self, rays: &[Ray], out: &mut [Option<Hit>]) -> LeafClock;
     /// [`stream_occluded_pass`].
     fn stream_occluded(&self, rays: &[Ray], out: &mut [bool]);
 }
@@ -417,6 +440,14 @@ impl<M: Method> FrameTracer for Driven<M> {
 
     fn stream(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         stream_pass(&self.0, rays, out);
+    }
+
+    fn primary_clocked(&self, layout: &TileLayout, camera: &Camera, out: &mut [Option<Hit>]) -> (u64, LeafClock) {
+        primary_pass::<M, LeafClock>(&self.0, layout, camera, out)
+    }
+
+    fn stream_clocked(&self, rays: &[Ray], out: &mut [Option<Hit>]) -> LeafClock {
+        stream_pass_counted::<M, LeafClock>(&self.0, rays, out)
     }
 
     fn stream_occluded(&self, rays: &[Ray], out: &mut [bool]) {

@@ -58,4 +58,4 @@ pub use frame::{FrameTracer, TileLayout};
 pub use machine::{Machine, SimdLevel};
 pub use method::{Method, ShadowJob, SingleRays, SoftJob, SoftStats, TileCounters, Tracer};
 pub use registry::{Bound, KernelNames, Options, Registry, SoftGrouping, Structures};
-pub use render::{FrameBuffers, FrameStats, Renderer, Shadows};
+pub use render::{FrameBuffers, FrameStats, IntersectionShares, Renderer, Shadows};

@@ -142,6 +142,16 @@ impl FrameStats {
     }
 }
 
+/// The share of a pass's time in leaf visits (triangle tests), per kind of ray:
+/// [`Renderer::intersection_shares`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IntersectionShares {
+    /// Of the primary pass (ray generation, traversal and intersection).
+    pub primary: Option<f64>,
+    /// Of the secondary rays, every generation.
+    pub secondary: Option<f64>,
+}
+
 /// Renders one scene through one camera with one bound method: the fixed part of a frame.
 #[derive(Debug)]
 pub struct Renderer<'a> {
@@ -369,7 +379,8 @@ impl<'a> Renderer<'a> {
         let primary = |i: u32| {
             let hit = hits.get(i as usize).copied().flatten()?;
             let (x, y) = pixels[i as usize];
-            Some((hit, camera.pixel_ray(x, y).1))
+            let (eye, dir) = camera.pixel_ray(x, y);
+            Some((hit, eye, dir))
         };
         let mut next = spawn_generation(surfaces, &scene.mesh, order, primary, &mut buf.local);
         stats.spawn_secs += start.elapsed().as_secs_f64();
@@ -389,7 +400,7 @@ impl<'a> Renderer<'a> {
                 let start = Instant::now();
                 let all: Vec<u32> = (0..generation.len() as u32).collect();
                 let (rays, hits) = (&generation.rays, &generation.hits);
-                let point = |i: u32| Some((hits[i as usize]?, rays[i as usize].dir));
+                let point = |i: u32| Some((hits[i as usize]?, rays[i as usize].origin, rays[i as usize].dir));
                 next = spawn_generation(surfaces, &scene.mesh, &all, point, &mut generation.local);
                 stats.spawn_secs += start.elapsed().as_secs_f64();
             }
@@ -399,6 +410,30 @@ impl<'a> Renderer<'a> {
                 break;
             }
         }
+    }
+
+    /// The share of the primary and of the secondary rays' time spent in leaf visits, the
+    /// thesis's intersection against traversal (Table 3.1), from one clocked run of each pass
+    /// ([`kdtree::LeafClock`]) over the frame `buf` holds: call it after [`Renderer::trace`].
+    /// Each is `None` where the method's kernels are not kd descents (nothing clocked) or
+    /// the frame has no such rays. A pass's busy time is its wall time times the pool's
+    /// threads, so an unbalanced pool understates the share.
+    pub fn intersection_shares(&self, buf: &FrameBuffers) -> IntersectionShares {
+        let tracer = &self.method.tracer;
+        let threads = rayon::current_num_threads() as u64;
+        let mut hits = vec![None; buf.hits.len()];
+        let start = kdtree::clock::ticks();
+        let (_, clock) = tracer.primary_clocked(&self.layout, &self.camera, &mut hits);
+        let primary = clock.intersection_share(kdtree::clock::ticks().wrapping_sub(start) * threads);
+        let (mut clock, mut busy) = (kdtree::LeafClock::default(), 0);
+        for generation in &buf.secondary {
+            hits.clear();
+            hits.resize(generation.len(), None);
+            let start = kdtree::clock::ticks();
+            clock += tracer.stream_clocked(&generation.rays, &mut hits);
+            busy += kdtree::clock::ticks().wrapping_sub(start) * threads;
+        }
+        IntersectionShares { primary, secondary: clock.intersection_share(busy) }
     }
 
     /// The shadows at a generation's hits, the frame's kind ([`Shadows`]) traced by the

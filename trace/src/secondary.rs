@@ -21,10 +21,17 @@
 //! - Snell's law gives the refracted direction, with index `1 -> ior` entering and
 //!   `ior -> 1` leaving. An index of exactly 1 continues the ray unbent, bit for bit, and
 //!   reflects nothing (`F = 0`).
-//! - Rays start on the surface they leave by the workspace's one spawn rule
-//!   ([`kdtree::ray::offset_origin`], through the triangle's [`Surface`] record). A
-//!   reflection starts on the side the ray came from, a refraction on the other side. So
-//!   neither can hit its own triangle at `t = 0`.
+//! - A reflection leaves from the *virtual eye*: the origin of the ray that reached the hit,
+//!   mirrored in the triangle's plane ([`packets::mirror::Mirror::reflected_ray`]), its
+//!   interval starting just past the mirror. It is the same line as a ray started at the hit
+//!   point, but the reflections of one eye's rays off one plane share their origin bit for bit,
+//!   so a run of them is one frustum for the frustum, MFT and cone kernels and one
+//!   omni-directional packet for the thesis's packets (4.1.2). A reflection flatter than
+//!   [`packets::mirror::MIN_COS`] starts on the surface instead.
+//! - Refractions (and those flat reflections) start on the surface they leave by the
+//!   workspace's one spawn rule ([`kdtree::ray::offset_origin`], through the triangle's
+//!   [`Surface`] record): a reflection on the side the ray came from, a refraction on the
+//!   other side. So neither can hit its own triangle at `t = 0`.
 //! - A degenerate triangle (zero normal), a NaN or infinite normal, direction or point spawns
 //!   no ray. Its hit keeps its own shading with weight 1: never a NaN, never a panic.
 //!
@@ -34,6 +41,7 @@
 use glam::Vec3;
 use kdtree::surface::{Surface, Surfaces};
 use kdtree::{Hit, Ray};
+use packets::mirror::Mirror;
 use rayon::prelude::*;
 use scenes::{Material, Mesh, Shader};
 
@@ -108,11 +116,12 @@ impl Spawn {
 }
 
 /// The secondary rays of the hit `hit` on triangle record `surface` with `material`, reached
-/// by a ray of direction `dir` (any length): the shader proxy's spawning step.
+/// by the ray from `from` along `dir` (any length; `hit.t` in its units): the shader proxy's
+/// spawning step.
 ///
 /// A weight whose ray cannot be made (a non-finite origin or direction) goes back to the
 /// local shading, so the weights always sum to 1.
-pub fn spawn(surface: &Surface, material: &Material, dir: Vec3, hit: &Hit) -> Spawn {
+pub fn spawn(surface: &Surface, material: &Material, from: Vec3, dir: Vec3, hit: &Hit) -> Spawn {
     let shader = material.shader();
     if !matches!(shader, Shader::Reflective | Shader::Transparent | Shader::TransparentReflective) {
         return Spawn::LOCAL;
@@ -154,7 +163,13 @@ pub fn spawn(surface: &Surface, material: &Material, dir: Vec3, hit: &Hit) -> Sp
             }
         }
     };
-    let reflection = ray(reflect(d, n), n, (1.0 - t) * r + t * fresnel);
+    let weight = (1.0 - t) * r + t * fresnel;
+    let from_virtual_eye =
+        (weight > 0.0).then(|| Mirror::of_surface(surface)?.reflected_ray(from, dir, hit.t, surface.offset)).flatten();
+    let reflection = match from_virtual_eye {
+        Some(reflected) => Some((reflected, weight)),
+        None => ray(reflect(d, n), n, weight),
+    };
     let refraction = transmitted.and_then(|dt| ray(dt, -n, t * (1.0 - fresnel)));
     out.reflection = reflection;
     out.refraction = refraction;
@@ -200,15 +215,15 @@ impl Generation {
 }
 
 /// The secondary rays spawned from the shading points `order[..]` of one generation
-/// (`point(i)`: the hit of point `i` and the direction of the ray that reached it, `None`
-/// for misses), in parallel over chunks of `order`. Writes each point's local weight into
+/// (`point(i)`: the hit of point `i` and the origin and direction of the ray that reached it,
+/// `None` for misses), in parallel over chunks of `order`. Writes each point's local weight into
 /// `local` (indexed by point; points that spawn nothing keep theirs). The rays' `hits`,
 /// `visible` and `local` are left empty for the caller to fill.
 pub fn spawn_generation(
     surfaces: &Surfaces,
     mesh: &Mesh,
     order: &[u32],
-    point: impl Fn(u32) -> Option<(Hit, Vec3)> + Sync,
+    point: impl Fn(u32) -> Option<(Hit, Vec3, Vec3)> + Sync,
     local: &mut [f32],
 ) -> Generation {
     let parts: Vec<(Generation, Vec<(u32, f32)>)> = order
@@ -217,7 +232,7 @@ pub fn spawn_generation(
             let (mut reflections, mut refractions) = (Generation::default(), Generation::default());
             let mut locals = Vec::new();
             for &i in chunk {
-                let Some((hit, dir)) = point(i) else { continue };
+                let Some((hit, from, dir)) = point(i) else { continue };
                 let Some(material) =
                     mesh.material_ids.get(hit.prim as usize).and_then(|&m| mesh.materials.get(m as usize))
                 else {
@@ -226,7 +241,7 @@ pub fn spawn_generation(
                 if !(material.reflects() || material.refracts()) {
                     continue;
                 }
-                let s = spawn(surfaces.get(hit.prim), material, dir, &hit);
+                let s = spawn(surfaces.get(hit.prim), material, from, dir, &hit);
                 locals.push((i, s.local));
                 for (out, ray) in [(&mut reflections, s.reflection), (&mut refractions, s.refraction)] {
                     if let Some((ray, weight)) = ray {
@@ -298,6 +313,17 @@ mod tests {
         Hit { t: 1.0, u: 0.25, v: 0.25, prim: 0 }
     }
 
+    /// [`spawn`] for a ray along `d` that reached the hit at its distance `hit.t`: from
+    /// `p - t d`.
+    fn spawn_along(surface: &Surface, material: &Material, d: Vec3, hit: &Hit) -> Spawn {
+        spawn(surface, material, surface.point(hit) - hit.t * d, d, hit)
+    }
+
+    /// Where a ray's interval starts.
+    fn start(ray: &Ray) -> Vec3 {
+        ray.at(ray.t_min)
+    }
+
     fn weights(s: &Spawn) -> f32 {
         s.local + s.reflection.map_or(0.0, |r| r.1) + s.refraction.map_or(0.0, |r| r.1)
     }
@@ -305,32 +331,42 @@ mod tests {
     #[test]
     fn reflection_mirrors_the_direction_and_starts_above_the_surface() {
         let d = Vec3::new(1.0, -1.0, 0.5);
-        let s = spawn(&floor(), &mirror(), d, &hit_at_centre());
+        let s = spawn_along(&floor(), &mirror(), d, &hit_at_centre());
         let (ray, w) = s.reflection.unwrap();
         assert_eq!((s.local, w), (0.0, 1.0));
-        let u = d.normalize();
-        assert_eq!(ray.dir, Vec3::new(u.x, -u.y, u.z));
-        assert!(ray.origin.y > 0.0, "the spawn offset puts the origin on the incoming side: {}", ray.origin);
+        assert_eq!(ray.dir, Vec3::new(d.x, -d.y, d.z));
+        // From the virtual eye: the ray's origin `p - d` mirrored in y = 0, its interval
+        // starting past the hit distance, on the incoming side.
+        let p = floor().point(&hit_at_centre());
+        assert_eq!(ray.origin, Vec3::new(p.x - d.x, d.y, p.z - d.z));
+        assert!(ray.t_min > 1.0 && start(&ray).y > 0.0, "starts on the incoming side: {ray:?}");
+        assert!((start(&ray) - p).length() < 1e-4);
         assert!(s.refraction.is_none());
     }
 
     #[test]
     fn a_ray_from_below_reflects_below() {
-        let s = spawn(&floor(), &mirror(), Vec3::new(0.3, 1.0, 0.0), &hit_at_centre());
+        let s = spawn_along(&floor(), &mirror(), Vec3::new(0.3, 1.0, 0.0), &hit_at_centre());
         let (ray, _) = s.reflection.unwrap();
-        assert!(ray.dir.y < 0.0 && ray.origin.y < 0.0, "{ray:?}");
+        assert!(ray.dir.y < 0.0 && start(&ray).y < 0.0 && ray.origin.y > 0.0, "{ray:?}");
     }
 
     #[test]
     fn grazing_reflection_stays_on_the_incoming_side() {
         // A ray almost in the plane: its reflection leaves at the same tiny angle, from an
-        // origin on the incoming side, never under the surface.
+        // origin on the incoming side, never under the surface: from the surface, not the
+        // virtual eye (flatter than MIN_COS).
         let d = Vec3::new(1.0, -1e-7, 0.0);
-        let (ray, _) = spawn(&floor(), &mirror(), d, &hit_at_centre()).reflection.unwrap();
-        assert!(ray.dir.y >= 0.0 && ray.origin.y > 0.0, "{ray:?}");
+        let (ray, _) = spawn_along(&floor(), &mirror(), d, &hit_at_centre()).reflection.unwrap();
+        assert!(ray.dir.y >= 0.0 && ray.origin.y > 0.0 && ray.t_min == 0.0, "{ray:?}");
+        // Just steeper than MIN_COS: from the virtual eye, still starting above the surface.
+        let cos = packets::mirror::MIN_COS as f32 * 1.01;
+        let d = Vec3::new((1.0 - cos * cos).sqrt(), -cos, 0.0);
+        let (ray, _) = spawn_along(&floor(), &mirror(), d, &hit_at_centre()).reflection.unwrap();
+        assert!(ray.origin.y < 0.0 && ray.t_min > 1.0 && start(&ray).y > 0.0, "{ray:?}");
         // Exactly in the plane (no incoming side): the direction is unchanged, the origin
         // moved off the plane to one side.
-        let (ray, _) = spawn(&floor(), &mirror(), Vec3::X, &hit_at_centre()).reflection.unwrap();
+        let (ray, _) = spawn_along(&floor(), &mirror(), Vec3::X, &hit_at_centre()).reflection.unwrap();
         assert_eq!(ray.dir, Vec3::X);
         assert!(ray.origin.y != 0.0);
     }
@@ -338,7 +374,7 @@ mod tests {
     #[test]
     fn snell_refraction_entering_and_leaving() {
         let d = Vec3::new(1.0, -1.0, 0.0).normalize();
-        let s = spawn(&floor(), &glass(1.5, 0.0), d, &hit_at_centre());
+        let s = spawn_along(&floor(), &glass(1.5, 0.0), d, &hit_at_centre());
         let (ray, w) = s.refraction.unwrap();
         assert_eq!(w, 1.0);
         assert!(s.reflection.is_none(), "M_T reflects nothing without total internal reflection");
@@ -348,7 +384,7 @@ mod tests {
         assert!(ray.dir.y < 0.0 && ray.origin.y < 0.0, "goes on below, from below: {ray:?}");
         // Leaving the glass upwards at that angle inside bends back to 45 degrees.
         let up = Vec3::new(sin_t, (1.0 - sin_t * sin_t).sqrt(), 0.0);
-        let (ray, _) = spawn(&floor(), &glass(1.5, 0.0), up, &hit_at_centre()).refraction.unwrap();
+        let (ray, _) = spawn_along(&floor(), &glass(1.5, 0.0), up, &hit_at_centre()).refraction.unwrap();
         let sin_out = ray.dir.x / ray.dir.length();
         assert!((sin_out - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-5, "{sin_out}");
         assert!(ray.dir.y > 0.0 && ray.origin.y > 0.0, "goes on above, from above: {ray:?}");
@@ -360,11 +396,11 @@ mod tests {
         // degrees: beyond the critical angle of 41.8 degrees.
         let d = Vec3::new(60f32.to_radians().sin(), 60f32.to_radians().cos(), 0.0);
         for m in [glass(1.5, 0.0), glass(1.5, 0.2)] {
-            let s = spawn(&floor(), &m, d, &hit_at_centre());
+            let s = spawn_along(&floor(), &m, d, &hit_at_centre());
             assert!(s.refraction.is_none(), "{:?}", m.shader());
             let (ray, w) = s.reflection.unwrap();
             assert!((w - 1.0).abs() < 1e-6 && s.local.abs() < 1e-6, "{s:?}");
-            assert!(ray.dir.y < 0.0 && ray.origin.y < 0.0, "reflected back inside: {ray:?}");
+            assert!(ray.dir.y < 0.0 && start(&ray).y < 0.0, "reflected back inside: {ray:?}");
         }
         assert_eq!(refract(d, -Vec3::Y, 1.5), None);
         assert_eq!(schlick(d.y, 1.5, 1.0), 1.0);
@@ -373,7 +409,7 @@ mod tests {
     #[test]
     fn index_of_exactly_one_continues_unbent_and_reflects_nothing() {
         let d = Vec3::new(0.3, -0.8, 0.1);
-        let s = spawn(&floor(), &glass(1.0, 0.5), d, &hit_at_centre());
+        let s = spawn_along(&floor(), &glass(1.0, 0.5), d, &hit_at_centre());
         let (ray, w) = s.refraction.unwrap();
         assert_eq!(ray.dir, d.normalize());
         assert!(ray.origin.y < 0.0);
@@ -411,7 +447,7 @@ mod tests {
             for k in 0..32 {
                 let a = k as f32 / 31.0 * std::f32::consts::PI;
                 for d in [Vec3::new(a.cos(), -a.sin() - 0.01, 0.2), Vec3::new(a.cos(), a.sin() + 0.01, -0.1)] {
-                    let s = spawn(&floor(), material, d, &hit_at_centre());
+                    let s = spawn_along(&floor(), material, d, &hit_at_centre());
                     assert!((weights(&s) - 1.0).abs() < 1e-5, "{:?} {d}: {s:?}", material.shader());
                     if matches!(material.shader(), Shader::Diffuse | Shader::Specular) {
                         assert_eq!(s, Spawn::LOCAL);
@@ -433,12 +469,12 @@ mod tests {
     #[test]
     fn degenerate_and_nan_input_spawn_nothing() {
         let degenerate = Surface::new(&[Vec3::ZERO, Vec3::X, Vec3::X * 2.0]);
-        assert_eq!(spawn(&degenerate, &mirror(), -Vec3::Y, &hit_at_centre()), Spawn::LOCAL);
+        assert_eq!(spawn_along(&degenerate, &mirror(), -Vec3::Y, &hit_at_centre()), Spawn::LOCAL);
         let nan = Surface::new(&[Vec3::NAN, Vec3::X, Vec3::Z]);
-        assert_eq!(spawn(&nan, &mirror(), -Vec3::Y, &hit_at_centre()), Spawn::LOCAL);
-        assert_eq!(spawn(&floor(), &mirror(), Vec3::NAN, &hit_at_centre()), Spawn::LOCAL);
-        assert_eq!(spawn(&floor(), &mirror(), Vec3::ZERO, &hit_at_centre()), Spawn::LOCAL);
+        assert_eq!(spawn_along(&nan, &mirror(), -Vec3::Y, &hit_at_centre()), Spawn::LOCAL);
+        assert_eq!(spawn_along(&floor(), &mirror(), Vec3::NAN, &hit_at_centre()), Spawn::LOCAL);
+        assert_eq!(spawn_along(&floor(), &mirror(), Vec3::ZERO, &hit_at_centre()), Spawn::LOCAL);
         let far = Hit { u: f32::INFINITY, ..hit_at_centre() };
-        assert_eq!(spawn(&floor(), &glass(1.5, 0.5), -Vec3::Y, &far), Spawn::LOCAL);
+        assert_eq!(spawn_along(&floor(), &glass(1.5, 0.5), -Vec3::Y, &far), Spawn::LOCAL);
     }
 }

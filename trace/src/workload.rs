@@ -92,7 +92,7 @@ impl Incoherent {
         let mirror = scenes::Material { reflectivity: 1.0, ..scenes::Material::default() };
         for ((x, y), hit) in pixels.zip(hits) {
             let Some(hit) = hit else { continue };
-            let (_, dir) = camera.pixel_ray(x, y);
+            let (eye, dir) = camera.pixel_ray(x, y);
             let n = facing_normal(&scene.mesh, hit, dir);
             let tri = scene.mesh.triangle(hit.prim as usize);
             let origin = kdtree::ray::offset_origin(&tri, hit, n);
@@ -105,7 +105,7 @@ impl Incoherent {
             }
             let d = cosine_direction(n, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
             out.diffuse.push(Ray::new(origin, d, 0.0, f32::INFINITY));
-            if let Some((ray, _)) = crate::secondary::spawn(&Surface::new(&tri), &mirror, dir, hit).reflection {
+            if let Some((ray, _)) = crate::secondary::spawn(&Surface::new(&tri), &mirror, eye, dir, hit).reflection {
                 out.reflect.push(ray);
             }
         }
