@@ -31,14 +31,17 @@ pub trait Counters: Default + AddAssign {
     fn leaf_packets(&mut self, considered: u64, culled: u64) {
         let _ = (considered, culled);
     }
-    /// Runs one leaf's visit (its triangle tests), `visit`, which the kd descent
-    /// ([`crate::descent::descend`]) hands every leaf it reaches. [`crate::clock::LeafClock`]
-    /// times it, to split a pass's time into traversal and intersection (thesis Table 3.1);
-    /// every other counter just runs it.
+    /// A leaf's visit (its triangle tests) starts: the kd descent
+    /// ([`crate::descent::descend`]) calls it before every leaf visit and
+    /// [`Counters::leaf_visit_end`] after. [`crate::clock::LeafClock`] times the visits, to
+    /// split a pass's time into traversal and intersection (thesis Table 3.1); every other
+    /// counter does nothing. (Two calls, not a closure around the visit: a closure is a
+    /// function of its own, compiled without the kernel's `#[target_feature]`s.)
     #[inline(always)]
-    fn leaf_visit<R>(&mut self, visit: impl FnOnce(&mut Self) -> R) -> R {
-        visit(self)
-    }
+    fn leaf_visit_start(&mut self) {}
+    /// The leaf's visit that [`Counters::leaf_visit_start`] announced has ended.
+    #[inline(always)]
+    fn leaf_visit_end(&mut self) {}
 }
 
 /// Counting switched off: every method is empty and compiles away.

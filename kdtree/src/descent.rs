@@ -185,9 +185,13 @@ pub fn descend<D: Descent, C: Counters>(
                     }
                     Visit::Neither => None,
                 }
-            } else if counters.leaf_visit(|c| group.leaf(node, &span, stack, c)) == Flow::Stop {
-                return;
             } else {
+                counters.leaf_visit_start();
+                let flow = group.leaf(node, &span, stack, counters);
+                counters.leaf_visit_end();
+                if flow == Flow::Stop {
+                    return;
+                }
                 None
             }
         };

@@ -19,7 +19,7 @@
 use std::ops::Range;
 
 use glam::Vec4;
-use kdtree::Hit;
+use kdtree::{Hit, Ray};
 use kdtree::TreeTest;
 use kdtree::triangle::{Intersector, WatertightTriangle};
 use scenes::{Camera, Tile};
@@ -327,17 +327,47 @@ impl<V: SimdF32> TileTracer<V> {
         if packets.iter().any(|p| p.rays.valid.any() && p.origin != origin) {
             return None;
         }
-        self.tile = Tile { x0: 0, y0: 0, x1: 0, y1: 0 };
         self.packets.clear();
         self.packets.extend_from_slice(packets);
+        self.set_loaded(origin);
+        Some(())
+    }
+
+    /// Loads a run of rays made elsewhere as [`TileTracer::load_packets`] does their packets:
+    /// `V::LANES` consecutive rays a packet (the last one partial), with no buffer of the
+    /// caller's. Returns `None` unless every ray starts at or past one common origin (`t_min
+    /// >= 0`); a ray with NaN or infinite components is an invalid lane, with no hit.
+    #[inline(always)]
+    pub fn load_rays(&mut self, rays: &[Ray]) -> Option<()> {
+        self.packets.clear();
+        for chunk in rays.chunks(V::LANES) {
+            let Some(packet) = OmniPacket::new(RayPacket::<V>::from_rays(chunk)) else {
+                self.packets.clear();
+                return None;
+            };
+            self.packets.push(packet);
+        }
+        let origin = self.packets.iter().find(|p| p.rays.valid.any()).map_or([0.0; 4], |p| p.origin);
+        if self.packets.iter().any(|p| p.rays.valid.any() && p.origin != origin) {
+            self.packets.clear();
+            return None;
+        }
+        self.set_loaded(origin);
+        Some(())
+    }
+
+    /// The rest of loading packets made elsewhere: no tile, no camera, the packets cut into
+    /// the regions in order.
+    #[inline(always)]
+    fn set_loaded(&mut self, origin: [f32; 4]) {
+        self.tile = Tile { x0: 0, y0: 0, x1: 0, y1: 0 };
         self.corners.clear();
-        self.corners.resize(packets.len(), (0, 0));
-        let (n, regions) = (packets.len(), self.region_count());
+        self.corners.resize(self.packets.len(), (0, 0));
+        let (n, regions) = (self.packets.len(), self.region_count());
         let cut = |q: usize| q.min(regions) * n / regions;
         self.quadrants = std::array::from_fn(|q| cut(q)..cut(q + 1));
         self.camera = None;
         self.origin = origin;
-        Some(())
     }
 
     /// Resets the hits and finished lanes before a trace, and makes the watertight shear

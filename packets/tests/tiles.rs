@@ -531,3 +531,69 @@ fn nan_bounds<V: SimdF32>() {
     }
     assert!(checked > 1000, "{checked} hits compared");
 }
+
+/// Runs of mirror reflections from their virtual eye (`packets::mirror`: one origin, every
+/// interval starting past the mirror, `t_min > 0`), loaded by `load_rays` at 4, 8 and 16
+/// lanes and traced by every tile kernel, closest and any hit: the single rays' answers.
+#[test]
+fn virtual_eye_runs_loaded_as_rays_match_single_rays() {
+    reflection_runs::<glam::Vec4>();
+    reflection_runs::<PortableF32<8>>();
+    reflection_runs::<PortableF32<16>>();
+}
+
+fn reflection_runs<V: SimdF32>() {
+    use packets::mirror::Mirror;
+    let scene = scenes::load_scene("atrium").unwrap();
+    for intersector in [Intersector::Wald, Intersector::Watertight] {
+        let tree = build(&scene, intersector);
+        let camera = scene.default_view().camera(64, 48).unwrap();
+        // Each pixel's reflection off the triangle it sees, grouped by virtual eye.
+        let mut runs: std::collections::HashMap<[u32; 3], Vec<Ray>> = Default::default();
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let (eye, dir) = camera.pixel_ray(x, y);
+                let Some(hit) = tree.intersect(&Ray::new(eye, dir, 0.0, f32::INFINITY)) else { continue };
+                let surface = kdtree::surface::Surface::new(&tree.triangle(hit.prim));
+                let Some(mirror) = Mirror::of_surface(&surface) else { continue };
+                if let Some(ray) = mirror.reflected_ray(eye, dir, hit.t, surface.offset) {
+                    runs.entry(ray.origin.to_array().map(f32::to_bits)).or_default().push(ray);
+                }
+            }
+        }
+        let mut tracer = TileTracer::<V>::with_size(16).unwrap();
+        let mut checked = 0;
+        for rays in runs.values().filter(|r| r.len() > V::LANES) {
+            for run in rays.chunks(16 * V::LANES) {
+                for any_hit in [false, true] {
+                    tracer.set_any_hit(any_hit);
+                    for (method, trace) in wide_methods::<V>() {
+                        tracer.load_rays(run).expect("one origin, t_min > 0");
+                        trace(&mut tracer, &tree, &mut Counts::default());
+                        let any = any_hit && matches!(method, "frustum" | "mft");
+                        for (p, hits) in tracer.packet_hits().iter().enumerate() {
+                            for (lane, ray) in run.iter().enumerate().skip(p * V::LANES).take(V::LANES) {
+                                let got = hits.get(lane - p * V::LANES);
+                                if any {
+                                    assert_eq!(got.is_some(), tree.occluded(ray), "{method}, {} lanes", V::LANES);
+                                } else {
+                                    let want = tree.intersect(ray);
+                                    assert!(same_hit(&tree, ray, got, want), "{method}, {} lanes: {got:?} {want:?}", V::LANES);
+                                    checked += usize::from(got.is_some());
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 500, "{checked} hits compared at {} lanes", V::LANES);
+        // A ray of another origin, or one starting behind it, is refused.
+        let some = runs.values().find(|r| r.len() > 1).unwrap();
+        let mut mixed = some[..2].to_vec();
+        mixed[1].origin += Vec3::X;
+        assert!(tracer.load_rays(&mixed).is_none());
+        let behind = Ray::new(some[0].origin, some[0].dir, -1.0, f32::INFINITY);
+        assert!(tracer.load_rays(&[some[0], behind]).is_none());
+    }
+}

@@ -7,9 +7,11 @@
 //!   (`packets::omni_lanes`, the thesis's secondary packets), a same-sign packet only where a
 //!   ray starts behind its origin (`kd-omni-packets`, `-w8`, `-w16`);
 //! - [`SameSign`]: each four as a same-sign packet (`kd-samesign-packets`);
-//! - [`Runs`]: each run of up to [`STREAM_FRUSTUM_RAYS`] rays sharing an origin (and starting
-//!   at it) traced by a tile kernel (one frustum or cone, or four quarter-runs as MFT frusta
-//!   or cones; `kd-mft-runs`, ...), other rays as [`Packets`].
+//! - [`Runs`]: each run of up to [`STREAM_FRUSTUM_PACKETS`] packets of rays sharing an origin
+//!   (and starting at or past it: reflections off one plane from their virtual eye, a ray
+//!   file's camera rays) traced by a tile kernel at the method's width (one frustum or cone,
+//!   or four quarter-runs as MFT frusta or cones; `kd-mft-runs`, ...), other rays as
+//!   [`Packets`].
 
 use std::marker::PhantomData;
 
@@ -20,14 +22,18 @@ use packets::simd::{SimdF32, SimdMask};
 use packets::triangle4::PacketTest;
 use packets::{OmniPacket, PacketHit, RayPacket, TileTracer, Width, omni, omni_lanes, samesign};
 
-use super::primary::TileKernel;
+use super::primary::{TileKernel, TileScratch, TracerSlot};
 use super::{FromOptions, NoOptions, Stream, TreeWith};
 use crate::error::Error;
 use crate::method::{Method, SingleRays, TileCounters};
 use crate::registry::Options;
 
-/// Rays per frustum of a ray stream: up to 16 packets.
-pub const STREAM_FRUSTUM_RAYS: usize = 64;
+/// Packets per frustum run of a ray stream ([`Runs`]): up to 16 (64 rays at 4 lanes, 256 at
+/// 16).
+pub const STREAM_FRUSTUM_PACKETS: usize = 16;
+
+/// Rays per chunk of the any-hit queries answered by closest hits.
+const ANY_CHUNK: usize = 256;
 
 /// Each ray alone.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -69,8 +75,8 @@ impl Stream for Single {
     }
 }
 
-/// Whether `stream` finds a hit for each ray, in chunks of [`STREAM_FRUSTUM_RAYS`]: the any-hit
-/// query of the kernels without one of their own.
+/// Whether `stream` finds a hit for each ray, in chunks of 256 rays: the any-hit query of the
+/// kernels without one of their own.
 #[inline]
 fn any_by_closest<C: TileCounters>(
     rays: &[Ray],
@@ -78,8 +84,8 @@ fn any_by_closest<C: TileCounters>(
     counters: &mut C,
     mut stream: impl FnMut(&[Ray], &mut [Option<Hit>], &mut C),
 ) {
-    let mut hits = [None; STREAM_FRUSTUM_RAYS];
-    for (rays, out) in rays.chunks(STREAM_FRUSTUM_RAYS).zip(out.chunks_mut(STREAM_FRUSTUM_RAYS)) {
+    let mut hits = [None; ANY_CHUNK];
+    for (rays, out) in rays.chunks(ANY_CHUNK).zip(out.chunks_mut(ANY_CHUNK)) {
         let hits = &mut hits[..rays.len()];
         stream(rays, hits, counters);
         for (slot, hit) in out.iter_mut().zip(hits.iter()) {
@@ -225,8 +231,9 @@ impl Stream for SameSign {
 }
 
 /// Runs of rays sharing an origin traced by the tile kernel `K` (frusta, MFT, cones), loaded
-/// as 2x2 packets in a tracer of four packets a quadrant; other rays (the secondary rays of
-/// neighbouring pixels) as [`Packets`] at the method's width.
+/// as packets of the method's width ([`TileTracer::load_rays`]), the run cut into the
+/// kernel's regions in order; other rays (the secondary rays of neighbouring pixels off
+/// curved or different surfaces) as [`Packets`] at the same width.
 #[derive(Debug)]
 pub struct Runs<K> {
     /// The kernel of the rays outside runs.
@@ -254,11 +261,10 @@ impl<K> FromOptions for Runs<K> {
     }
 }
 
-/// Scratch of [`Runs`]: the tracer (made on first use) and a run's packets.
+/// Scratch of [`Runs`]: the tracer of the bound width, made on first use.
 #[derive(Debug, Default)]
 pub struct RunScratch {
-    tracer: Option<TileTracer>,
-    group: Vec<OmniPacket>,
+    tiles: TileScratch,
 }
 
 impl<K: TileKernel> Stream for Runs<K> {
@@ -280,35 +286,37 @@ impl<K: TileKernel> Stream for Runs<K> {
         out: &mut [Option<Hit>],
         counters: &mut C,
     ) {
-        let tracer = scratch.tracer.get_or_insert_with(|| TileTracer::new(4).expect("4 is a valid tile size"));
-        let group = &mut scratch.group;
-        let mut start = 0;
-        while start < rays.len() {
-            let origin = rays[start].origin;
-            let shares = |r: &Ray| r.origin.to_array().map(f32::to_bits) == origin.to_array().map(f32::to_bits);
-            let run =
-                rays[start..].iter().take(STREAM_FRUSTUM_RAYS).take_while(|r| shares(r) && r.t_min >= 0.0).count();
-            if run > 4 {
-                group.clear();
-                for four in rays[start..start + run].chunks(4) {
-                    // A shared origin and t_min >= 0 were checked for the run.
-                    group.push(OmniPacket::new(RayPacket::new(four)).expect("run shares its origin"));
-                }
-                tracer.load_packets(group).expect("run shares its origin");
-                K::trace_loaded::<I, glam::Vec4, C>(tree, tracer, counters);
-                for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(4)) {
-                    for (lane, slot) in slots.iter_mut().enumerate() {
-                        *slot = hits.get(lane);
+        packets::at_width!(self.packets.width, V => {
+            let tracer = TracerSlot::<V>::slot(&mut scratch.tiles)
+                .get_or_insert_with(|| TileTracer::with_size(16).expect("16 is a valid tile size"));
+            let mut start = 0;
+            while start < rays.len() {
+                let origin = rays[start].origin.to_array().map(f32::to_bits);
+                let run = rays[start..]
+                    .iter()
+                    .take(STREAM_FRUSTUM_PACKETS * V::LANES)
+                    .take_while(|r| r.origin.to_array().map(f32::to_bits) == origin && r.t_min >= 0.0)
+                    .count();
+                // More than one packet's worth: a frustum run.
+                if run > V::LANES && tracer.load_rays(&rays[start..start + run]).is_some() {
+                    K::trace_loaded::<I, V, C>(tree, tracer, counters);
+                    for (hits, slots) in tracer.packet_hits().iter().zip(out[start..start + run].chunks_mut(V::LANES)) {
+                        for (lane, slot) in slots.iter_mut().enumerate() {
+                            *slot = hits.get(lane);
+                        }
                     }
+                    start += run;
+                    continue;
                 }
-                start += run;
-                continue;
+                // One packet of the method's width, whatever their origins.
+                let end = (start + V::LANES).min(rays.len());
+                let hits = group::<I, V, C, false>(tree, &rays[start..end], counters);
+                for (lane, slot) in out[start..end].iter_mut().enumerate() {
+                    *slot = hits.get(lane);
+                }
+                start = end;
             }
-            // One packet of the method's width, whatever their origins.
-            let end = (start + self.packets.width.lanes()).min(rays.len());
-            self.packets.stream::<I, C>(tree, &mut (), &rays[start..end], &mut out[start..end], counters);
-            start = end;
-        }
+        });
     }
 
     fn stream_occluded<I: PacketTreeTest, C: TileCounters>(
