@@ -38,21 +38,21 @@
 //! - lies on a surface continuous with the pixel's: their normals within [`Tolerances::cos_normal`]
 //!   and each point within [`Tolerances::plane`] pixel footprints per pixel of distance of the
 //!   other's tangent plane (a floor and the table top above it are not blended);
-//! - and the corners' visibilities spread less than [`Tolerances::spread`].
+//! - and the corners' visibilities spread by at most [`Tolerances::spread`].
 //!
-//! A corner blended in pass 1 passed the same tests against searched corners 4 pixels apart, so
-//! pass 2 takes it as a lattice value. A lit pixel's blend is also capped at its horizon's
+//! A corner blended in pass 1 passed the same tests against its own corners 4 pixels apart,
+//! so pass 2 takes it as a lattice value. A lit pixel's blend is also capped at its horizon's
 //! share ([`Probe::Lit`]), which its own search could not exceed. Otherwise the pixel is
 //! searched.
 //!
 //! ## Cost
-//! Over the scenes of `docs/results/soft-shadows-quality.md` (256 x 256, rectangular lights,
+//! Over the scenes of `docs/results/soft-shadows-quality.md` (256 x 256, each scene's light,
 //! 2 threads) the passes search 11% (the analytic sphere) to 41% (atrium) of the masked
 //! pixels and blend the rest, at an error within 0.0015 RMSE of searching them all; a frame
 //! then costs 2.3x to 12x hard shadows, against 3x to 18x. The masked pixels still searched
 //! are mostly at the occluders' own geometric edges (corners on other surfaces, or facing
-//! away from the light), which no lattice spares, and their searches cost more than the
-//! average one (more triangles in the cone), so the time falls less than the searches do.
+//! away from the light), which no lattice spares; the time falls less than the count of
+//! searches does, so the searches left seem dearer than the average one.
 
 use crate::sampling::ShadingPoint;
 use crate::silhouette::Probe;
