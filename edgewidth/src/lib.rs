@@ -18,6 +18,8 @@
 //! - [`silhouette`]: silhouette widths, a variant of Eq. 5.1 that draws both halves of the
 //!   penumbra and does not leak: one shadow ray, the silhouette edges in the light's cone
 //!   projected onto the light (Parker, Shirley & Smits 1998).
+//! - [`sparse`]: the silhouette search on a coarse lattice inside the penumbra mask, the
+//!   pixels between blended from their corners where the surfaces and answers agree.
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their
@@ -32,6 +34,7 @@ pub mod packet;
 pub mod pairing;
 pub mod sampling;
 pub mod silhouette;
+pub mod sparse;
 pub mod traverse;
 
 pub use occlusion::{occlusion_factor, width_from_light};

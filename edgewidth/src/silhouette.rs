@@ -42,9 +42,19 @@
 //! pixels), and [`penumbra_mask`] marks the pixels within that reach (at most [`MAX_REACH`])
 //! of a blocked pixel with a lit neighbour; only those get the search
 //! ([`silhouette_search`], reusing the probe's answer), the rest keep the hard answer (the
-//! horizon's share when lit). A frame then costs 3.5x to 19x hard shadows over the scenes of
-//! `docs/results/soft-shadows-quality.md` (7x to 41x searching every pixel), at nearly the
-//! same error; [`silhouette_visibility`] is the ungated answer for one point.
+//! horizon's share when lit). A frame that searches every masked pixel costs 3.5x to 19x hard
+//! shadows over the scenes of `docs/results/soft-shadows-quality.md` (7x to 41x searching
+//! every pixel), at nearly the same error; [`silhouette_visibility`] is the ungated answer for
+//! one point.
+//!
+//! Inside the mask, the frame ([`crate::sparse`]) searches only a coarse lattice (every 4th
+//! pixel in x and y, then every 2nd where blending is not safe) and blends the pixels between
+//! from their corners where the corners hold the frame's answers, lie on the pixel's surface,
+//! not all across the hard shadow's edge from it, and close in visibility; the others are
+//! searched themselves. On those scenes that searches 11% to 41% of the masked pixels, for an
+//! error within 0.0015 RMSE of searching them all, and a frame costs 2.3x to 12x hard shadows
+//! (3x to 18x searching every masked pixel, in the same runs): the pixels still searched are
+//! mostly at the occluders' own geometric edges, where the search is also dearest.
 //!
 //! ## One ray, and what finds the near misses
 //! A hard shadow ray to the light's centre says whether the point is in the hard shadow. The

@@ -10,7 +10,9 @@
 //!   the light's cone projected onto the light (`edgewidth::silhouette`): both halves of the
 //!   penumbra, no leaks through thin occluders; a check ray per claimed exit in the dark half;
 //!   the edges are searched only for pixels within the penumbra's reach of a hard shadow's
-//!   edge (a frame pass of hard rays first), the others keep the hard answer;
+//!   edge (a frame pass of hard rays first), the others keep the hard answer, and among
+//!   those only on a coarse lattice, the pixels between blended from their corners where
+//!   that is safe (`edgewidth::sparse`);
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
 //! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
 //!   12 only where the probes of the pixel or of a neighbour disagree
@@ -48,6 +50,7 @@ use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
 use edgewidth::silhouette::{Probe, hard_probe, penumbra_mask, silhouette_search};
+use edgewidth::sparse::{self, Answer, Pixel, SparseFrame, Tolerances};
 use edgewidth::{
     AreaLight, EdgeScratch, LeakRemedies, SilhouetteScratch, Silhouettes, edge_width, occlusion_factor,
     width_from_light,
@@ -190,7 +193,8 @@ pub enum ShadowMethod {
     EdgeWidthPacket,
     /// Silhouette widths (`edgewidth::silhouette`): the variant of Eq. 5.1 that draws both
     /// halves of the penumbra and lets no light through a closed occluder, searched only
-    /// near the hard shadow's edges (`silhouette::penumbra_mask`).
+    /// near the hard shadow's edges (`silhouette::penumbra_mask`) and there sparsely
+    /// (`edgewidth::sparse`).
     Silhouette,
     /// `N` stratified samples of the light.
     Sampled(u32),
@@ -536,62 +540,75 @@ impl<'a> ShadowSetup<'a> {
         adaptive::PROBES.len() as u64 * probed + adaptive::REST.len() as u64 * refined
     }
 
-    /// [`ShadowMethod::Silhouette`] over the frame (`hits` and `out` in tile order), in two
-    /// passes over the tiles: every hit's hard shadow ray (`silhouette::hard_probe`), then the
-    /// cone search (`silhouette::silhouette_search`) only for the pixels near a hard shadow's
-    /// edge (`silhouette::penumbra_mask`); the others keep the hard answer (times the
-    /// horizon's share). Returns the rays traced.
+    /// [`ShadowMethod::Silhouette`] over the frame (`hits` and `out` in tile order): a pass
+    /// over the tiles for every hit's hard shadow ray (`silhouette::hard_probe`), the pixels
+    /// near a hard shadow's edge (`silhouette::penumbra_mask`), then the sparse passes
+    /// (`edgewidth::sparse`, each over the tiles): the cone search
+    /// (`silhouette::silhouette_search`) on the mask's pixels of the 4-lattice, then on the
+    /// 2-lattice and the rest only where blending the corners is not safe. The pixels outside
+    /// the mask keep the hard answer (times the horizon's share). Returns the rays traced.
     fn silhouette(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         let silhouettes = self.silhouettes.get().unwrap_or(&NO_SILHOUETTES);
         // A pixel's footprint per unit of distance from the eye.
         let pixel_angle = 2.0 * self.camera.tan_half_fovy / self.camera.height as f32;
-        let mut probes = vec![None; hits.len()];
-        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(&mut probes)).collect();
+        let mut pixels = vec![None; hits.len()];
+        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(&mut pixels)).collect();
         let probed: u64 = for_tiles(
             &self.layout,
             chunks,
             || (),
-            |_, tile, (hits, probes)| {
+            |_, tile, (hits, pixels)| {
                 let mut rays = 0u64;
-                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(probes.iter_mut()) {
+                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(pixels.iter_mut()) {
                     let Some(hit) = hit else { continue };
-                    let p = self.shading_point(x, y, hit);
-                    let probe = hard_probe(self.tree, &self.light, &p, pixel_angle * p.point.distance(self.camera.eye));
+                    let point = self.shading_point(x, y, hit);
+                    let footprint = pixel_angle * point.point.distance(self.camera.eye);
+                    let probe = hard_probe(self.tree, &self.light, &point, footprint);
                     rays += match probe {
                         Probe::Done(v) => u64::from(v.rays),
                         _ => 1,
                     };
-                    *slot = Some(probe);
+                    *slot = Some(Pixel::new(&point, footprint, probe));
                 }
                 rays
             },
         );
-        let grid = self.layout.to_row_major(&probes);
-        let mask = penumbra_mask(self.camera.width, self.camera.height, &grid);
-        let w = self.camera.width;
-        let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(out)).collect();
-        let searched: u64 =
-            for_tiles(&self.layout, chunks, SilhouetteScratch::default, |scratch, tile, (hits, out)| {
-                let mut rays = 0u64;
-                for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(out) {
-                    let i = (y * w + x) as usize;
-                    let (Some(hit), Some(probe)) = (hit, grid[i]) else {
-                        *slot = 0.0;
-                        continue;
-                    };
-                    *slot = match probe {
-                        Probe::Lit(_) | Probe::Blocked(_) if mask[i] => {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let pixels = self.layout.to_row_major(&pixels);
+        let probes: Vec<Option<Probe>> = pixels.iter().map(|p| p.map(|p| p.probe)).collect();
+        let mask = penumbra_mask(w, h, &probes);
+        let frame = SparseFrame::new(w, h, &pixels, &mask, Tolerances::DEFAULT);
+        // Each pass reads the earlier passes' answers (row-major) and writes its own pixels'
+        // (tile order).
+        let mut answers = vec![Answer::Pending; hits.len()];
+        let mut known = Vec::new();
+        let mut searched = 0u64;
+        for pass in 0..sparse::PASSES {
+            let chunks = self.layout.chunks_mut(&mut answers);
+            let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(chunks).collect();
+            searched +=
+                for_tiles(&self.layout, chunks, SilhouetteScratch::default, |scratch, tile, (hits, answers)| {
+                    let mut rays = 0u64;
+                    for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(answers) {
+                        let Some(hit) = hit else { continue };
+                        let search = |pixel: &Pixel| {
                             let p = self.shading_point(x, y, hit);
-                            let blocked = matches!(probe, Probe::Blocked(_));
+                            let blocked = matches!(pixel.probe, Probe::Blocked(_));
                             let v = silhouette_search(self.tree, silhouettes, &self.light, &p, blocked, scratch);
                             rays += u64::from(v.rays);
                             v.fraction
+                        };
+                        if let Some(answer) = frame.resolve(&known, x, y, pass, search) {
+                            *slot = answer;
                         }
-                        _ => probe.fraction(),
-                    };
-                }
-                rays
-            });
+                    }
+                    rays
+                });
+            known = self.layout.to_row_major(&answers);
+        }
+        for (slot, answer) in out.iter_mut().zip(&answers) {
+            *slot = answer.fraction();
+        }
         probed + searched
     }
 
