@@ -6,6 +6,7 @@ use kdtree::{BuildConfig, KdTree, Ray};
 use scenes::builtin::shapes::Rng;
 use scenes::{Camera, Material, Mesh, Scene};
 use trace::method::primary_ray;
+use trace::secondary::ReflectFrom;
 
 /// Uniform in `[-1, 1)`.
 fn signed(rng: &mut Rng) -> f32 {
@@ -111,7 +112,8 @@ pub fn ray_list(scene: &Scene, camera: Option<&Camera>, seed: u64) -> Vec<Ray> {
 }
 
 /// The mirror reflections of `camera`'s primary hits (single rays on a default tree), every
-/// surface a perfect mirror, pixels in 2x2 blocks.
+/// surface a perfect mirror, pixels in 2x2 blocks, alternately from the virtual eye and from
+/// the surface.
 fn reflections(scene: &Scene, camera: &Camera) -> Vec<Ray> {
     let mesh = &scene.mesh;
     let Ok(tree) = KdTree::build(&mesh.positions, &mesh.triangles, &BuildConfig::default()) else { return Vec::new() };
@@ -126,8 +128,11 @@ fn reflections(scene: &Scene, camera: &Camera) -> Vec<Ray> {
                 }
                 let ray = primary_ray(camera, x, y);
                 let Some(hit) = tree.intersect(&ray) else { continue };
+                // Both starts, in blocks of 32 rays: from the virtual eye (runs of one origin
+                // off flat mirrors, scattered eyes off curved ones) and from the surface.
+                let from = if out.len() / 32 % 2 == 0 { ReflectFrom::VirtualEye } else { ReflectFrom::Surface };
                 if let Some((r, _)) =
-                    trace::secondary::spawn(surfaces.get(hit.prim), &mirror, ray.origin, ray.dir, &hit).reflection
+                    trace::secondary::spawn(surfaces.get(hit.prim), &mirror, ray.origin, ray.dir, &hit, from).reflection
                 {
                     out.push(r);
                 }

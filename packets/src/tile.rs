@@ -19,9 +19,9 @@
 use std::ops::Range;
 
 use glam::Vec4;
-use kdtree::{Hit, Ray};
 use kdtree::TreeTest;
 use kdtree::triangle::{Intersector, WatertightTriangle};
+use kdtree::{Hit, Ray};
 use scenes::{Camera, Tile};
 
 use crate::packet::{OmniPacket, PacketHit, RayPacket, all_lanes, directions};

@@ -578,7 +578,11 @@ fn reflection_runs<V: SimdF32>() {
                                     assert_eq!(got.is_some(), tree.occluded(ray), "{method}, {} lanes", V::LANES);
                                 } else {
                                     let want = tree.intersect(ray);
-                                    assert!(same_hit(&tree, ray, got, want), "{method}, {} lanes: {got:?} {want:?}", V::LANES);
+                                    assert!(
+                                        same_hit(&tree, ray, got, want),
+                                        "{method}, {} lanes: {got:?} {want:?}",
+                                        V::LANES
+                                    );
                                     checked += usize::from(got.is_some());
                                 }
                             }

@@ -21,13 +21,18 @@
 //! - Snell's law gives the refracted direction, with index `1 -> ior` entering and
 //!   `ior -> 1` leaving. An index of exactly 1 continues the ray unbent, bit for bit, and
 //!   reflects nothing (`F = 0`).
-//! - A reflection leaves from the *virtual eye*: the origin of the ray that reached the hit,
-//!   mirrored in the triangle's plane ([`packets::mirror::Mirror::reflected_ray`]), its
-//!   interval starting just past the mirror. It is the same line as a ray started at the hit
-//!   point, but the reflections of one eye's rays off one plane share their origin bit for bit,
-//!   so a run of them is one frustum for the frustum, MFT and cone kernels and one
-//!   omni-directional packet for the thesis's packets (4.1.2). A reflection flatter than
-//!   [`packets::mirror::MIN_COS`] starts on the surface instead.
+//! - A reflection in a run off one plane leaves from the *virtual eye* ([`ReflectFrom`]):
+//!   the origin of the ray that reached the hit, mirrored in the triangle's plane
+//!   ([`packets::mirror::Mirror::reflected_ray`]), its interval starting just past the
+//!   mirror. It is the same line as a ray started at the hit point, but the reflections of
+//!   one eye's rays off one plane share their origin bit for bit, so a run of them is one
+//!   frustum for the frustum, MFT and cone kernels and one omni-directional packet for the
+//!   thesis's packets (4.1.2). A point is in such a run when the point spawned just before or
+//!   after it saw the same plane from the same eye ([`in_plane_run`]): a flat mirror's
+//!   pixels. The others start on the surface: the virtual eyes of a curved mirror's
+//!   triangles lie scattered far apart, and packets of rays from them traversed 1.3x slower
+//!   than from their hit points on the garage's cars. So does a reflection flatter than
+//!   [`packets::mirror::MIN_COS`].
 //! - Refractions (and those flat reflections) start on the surface they leave by the
 //!   workspace's one spawn rule ([`kdtree::ray::offset_origin`], through the triangle's
 //!   [`Surface`] record): a reflection on the side the ray came from, a refraction on the
@@ -115,13 +120,55 @@ impl Spawn {
     pub const LOCAL: Spawn = Spawn { local: 1.0, reflection: None, refraction: None };
 }
 
+/// Where a reflection ray starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReflectFrom {
+    /// From the virtual eye, the parent ray's origin mirrored in the triangle's plane, its
+    /// interval starting past the mirror (unless flatter than `MIN_COS`).
+    VirtualEye,
+    /// From the hit point, lifted off the surface by the spawn offset.
+    Surface,
+}
+
+/// What makes two reflections share a virtual eye: the mirror plane and the eye, bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EyeKey {
+    plane: Mirror,
+    eye: [u32; 3],
+}
+
+impl EyeKey {
+    /// The key of a reflection off the triangle `surface` of a ray from `from` (`None` for a
+    /// degenerate or non-finite triangle).
+    pub fn new(surface: &Surface, from: Vec3) -> Option<EyeKey> {
+        Some(EyeKey { plane: Mirror::of_surface(surface)?, eye: from.to_array().map(f32::to_bits) })
+    }
+}
+
+/// Where the reflection of point `k` of a sequence starts, `keys` being each point's
+/// [`EyeKey`] (`None` for points that reflect nothing): from the virtual eye when the point
+/// just before or after it has the same key (a run of one flat mirror seen from one eye),
+/// otherwise from the surface.
+pub fn in_plane_run(keys: &[Option<EyeKey>], k: usize) -> ReflectFrom {
+    let Some(key) = keys.get(k).copied().flatten() else { return ReflectFrom::Surface };
+    let same = |j: Option<usize>| j.and_then(|j| keys.get(j).copied().flatten()) == Some(key);
+    if same(k.checked_sub(1)) || same(k.checked_add(1)) { ReflectFrom::VirtualEye } else { ReflectFrom::Surface }
+}
+
 /// The secondary rays of the hit `hit` on triangle record `surface` with `material`, reached
-/// by the ray from `from` along `dir` (any length; `hit.t` in its units): the shader proxy's
-/// spawning step.
+/// by the ray from `from` along `dir` (any length; `hit.t` in its units), the reflection
+/// started as `reflect_from` says: the shader proxy's spawning step.
 ///
 /// A weight whose ray cannot be made (a non-finite origin or direction) goes back to the
 /// local shading, so the weights always sum to 1.
-pub fn spawn(surface: &Surface, material: &Material, from: Vec3, dir: Vec3, hit: &Hit) -> Spawn {
+pub fn spawn(
+    surface: &Surface,
+    material: &Material,
+    from: Vec3,
+    dir: Vec3,
+    hit: &Hit,
+    reflect_from: ReflectFrom,
+) -> Spawn {
     let shader = material.shader();
     if !matches!(shader, Shader::Reflective | Shader::Transparent | Shader::TransparentReflective) {
         return Spawn::LOCAL;
@@ -164,8 +211,9 @@ pub fn spawn(surface: &Surface, material: &Material, from: Vec3, dir: Vec3, hit:
         }
     };
     let weight = (1.0 - t) * r + t * fresnel;
-    let from_virtual_eye =
-        (weight > 0.0).then(|| Mirror::of_surface(surface)?.reflected_ray(from, dir, hit.t, surface.offset)).flatten();
+    let from_virtual_eye = (weight > 0.0 && reflect_from == ReflectFrom::VirtualEye)
+        .then(|| Mirror::of_surface(surface)?.reflected_ray(from, dir, hit.t, surface.offset))
+        .flatten();
     let reflection = match from_virtual_eye {
         Some(reflected) => Some((reflected, weight)),
         None => ray(reflect(d, n), n, weight),
@@ -231,17 +279,19 @@ pub fn spawn_generation(
         .map(|chunk| {
             let (mut reflections, mut refractions) = (Generation::default(), Generation::default());
             let mut locals = Vec::new();
-            for &i in chunk {
-                let Some((hit, from, dir)) = point(i) else { continue };
-                let Some(material) =
-                    mesh.material_ids.get(hit.prim as usize).and_then(|&m| mesh.materials.get(m as usize))
-                else {
-                    continue;
-                };
-                if !(material.reflects() || material.refracts()) {
-                    continue;
-                }
-                let s = spawn(surfaces.get(hit.prim), material, from, dir, &hit);
+            let points: Vec<(u32, Hit, Vec3, Vec3, &Material)> = chunk
+                .iter()
+                .filter_map(|&i| {
+                    let (hit, from, dir) = point(i)?;
+                    let material =
+                        mesh.material_ids.get(hit.prim as usize).and_then(|&m| mesh.materials.get(m as usize))?;
+                    (material.reflects() || material.refracts()).then_some((i, hit, from, dir, material))
+                })
+                .collect();
+            let keys: Vec<Option<EyeKey>> =
+                points.iter().map(|&(_, hit, from, _, _)| EyeKey::new(surfaces.get(hit.prim), from)).collect();
+            for (k, &(i, hit, from, dir, material)) in points.iter().enumerate() {
+                let s = spawn(surfaces.get(hit.prim), material, from, dir, &hit, in_plane_run(&keys, k));
                 locals.push((i, s.local));
                 for (out, ray) in [(&mut reflections, s.reflection), (&mut refractions, s.refraction)] {
                     if let Some((ray, weight)) = ray {
@@ -316,7 +366,7 @@ mod tests {
     /// [`spawn`] for a ray along `d` that reached the hit at its distance `hit.t`: from
     /// `p - t d`.
     fn spawn_along(surface: &Surface, material: &Material, d: Vec3, hit: &Hit) -> Spawn {
-        spawn(surface, material, surface.point(hit) - hit.t * d, d, hit)
+        spawn(surface, material, surface.point(hit) - hit.t * d, d, hit, ReflectFrom::VirtualEye)
     }
 
     /// Where a ray's interval starts.
@@ -342,6 +392,32 @@ mod tests {
         assert!(ray.t_min > 1.0 && start(&ray).y > 0.0, "starts on the incoming side: {ray:?}");
         assert!((start(&ray) - p).length() < 1e-4);
         assert!(s.refraction.is_none());
+    }
+
+    #[test]
+    fn runs_off_one_plane_from_one_eye_leave_from_the_virtual_eye() {
+        let floor_key = EyeKey::new(&floor(), Vec3::Y);
+        let tilted = Surface::new(&[Vec3::ZERO, Vec3::new(1.0, 0.1, 0.0), Vec3::Z]);
+        let keys = [
+            floor_key,
+            floor_key,
+            EyeKey::new(&tilted, Vec3::Y),
+            floor_key,
+            None,
+            floor_key,
+            EyeKey::new(&floor(), Vec3::X),
+        ];
+        let got: Vec<ReflectFrom> = (0..keys.len() + 1).map(|k| in_plane_run(&keys, k)).collect();
+        use ReflectFrom::{Surface as S, VirtualEye as V};
+        assert_eq!(got, [V, V, S, S, S, S, S, S], "alone, another plane, another eye, none, past the end");
+        // From the surface: the hit point lifted by the spawn offset, the same direction.
+        let d = Vec3::new(1.0, -1.0, 0.5);
+        let hit = hit_at_centre();
+        let p = floor().point(&hit);
+        let (ray, _) = spawn(&floor(), &mirror(), p - d, d, &hit, ReflectFrom::Surface).reflection.unwrap();
+        let (eye_ray, _) = spawn_along(&floor(), &mirror(), d, &hit).reflection.unwrap();
+        assert!(ray.t_min == 0.0 && ray.origin.y > 0.0 && (ray.origin - p).length() < 1e-5, "{ray:?}");
+        assert!((ray.dir - eye_ray.dir.normalize()).length() < 1e-6);
     }
 
     #[test]
