@@ -20,10 +20,10 @@
 //! primary shadows, spawning the secondary rays (the shader proxy), secondary rays,
 //! secondary shadows and shading. Table 3.1 splits traversal from intersection with a
 //! profiler; here one more frame per configuration clocks the leaf visits of the primary and
-//! secondary passes ([`trace::Renderer::intersection_shares`], `kdtree::clock`), and each
-//! timed stage is split by that share. Ray generation stays in the primary traversal (the
-//! frustum kernels make a tile's rays as they go). Embree's kernels are not clocked: their
-//! rows keep traversal and intersection together.
+//! secondary passes and the primary kernels' ray generation
+//! ([`trace::Renderer::intersection_shares`], `kdtree::clock`), and each timed stage is split
+//! by those shares. Embree's kernels are not clocked: their rows keep ray generation,
+//! traversal and intersection together.
 
 use std::fmt::Write as _;
 
@@ -90,6 +90,8 @@ pub struct StageRow {
     pub primary_ms: f64,
     /// The share of the primary pass in leaf visits (intersection), where clocked.
     pub primary_intersection: Option<f64>,
+    /// The share of the primary pass making its rays, where clocked.
+    pub ray_generation: Option<f64>,
     /// Median milliseconds of the primary hits' shadows.
     pub shadow_ms: f64,
     /// Median milliseconds spawning the secondary rays.
@@ -114,19 +116,20 @@ impl StageRow {
     /// The stages as (name, milliseconds), in pipeline order. Traversal and intersection are
     /// the pass split by its clocked share; without one (Embree), the traversal row holds the
     /// whole pass and the intersection row is `None`.
-    pub fn stages(&self) -> [(&'static str, Option<f64>); 8] {
-        let split = |ms: f64, share: Option<f64>| match share {
-            Some(s) => (Some(ms * (1.0 - s)), Some(ms * s)),
-            None => (Some(ms), None),
-        };
-        let (primary_traversal, primary_intersection) = split(self.primary_ms, self.primary_intersection);
-        let (secondary_traversal, secondary_intersection) = split(self.secondary_ms, self.secondary_intersection);
+    pub fn stages(&self) -> [(&'static str, Option<f64>); 9] {
+        let part = |ms: f64, share: Option<f64>| share.map(|s| ms * s);
+        let (generation, primary_intersection) =
+            (part(self.primary_ms, self.ray_generation), part(self.primary_ms, self.primary_intersection));
+        let primary_traversal = self.primary_ms - generation.unwrap_or(0.0) - primary_intersection.unwrap_or(0.0);
+        let secondary_intersection = part(self.secondary_ms, self.secondary_intersection);
+        let secondary_traversal = self.secondary_ms - secondary_intersection.unwrap_or(0.0);
         [
-            ("primary traversal (and ray generation)", primary_traversal),
+            ("ray generation", generation),
+            ("primary traversal", Some(primary_traversal)),
             ("primary intersection", primary_intersection),
             ("primary shadows", Some(self.shadow_ms)),
             ("spawning secondary rays", Some(self.spawn_ms)),
-            ("secondary traversal", secondary_traversal),
+            ("secondary traversal", Some(secondary_traversal)),
             ("secondary intersection", secondary_intersection),
             ("secondary shadows", Some(self.secondary_shadow_ms)),
             ("shading", Some(self.shade_ms)),
@@ -213,7 +216,8 @@ pub fn run(config: &PipelineConfig, progress: &dyn Progress) -> Result<PipelineR
     // One more frame each, its leaf visits clocked: the split of Table 3.1.
     for ((r, b), row) in renderers.iter().zip(&buffers).zip(&mut stages) {
         let shares = r.intersection_shares(b);
-        (row.primary_intersection, row.secondary_intersection) = (shares.primary, shares.secondary);
+        (row.ray_generation, row.primary_intersection, row.secondary_intersection) =
+            (shares.generation, shares.primary, shares.secondary);
     }
     // Table 6.2: the first configuration on every pool size, interleaved.
     let mut scaling = Vec::new();
@@ -266,6 +270,7 @@ fn row(
         speedup: 1.0,
         primary_ms: ms(&|s| s.1.primary_secs),
         primary_intersection: None,
+        ray_generation: None,
         shadow_ms: ms(&|s| s.1.shadow_secs),
         spawn_ms: ms(&|s| s.1.spawn_secs),
         secondary_ms: ms(&|s| s.1.secondary_secs),
@@ -305,7 +310,7 @@ impl std::fmt::Display for PipelineReport {
                     Some(ms) => {
                         let _ = write!(line, " {ms:.2} ms ({:.1}%) |", 100.0 * ms / r.frame_ms.max(1e-12));
                     }
-                    None => line.push_str(" (in traversal) |"),
+                    None => line.push_str(" (with traversal) |"),
                 }
             }
             let _ = writeln!(out, "{line}");
@@ -376,8 +381,9 @@ mod tests {
         for r in &report.stages {
             let share = r.primary_intersection.unwrap();
             assert!(share > 0.0 && share < 1.0, "{r:?}");
-            let (traversal, intersection) = (r.stages()[0].1.unwrap(), r.stages()[1].1.unwrap());
-            assert!((traversal + intersection - r.primary_ms).abs() < 1e-9);
+            let [generation, traversal, intersection] = [0, 1, 2].map(|i| r.stages()[i].1.unwrap());
+            assert!(generation > 0.0 && traversal > 0.0, "{r:?}");
+            assert!((generation + traversal + intersection - r.primary_ms).abs() < 1e-9);
             assert_eq!(r.secondary_intersection.is_some(), r.secondary_rays > 0, "{r:?}");
         }
         let text = report.to_string();

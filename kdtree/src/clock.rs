@@ -3,7 +3,8 @@
 //! rays).
 //!
 //! [`LeafClock`] is a [`Counters`] that counts nothing but reads the time-stamp counter
-//! around every leaf visit of the kd descent ([`Counters::leaf_visit_start`] and
+//! around the primary kernels' ray generation ([`Counters::generation_start`]: a tile's
+//! packets, or each single primary ray) and around every leaf visit of the kd descent ([`Counters::leaf_visit_start`] and
 //! [`Counters::leaf_visit_end`]): the triangle tests
 //! (with their packet/leaf culling) of every kernel built on [`crate::descent::descend`].
 //! Everything else a pass does (ray setup, node steps, the stack) is traversal. The clock's
@@ -47,7 +48,11 @@ pub struct LeafClock {
     pub leaves: u64,
     /// [`ticks`] inside them.
     pub leaf_ticks: u64,
-    /// The tick the open visit started at.
+    /// Ray generations timed (tiles, or single primary rays).
+    pub generations: u64,
+    /// [`ticks`] inside them.
+    pub generation_ticks: u64,
+    /// The tick the open visit or generation started at.
     started: u64,
 }
 
@@ -68,12 +73,23 @@ impl Counters for LeafClock {
         self.leaf_ticks += ticks().wrapping_sub(self.started);
         self.leaves += 1;
     }
+    #[inline(always)]
+    fn generation_start(&mut self) {
+        self.started = ticks();
+    }
+    #[inline(always)]
+    fn generation_end(&mut self) {
+        self.generation_ticks += ticks().wrapping_sub(self.started);
+        self.generations += 1;
+    }
 }
 
 impl AddAssign for LeafClock {
     fn add_assign(&mut self, o: LeafClock) {
         self.leaves += o.leaves;
         self.leaf_ticks += o.leaf_ticks;
+        self.generations += o.generations;
+        self.generation_ticks += o.generation_ticks;
     }
 }
 
@@ -83,14 +99,24 @@ impl LeafClock {
     /// per leaf ([`clock_cost`]). `None` when no leaf was clocked (a kernel outside the kd
     /// descent, such as Embree's or the multi-BVH's).
     pub fn intersection_share(&self, busy_ticks: u64) -> Option<f64> {
-        if self.leaves == 0 {
-            return None;
-        }
+        (self.leaves > 0).then(|| self.share(self.leaf_ticks, self.leaves, busy_ticks))
+    }
+
+    /// The share of a pass's time spent generating rays, as
+    /// [`LeafClock::intersection_share`]; `None` when no generation was clocked (a method
+    /// that makes its rays itself, such as Embree's).
+    pub fn generation_share(&self, busy_ticks: u64) -> Option<f64> {
+        (self.generations > 0).then(|| self.share(self.generation_ticks, self.generations, busy_ticks))
+    }
+
+    /// `ticks` clocked in `spans` spans, over `busy_ticks`: each less the clock's own cost
+    /// (the busy time that of every span clocked).
+    fn share(&self, ticks: u64, spans: u64, busy_ticks: u64) -> f64 {
         let cost = clock_cost();
-        let leaves = self.leaves as f64;
-        let inside = (self.leaf_ticks as f64 - leaves * cost.inside).max(0.0);
-        let busy = (busy_ticks as f64 - leaves * cost.whole).max(inside).max(1.0);
-        Some(inside / busy)
+        let all = (self.leaves + self.generations) as f64;
+        let inside = (ticks as f64 - spans as f64 * cost.inside).max(0.0);
+        let busy = (busy_ticks as f64 - all * cost.whole).max(inside).max(1.0);
+        inside / busy
     }
 }
 
@@ -159,7 +185,8 @@ mod tests {
         assert_eq!(LeafClock::default().intersection_share(1000), None);
         let cost = clock_cost();
         assert!(cost.inside >= 0.0 && cost.whole >= cost.inside && cost.whole.is_finite(), "{cost:?}");
-        let clock = LeafClock { leaves: 10, leaf_ticks: 50_000, started: 0 };
+        let clock = LeafClock { leaves: 10, leaf_ticks: 50_000, ..LeafClock::default() };
+        assert_eq!(clock.generation_share(100_000), None);
         let share = clock.intersection_share(100_000).unwrap();
         assert!(share > 0.0 && share <= 1.0, "{share}");
         // More busy time, a smaller share; a pass that was all leaves, all of it.

@@ -42,6 +42,15 @@ pub trait Counters: Default + AddAssign {
     /// The leaf's visit that [`Counters::leaf_visit_start`] announced has ended.
     #[inline(always)]
     fn leaf_visit_end(&mut self) {}
+    /// Ray generation starts: a tile's packets, or one primary ray, are about to be made
+    /// (the frame driver's primary kernels call it, and [`Counters::generation_end`] after).
+    /// [`crate::clock::LeafClock`] times it, Table 3.1's "ray generation"; the others do
+    /// nothing.
+    #[inline(always)]
+    fn generation_start(&mut self) {}
+    /// The ray generation [`Counters::generation_start`] announced has ended.
+    #[inline(always)]
+    fn generation_end(&mut self) {}
 }
 
 /// Counting switched off: every method is empty and compiles away.

@@ -176,7 +176,10 @@ impl<T: Tracer> Method for SingleRays<T> {
         counters: &mut C,
     ) {
         for ((x, y), slot) in tile.pixels().zip(out) {
-            *slot = self.0.intersect_counted(&primary_ray(camera, x, y), counters);
+            counters.generation_start();
+            let ray = primary_ray(camera, x, y);
+            counters.generation_end();
+            *slot = self.0.intersect_counted(&ray, counters);
         }
     }
 

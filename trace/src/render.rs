@@ -146,6 +146,8 @@ impl FrameStats {
 /// [`Renderer::intersection_shares`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct IntersectionShares {
+    /// The share of the primary pass making its rays (ray generation), where clocked.
+    pub generation: Option<f64>,
     /// Of the primary pass (ray generation, traversal and intersection).
     pub primary: Option<f64>,
     /// Of the secondary rays, every generation.
@@ -413,7 +415,8 @@ impl<'a> Renderer<'a> {
     }
 
     /// The share of the primary and of the secondary rays' time spent in leaf visits, the
-    /// thesis's intersection against traversal (Table 3.1), from one clocked run of each pass
+    /// thesis's intersection against traversal (Table 3.1), and of the primary pass in ray
+    /// generation, from one clocked run of each pass
     /// ([`kdtree::LeafClock`]) over the frame `buf` holds: call it after [`Renderer::trace`].
     /// Each is `None` where the method's kernels are not kd descents (nothing clocked) or
     /// the frame has no such rays. A pass's busy time is its wall time times the pool's
@@ -424,7 +427,8 @@ impl<'a> Renderer<'a> {
         let mut hits = vec![None; buf.hits.len()];
         let start = kdtree::clock::ticks();
         let (_, clock) = tracer.primary_clocked(&self.layout, &self.camera, &mut hits);
-        let primary = clock.intersection_share(kdtree::clock::ticks().wrapping_sub(start) * threads);
+        let busy = kdtree::clock::ticks().wrapping_sub(start) * threads;
+        let (generation, primary) = (clock.generation_share(busy), clock.intersection_share(busy));
         let (mut clock, mut busy) = (kdtree::LeafClock::default(), 0);
         for generation in &buf.secondary {
             hits.clear();
@@ -433,7 +437,7 @@ impl<'a> Renderer<'a> {
             clock += tracer.stream_clocked(&generation.rays, &mut hits);
             busy += kdtree::clock::ticks().wrapping_sub(start) * threads;
         }
-        IntersectionShares { primary, secondary: clock.intersection_share(busy) }
+        IntersectionShares { generation, primary, secondary: clock.intersection_share(busy) }
     }
 
     /// The shadows at a generation's hits, the frame's kind ([`Shadows`]) traced by the

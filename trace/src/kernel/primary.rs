@@ -155,7 +155,9 @@ fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C
         tracer
     });
     // The frame driver's tiles fit the tracer (same size, inside the image).
+    counters.generation_start();
     tracer.load_primary(camera, tile).expect("tile fits the tracer");
+    counters.generation_end();
     K::trace_loaded::<I, V, C>(tree, tracer, counters);
     tracer.write_hits(out);
 }
