@@ -8,8 +8,8 @@
 //! MFT and cone kernels bound (a run of them in a ray stream is traced as frusta,
 //! `trace::kernel::stream::Runs`). A reflected ray is `virtual_eye + t * reflect(d)` for `t`
 //! past the primary hit distance `t_hit` (the point where it leaves the mirror, since
-//! reflection keeps lengths). This is the workspace's spawn rule for reflections
-//! (`trace::secondary::spawn`), so every method traces the same rays.
+//! reflection keeps lengths). `trace::secondary::spawn` starts reflections this way in runs
+//! off one plane when a frame asks for it (`rttest render --virtual-eye`).
 //!
 //! **Where the interval starts.** Past the mirror point by as much as the workspace's one
 //! spawn offset ([`kdtree::ray::offset_origin`]) would lift a ray off the surface, plus a

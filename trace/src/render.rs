@@ -169,6 +169,8 @@ pub struct Renderer<'a> {
     tree: Option<&'a KdTree>,
     /// Generations of secondary rays (0: none).
     depth: u32,
+    /// Whether reflections in runs off one plane leave from the virtual eye.
+    virtual_eyes: bool,
     /// The pixels in tile order and the order the first generation spawns from (each tile's
     /// pixels in Morton order), made on first use.
     spawn_order: OnceLock<SpawnOrder>,
@@ -199,6 +201,7 @@ impl<'a> Renderer<'a> {
             light,
             tree: None,
             depth: 0,
+            virtual_eyes: false,
             spawn_order: OnceLock::new(),
         }
     }
@@ -231,6 +234,14 @@ impl<'a> Renderer<'a> {
     /// ([`crate::secondary::DEFAULT_DEPTH`]). At most [`crate::secondary::MAX_DEPTH`].
     pub fn with_secondary(mut self, depth: u32) -> Self {
         self.depth = depth.min(crate::secondary::MAX_DEPTH);
+        self
+    }
+
+    /// Reflections in runs off one flat mirror leave from the virtual eye
+    /// ([`crate::secondary::ReflectFrom`]); off (the default), every reflection starts at its
+    /// hit point.
+    pub fn with_virtual_eyes(mut self, on: bool) -> Self {
+        self.virtual_eyes = on;
         self
     }
 
@@ -384,7 +395,7 @@ impl<'a> Renderer<'a> {
             let (eye, dir) = camera.pixel_ray(x, y);
             Some((hit, eye, dir))
         };
-        let mut next = spawn_generation(surfaces, &scene.mesh, order, primary, &mut buf.local);
+        let mut next = spawn_generation(surfaces, &scene.mesh, order, primary, self.virtual_eyes, &mut buf.local);
         stats.spawn_secs += start.elapsed().as_secs_f64();
         for level in 1..=self.depth {
             let mut generation = std::mem::take(&mut next);
@@ -403,7 +414,7 @@ impl<'a> Renderer<'a> {
                 let all: Vec<u32> = (0..generation.len() as u32).collect();
                 let (rays, hits) = (&generation.rays, &generation.hits);
                 let point = |i: u32| Some((hits[i as usize]?, rays[i as usize].origin, rays[i as usize].dir));
-                next = spawn_generation(surfaces, &scene.mesh, &all, point, &mut generation.local);
+                next = spawn_generation(surfaces, &scene.mesh, &all, point, self.virtual_eyes, &mut generation.local);
                 stats.spawn_secs += start.elapsed().as_secs_f64();
             }
             let done = next.is_empty();

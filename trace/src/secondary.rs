@@ -21,7 +21,8 @@
 //! - Snell's law gives the refracted direction, with index `1 -> ior` entering and
 //!   `ior -> 1` leaving. An index of exactly 1 continues the ray unbent, bit for bit, and
 //!   reflects nothing (`F = 0`).
-//! - A reflection in a run off one plane leaves from the *virtual eye* ([`ReflectFrom`]):
+//! - Where the frame asks (`Renderer::with_virtual_eyes`, `rttest render --virtual-eye`), a
+//!   reflection in a run off one plane leaves from the *virtual eye* ([`ReflectFrom`]):
 //!   the origin of the ray that reached the hit, mirrored in the triangle's plane
 //!   ([`packets::mirror::Mirror::reflected_ray`]), its interval starting just past the
 //!   mirror. It is the same line as a ray started at the hit point, but the reflections of
@@ -32,7 +33,9 @@
 //!   pixels. The others start on the surface: the virtual eyes of a curved mirror's
 //!   triangles lie scattered far apart, and packets of rays from them traversed 1.3x slower
 //!   than from their hit points on the garage's cars. So does a reflection flatter than
-//!   [`packets::mirror::MIN_COS`].
+//!   [`packets::mirror::MIN_COS`]. It is off by default: on the garage the runs traced as
+//!   frusta were slower than the same rays from their hit points as omni-directional packets
+//!   at the machine's width (`docs/results/secondary-rays.md`).
 //! - Refractions (and those flat reflections) start on the surface they leave by the
 //!   workspace's one spawn rule ([`kdtree::ray::offset_origin`], through the triangle's
 //!   [`Surface`] record): a reflection on the side the ray came from, a refraction on the
@@ -264,7 +267,8 @@ impl Generation {
 
 /// The secondary rays spawned from the shading points `order[..]` of one generation
 /// (`point(i)`: the hit of point `i` and the origin and direction of the ray that reached it,
-/// `None` for misses), in parallel over chunks of `order`. Writes each point's local weight into
+/// `None` for misses), in parallel over chunks of `order`; with `virtual_eyes`, reflections
+/// in runs off one plane leave from the virtual eye ([`in_plane_run`]). Writes each point's local weight into
 /// `local` (indexed by point; points that spawn nothing keep theirs). The rays' `hits`,
 /// `visible` and `local` are left empty for the caller to fill.
 pub fn spawn_generation(
@@ -272,6 +276,7 @@ pub fn spawn_generation(
     mesh: &Mesh,
     order: &[u32],
     point: impl Fn(u32) -> Option<(Hit, Vec3, Vec3)> + Sync,
+    virtual_eyes: bool,
     local: &mut [f32],
 ) -> Generation {
     let parts: Vec<(Generation, Vec<(u32, f32)>)> = order
@@ -288,8 +293,10 @@ pub fn spawn_generation(
                     (material.reflects() || material.refracts()).then_some((i, hit, from, dir, material))
                 })
                 .collect();
-            let keys: Vec<Option<EyeKey>> =
-                points.iter().map(|&(_, hit, from, _, _)| EyeKey::new(surfaces.get(hit.prim), from)).collect();
+            let keys: Vec<Option<EyeKey>> = match virtual_eyes {
+                true => points.iter().map(|&(_, hit, from, _, _)| EyeKey::new(surfaces.get(hit.prim), from)).collect(),
+                false => Vec::new(),
+            };
             for (k, &(i, hit, from, dir, material)) in points.iter().enumerate() {
                 let s = spawn(surfaces.get(hit.prim), material, from, dir, &hit, in_plane_run(&keys, k));
                 locals.push((i, s.local));

@@ -26,7 +26,7 @@ use kdtree::{Hit, Ray};
 use scenes::builtin::shapes::Rng;
 use scenes::{Camera, Scene};
 
-use crate::secondary::{EyeKey, in_plane_run};
+use crate::secondary::ReflectFrom;
 use crate::shade::facing_normal;
 
 /// The default seed of [`Incoherent::generate`].
@@ -91,16 +91,8 @@ impl Incoherent {
         let length = AO_LENGTH * diagonal;
         // Every surface a perfect mirror (the reflect rays).
         let mirror = scenes::Material { reflectivity: 1.0, ..scenes::Material::default() };
-        let seen: Vec<((u32, u32), &Hit)> = pixels.zip(hits).filter_map(|(p, h)| Some((p, h.as_ref()?))).collect();
-        // The renderer's rule for where each reflection starts (runs off one plane from the
-        // virtual eye).
-        let keys: Vec<Option<EyeKey>> = seen
-            .iter()
-            .map(|&((x, y), hit)| {
-                EyeKey::new(&Surface::new(&scene.mesh.triangle(hit.prim as usize)), camera.pixel_ray(x, y).0)
-            })
-            .collect();
-        for (k, &((x, y), hit)) in seen.iter().enumerate() {
+        for ((x, y), hit) in pixels.zip(hits) {
+            let Some(hit) = hit else { continue };
             let (eye, dir) = camera.pixel_ray(x, y);
             let n = facing_normal(&scene.mesh, hit, dir);
             let tri = scene.mesh.triangle(hit.prim as usize);
@@ -115,7 +107,7 @@ impl Incoherent {
             let d = cosine_direction(n, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
             out.diffuse.push(Ray::new(origin, d, 0.0, f32::INFINITY));
             if let Some((ray, _)) =
-                crate::secondary::spawn(&Surface::new(&tri), &mirror, eye, dir, hit, in_plane_run(&keys, k)).reflection
+                crate::secondary::spawn(&Surface::new(&tri), &mirror, eye, dir, hit, ReflectFrom::Surface).reflection
             {
                 out.reflect.push(ray);
             }

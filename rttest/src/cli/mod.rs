@@ -437,6 +437,12 @@ pub struct RenderArgs {
     /// renders with 1.
     #[arg(long, default_value_t = 0, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=8))]
     pub secondary: u32,
+    /// Reflections off a flat mirror, in runs of neighbouring pixels, leave from the virtual
+    /// eye (the eye mirrored in the mirror's plane), so that a run shares one origin: one
+    /// frustum for the frustum methods, one omni-directional packet for `packet`. Off, every
+    /// reflection starts at its hit point.
+    #[arg(long)]
+    pub virtual_eye: bool,
 }
 
 /// The short help of a `--method` option: the names of the registry every command uses, so
@@ -976,7 +982,8 @@ pub fn render(global: &GlobalArgs, built: &Built, args: &RenderArgs, write: bool
     let renderer = Renderer::new(&built.scene, &method, camera, shadows)
         .with_light(light)
         .with_tree(&built.tree)
-        .with_secondary(args.secondary);
+        .with_secondary(args.secondary)
+        .with_virtual_eyes(args.virtual_eye);
     let mut buffers = renderer.buffers();
     let timing = time_frames(&renderer, &mut buffers, args.frames, progress::enabled(global.json));
     let stats = timing.best;
