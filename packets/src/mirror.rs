@@ -50,12 +50,6 @@ pub struct Mirror {
 }
 
 impl Mirror {
-    /// The plane of triangle `tri` (`None` for a degenerate triangle, or one with a NaN or
-    /// infinite vertex): that of its [`Surface`] record.
-    pub fn of_triangle(tri: &[Vec3; 3]) -> Option<Mirror> {
-        Mirror::of_surface(&Surface::new(tri))
-    }
-
     /// The plane of a triangle's record: its `f64` normal ([`Surface::offset_normal`]) through
     /// vertex `a` (`None` for a degenerate or non-finite triangle).
     pub fn of_surface(surface: &Surface) -> Option<Mirror> {
@@ -142,7 +136,7 @@ mod tests {
     #[test]
     fn the_virtual_eye_sees_the_mirror_point_at_the_hit_distance() {
         let tri = [Vec3::ZERO, Vec3::Z, Vec3::X];
-        let m = Mirror::of_triangle(&tri).unwrap();
+        let m = Mirror::of_surface(&Surface::new(&tri)).unwrap();
         assert_eq!(m.normal, DVec3::Y);
         let eye = Vec3::new(0.3, 2.0, -1.0);
         assert_eq!(m.virtual_eye(eye), Vec3::new(0.3, -2.0, -1.0));
@@ -164,7 +158,7 @@ mod tests {
         for bad in [f32::NAN, f32::INFINITY] {
             let mut t = tri;
             t[1].y = bad;
-            assert_eq!(Mirror::of_triangle(&t), None);
+            assert_eq!(Mirror::of_surface(&Surface::new(&t)), None);
         }
         let tree = KdTree::build_soup(&[tri], &BuildConfig::default()).unwrap();
         let eye = Vec3::new(0.3, 2.0, 0.3);

@@ -540,6 +540,12 @@ fn virtual_eye_runs_loaded_as_rays_match_single_rays() {
     reflection_runs::<glam::Vec4>();
     reflection_runs::<PortableF32<8>>();
     reflection_runs::<PortableF32<16>>();
+    // The AVX2 and AVX-512 lane types, where this CPU runs them.
+    #[cfg(target_arch = "x86_64")]
+    {
+        packets::with_avx2(reflection_runs::<packets::F32x8>);
+        packets::with_avx512(reflection_runs::<packets::F32x16>);
+    }
 }
 
 fn reflection_runs<V: SimdF32>() {
