@@ -13,6 +13,19 @@
 //!   [`LEAF_SIZE`] triangles are always split (a leaf is one 4-wide block); at most 4 are a
 //!   leaf, which the SIMD cost always prefers (one chunk). Large nodes are split in parallel
 //!   (`rayon::join`); the result does not depend on the thread count.
+//! - **Spatial splits** (Stich, Friedrich & Dietrich 2009, "Spatial splits in bounding volume
+//!   hierarchies", the SBVH): where the best object split's two boxes overlap by more than
+//!   [`SPATIAL_ALPHA`] of the root's area, the node's box is also cut into [`BINS`] slabs
+//!   along its widest axis, each reference's part in every slab it crosses priced, and the
+//!   cheaper of the two splits is taken. The references a spatial split cuts are clipped
+//!   by `kdtree`'s conservative clip (`kdtree::build::split_reference`): each side gets a
+//!   reference with the box of its part of the triangle, so that the traversal's
+//!   conservative box test never misses the triangle (tested down to 1e-30 and up to 1e18,
+//!   and 1e6 from the origin). Long or large triangles (Sponza's walls and floors) then stop
+//!   widening boxes across the scene. Spatial splits may add at most [`SPLIT_BUDGET`]
+//!   references per triangle over the whole tree: each node's budget is shared between its
+//!   children by their counts, so the tree does not depend on the thread count. Costs are
+//!   summed in `f64`, so that neither tiny nor huge scenes round every area to 0 or infinity.
 //! - **Depth.** Beyond binary depth [`MEDIAN_DEPTH`] nodes are split at the object median,
 //!   so the binary depth stays below `MEDIAN_DEPTH + 33` and the multi-node tree's (each
 //!   multi-node takes at least one binary level) within [`MAX_DEPTH`]: the traversal's
@@ -27,6 +40,7 @@
 
 use glam::Vec3;
 use kdtree::Aabb;
+use kdtree::build::split_reference;
 use kdtree::triangle::is_degenerate;
 
 use crate::node::{LEAF, MAX_DEPTH, MultiNode};
@@ -41,6 +55,16 @@ pub const LEAF_SIZE: usize = 4;
 /// then stays below `MEDIAN_DEPTH + 33` and the multi-node tree's within [`MAX_DEPTH`].
 pub const MEDIAN_DEPTH: u32 = MAX_DEPTH - 37;
 
+/// Spatial splits are tried where the best object split's two boxes overlap by more than
+/// this share of the root's surface area (Stich et al. 2009's `alpha`). Their 1e-5 gave the
+/// same rays per second on Sponza, the kitchen and the atrium for 1.5-2x the build time.
+pub const SPATIAL_ALPHA: f64 = 1e-3;
+
+/// The most references spatial splits may add, per triangle of the mesh. They add 0.02
+/// (the kitchen) to 0.18 (Sponza); of budgets 0.25, 0.5 and 1, 1 gave Sponza's fastest
+/// primary rays.
+pub const SPLIT_BUDGET: f64 = 1.0;
+
 /// Binary nodes with more triangles than this are split in parallel.
 const PARALLEL: usize = 4096;
 
@@ -48,7 +72,8 @@ const PARALLEL: usize = 4096;
 /// more than the index widths hold), so that both structures refuse the same input alike.
 pub use kdtree::BuildError;
 
-/// One triangle in the build: its box, centroid and id.
+/// One reference in the build: a triangle, or the part of it a spatial split left on one
+/// side, with its (clipped) box, the box's centre and the triangle's id.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Prim {
     pub bounds: Aabb,
@@ -56,11 +81,17 @@ pub(crate) struct Prim {
     pub id: u32,
 }
 
+impl Prim {
+    fn new(bounds: Aabb, id: u32) -> Prim {
+        Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id }
+    }
+}
+
 /// A node of the binary BVH.
 #[derive(Debug)]
 pub(crate) enum Binary {
-    /// `prims[start..start + len]`.
-    Leaf { bounds: Aabb, start: usize, len: usize },
+    /// The ids of the leaf's triangles.
+    Leaf { bounds: Aabb, ids: Box<[u32]> },
     /// Two children.
     Inner { bounds: Aabb, kids: Box<[Binary; 2]> },
 }
@@ -91,52 +122,234 @@ pub(crate) fn prims(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<Pr
         if is_degenerate(&tri) {
             continue;
         }
-        let bounds = Aabb::from_points(&tri);
-        out.push(Prim { bounds, centroid: (bounds.min + bounds.max) * 0.5, id: i as u32 });
+        out.push(Prim::new(Aabb::from_points(&tri), i as u32));
     }
     Ok(out)
 }
 
-/// The binary BVH over `prims` (reordered in place; leaves index into them), `offset` being
-/// the slice's start in the whole array.
-pub(crate) fn binary(prims: &mut [Prim], offset: usize, depth: u32) -> Binary {
-    let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
-    if prims.len() <= LEAF_SIZE {
-        return Binary::Leaf { bounds, start: offset, len: prims.len() };
+/// The binary build over one mesh (checked by [`prims`]): its triangles for the spatial
+/// splits, and the root's surface area that their threshold is relative to.
+pub(crate) struct Builder<'a> {
+    positions: &'a [Vec3],
+    triangles: &'a [[u32; 3]],
+    root_area: f64,
+}
+
+/// A node's partition: the two sides' references and each side's share of the split budget.
+type Sides = ([Vec<Prim>; 2], [usize; 2]);
+
+impl<'a> Builder<'a> {
+    /// The build over `triangles`, whose references (from [`prims`]) have the box `bounds`.
+    pub(crate) fn new(positions: &'a [Vec3], triangles: &'a [[u32; 3]], bounds: &Aabb) -> Builder<'a> {
+        Builder { positions, triangles, root_area: area(bounds) }
     }
-    let mid = split(prims, depth);
-    let (left, right) = prims.split_at_mut(mid);
-    let (l, r) = if left.len() + right.len() > PARALLEL {
-        rayon::join(|| binary(left, offset, depth + 1), || binary(right, offset + mid, depth + 1))
-    } else {
-        (binary(left, offset, depth + 1), binary(right, offset + mid, depth + 1))
-    };
-    Binary::Inner { bounds, kids: Box::new([l, r]) }
+
+    fn triangle(&self, id: u32) -> [Vec3; 3] {
+        self.triangles[id as usize].map(|v| self.positions[v as usize])
+    }
+
+    /// The binary BVH over `prims`, which may make up to `budget` more references by spatial
+    /// splits (the whole tree's is [`split_budget`]).
+    pub(crate) fn binary(&self, prims: Vec<Prim>, depth: u32, budget: usize) -> Binary {
+        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+        if prims.len() <= LEAF_SIZE {
+            return Binary::Leaf { bounds, ids: prims.iter().map(|p| p.id).collect() };
+        }
+        let parallel = prims.len() > PARALLEL;
+        let ([left, right], [bl, br]) = self.split(prims, &bounds, depth, budget);
+        let (l, r) = if parallel {
+            rayon::join(|| self.binary(left, depth + 1, bl), || self.binary(right, depth + 1, br))
+        } else {
+            (self.binary(left, depth + 1, bl), self.binary(right, depth + 1, br))
+        };
+        Binary::Inner { bounds, kids: Box::new([l, r]) }
+    }
+
+    /// Partitions `prims` (box `bounds`) by the cheaper of the best binned object split and,
+    /// where the object split's sides overlap, the best spatial split (module docs).
+    fn split(&self, mut prims: Vec<Prim>, bounds: &Aabb, depth: u32, budget: usize) -> Sides {
+        let n = prims.len();
+        let object = if depth >= MEDIAN_DEPTH { None } else { object_split(&prims) };
+        let overlap = object.as_ref().map_or(f64::INFINITY, |o| area(&o.boxes[0].intersection(o.boxes[1])));
+        if depth < MEDIAN_DEPTH && budget > 0 && overlap > SPATIAL_ALPHA * self.root_area {
+            let limit = object.as_ref().map_or(f64::INFINITY, |o| o.cost);
+            if let Some(sides) = self.spatial_split(&prims, bounds, limit, budget) {
+                return sides;
+            }
+        }
+        let mid = match object {
+            Some(o) => o.partition(&mut prims),
+            None => {
+                let axis = widest(&centroid_box(&prims));
+                median(&mut prims, axis)
+            }
+        };
+        let right = prims.split_off(mid);
+        let bl = budget * mid / n;
+        ([prims, right], [bl, budget - bl])
+    }
+
+    /// The best spatial split of `prims` if it costs less than `limit`, makes at most `budget`
+    /// more references and leaves fewer references than `prims` on each side: [`BINS`]
+    /// equal slabs of `bounds` along its widest axis, each reference's part in every slab it
+    /// crosses added to that slab's box (Stich et al. 2009, section 4.2); the side counts
+    /// are the references entering and leaving each slab. The parts are estimates for the
+    /// costs ([`slab_part`]); the references of the split taken are clipped conservatively.
+    /// Only the widest axis is binned: on Sponza, the kitchen and the atrium all three gave
+    /// the same rays per second (within the noise) for about twice the build time.
+    fn spatial_split(&self, prims: &[Prim], bounds: &Aabb, limit: f64, budget: usize) -> Option<Sides> {
+        let n = prims.len();
+        let a = widest(bounds);
+        let (lo, extent) = (bounds.min[a], bounds.max[a] - bounds.min[a]);
+        if extent <= 0.0 {
+            return None;
+        }
+        let plane = |b: usize| lo + extent * (b as f32 / BINS as f32);
+        let scale = BINS as f32 / extent;
+        let bin = |x: f32| (((x - lo) * scale) as usize).min(BINS - 1);
+        let mut enter = [0usize; BINS];
+        let mut leave = [0usize; BINS];
+        let mut boxes = [Aabb::EMPTY; BINS];
+        for p in prims {
+            let (b0, b1) = (bin(p.bounds.min[a]), bin(p.bounds.max[a]));
+            enter[b0] += 1;
+            leave[b1] += 1;
+            if b0 == b1 {
+                boxes[b0] = boxes[b0].union(p.bounds);
+                continue;
+            }
+            let tri = self.triangle(p.id);
+            for (b, slab) in boxes.iter_mut().enumerate().take(b1 + 1).skip(b0) {
+                let part = slab_part(&tri, a, plane(b), plane(b + 1)).intersection(p.bounds);
+                if !part.is_empty() {
+                    *slab = slab.union(part);
+                }
+            }
+        }
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        let mut right = [(Aabb::EMPTY, 0usize); BINS];
+        for b in (1..BINS).rev() {
+            acc = acc.union(boxes[b]);
+            count += leave[b];
+            right[b] = (acc, count);
+        }
+        let mut best: Option<(f64, f32)> = None; // (cost, plane)
+        let (mut acc, mut count) = (Aabb::EMPTY, 0);
+        for b in 0..BINS - 1 {
+            acc = acc.union(boxes[b]);
+            count += enter[b];
+            let (right_box, rc) = right[b + 1];
+            if count == 0 || rc == 0 || count >= n || rc >= n {
+                continue;
+            }
+            let cost = area(&acc) * chunks(count) + area(&right_box) * chunks(rc);
+            if cost < limit && best.is_none_or(|(c, _)| cost < c) {
+                best = Some((cost, plane(b + 1)));
+            }
+        }
+        let (_, pos) = best?;
+        let (mut left, mut right) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for p in prims {
+            if p.bounds.max[a] <= pos {
+                left.push(*p);
+            } else if p.bounds.min[a] >= pos {
+                right.push(*p);
+            } else {
+                let [below, above] = split_reference(&self.triangle(p.id), &p.bounds, a, pos);
+                left.extend(below.map(|b| Prim::new(b, p.id)));
+                right.extend(above.map(|b| Prim::new(b, p.id)));
+            }
+        }
+        let (nl, nr) = (left.len(), right.len());
+        let made = (nl + nr).saturating_sub(n);
+        if nl == 0 || nr == 0 || nl >= n || nr >= n || made > budget {
+            return None;
+        }
+        let rest = budget - made;
+        let bl = rest * nl / (nl + nr);
+        Some(([left, right], [bl, rest - bl]))
+    }
+}
+
+/// The box of the part of `tri` between the planes `x_a = lo` and `x_a = hi` (its vertices
+/// there and its edges' crossings of both planes), for the spatial split's costs: plain `f32`
+/// arithmetic, not the conservative clip, since only the chosen split's references are kept.
+fn slab_part(tri: &[Vec3; 3], a: usize, lo: f32, hi: f32) -> Aabb {
+    let mut part = Aabb::EMPTY;
+    for (i, v) in tri.iter().enumerate() {
+        if v[a] >= lo && v[a] <= hi {
+            part = part.grow(*v);
+        }
+        let w = tri[(i + 1) % 3];
+        for c in [lo, hi] {
+            if (v[a] < c && w[a] > c) || (v[a] > c && w[a] < c) {
+                let mut x = *v + (w - *v) * ((c - v[a]) / (w[a] - v[a]));
+                x[a] = c;
+                part = part.grow(x);
+            }
+        }
+    }
+    part
+}
+
+/// The spatial splits' budget for `n` triangles: [`SPLIT_BUDGET`] more references per
+/// triangle.
+pub(crate) fn split_budget(n: usize) -> usize {
+    (n as f64 * SPLIT_BUDGET) as usize
 }
 
 /// `ceil(n / 4)`: 4-wide tests for `n` triangles.
-fn chunks(n: usize) -> f32 {
-    n.div_ceil(LEAF_SIZE) as f32
+fn chunks(n: usize) -> f64 {
+    n.div_ceil(LEAF_SIZE) as f64
 }
 
-/// Partitions `prims` by the best binned-SAH plane (or the object median) and returns the
-/// size of the first part, in `1..prims.len()`.
-fn split(prims: &mut [Prim], depth: u32) -> usize {
-    let n = prims.len();
-    let cb = prims.iter().fold(Aabb::EMPTY, |b, p| b.grow(p.centroid));
-    let extent = cb.max - cb.min;
-    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+/// The surface area of `b` in `f64` (0 for an empty box): the costs' areas neither underflow
+/// for tiny scenes nor overflow for huge ones, as `f32` areas would below about 1e-22 and
+/// above 1e19.
+fn area(b: &Aabb) -> f64 {
+    if b.is_empty() {
+        return 0.0;
+    }
+    let [x, y, z] = b.extent().to_array().map(f64::from);
+    2.0 * (x * y + y * z + z * x)
+}
+
+/// The box of the references' centres.
+fn centroid_box(prims: &[Prim]) -> Aabb {
+    prims.iter().fold(Aabb::EMPTY, |b, p| b.grow(p.centroid))
+}
+
+/// The axis of the box's largest extent (the first of equal ones).
+fn widest(b: &Aabb) -> usize {
+    let e = b.max - b.min;
+    if e.x >= e.y && e.x >= e.z {
         0
-    } else if extent.y >= extent.z {
+    } else if e.y >= e.z {
         1
     } else {
         2
-    };
-    if depth >= MEDIAN_DEPTH || extent[axis] <= 0.0 {
-        return median(prims, axis);
     }
-    // Per axis: bin counts and boxes; sweep for the best plane (between bins b and b + 1).
-    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin on the left)
+}
+
+/// The best binned-SAH object split of a node: references go left when their centre's bin
+/// is at most `last` on `axis`.
+struct ObjectSplit {
+    cost: f64,
+    axis: usize,
+    last: usize,
+    /// The centre box's lower corner on `axis` and bins per unit there.
+    origin: f32,
+    scale: f32,
+    /// The two sides' boxes.
+    boxes: [Aabb; 2],
+}
+
+/// The best binned-SAH object split of `prims` ([`BINS`] bins of the centre box per axis), or
+/// `None` when every centre is in one bin.
+fn object_split(prims: &[Prim]) -> Option<ObjectSplit> {
+    let cb = centroid_box(prims);
+    let extent = cb.max - cb.min;
+    let mut best: Option<ObjectSplit> = None;
     for a in 0..3 {
         if extent[a] <= 0.0 {
             continue;
@@ -145,48 +358,57 @@ fn split(prims: &mut [Prim], depth: u32) -> usize {
         let bin = |p: &Prim| (((p.centroid[a] - cb.min[a]) * scale) as usize).min(BINS - 1);
         let mut counts = [0usize; BINS];
         let mut boxes = [Aabb::EMPTY; BINS];
-        for p in prims.iter() {
+        for p in prims {
             let b = bin(p);
             counts[b] += 1;
             boxes[b] = boxes[b].union(p.bounds);
         }
-        let mut right_area = [0.0f32; BINS];
+        let mut right = [(Aabb::EMPTY, 0usize); BINS];
         let (mut acc, mut count) = (Aabb::EMPTY, 0);
-        let mut right_count = [0usize; BINS];
         for b in (1..BINS).rev() {
             acc = acc.union(boxes[b]);
             count += counts[b];
-            right_area[b] = acc.surface_area();
-            right_count[b] = count;
+            right[b] = (acc, count);
         }
         let (mut acc, mut count) = (Aabb::EMPTY, 0);
         for b in 0..BINS - 1 {
             acc = acc.union(boxes[b]);
             count += counts[b];
-            let rc = right_count[b + 1];
+            let (rbox, rc) = right[b + 1];
             if count == 0 || rc == 0 {
                 continue;
             }
-            let cost = acc.surface_area() * chunks(count) + right_area[b + 1] * chunks(rc);
-            if best.is_none_or(|(c, ..)| cost < c) {
-                best = Some((cost, a, b));
+            let cost = area(&acc) * chunks(count) + area(&rbox) * chunks(rc);
+            if best.as_ref().is_none_or(|o| cost < o.cost) {
+                best = Some(ObjectSplit { cost, axis: a, last: b, origin: cb.min[a], scale, boxes: [acc, rbox] });
             }
         }
     }
-    let Some((_, a, last)) = best else { return median(prims, axis) };
-    let scale = BINS as f32 / extent[a];
-    let left = |p: &Prim| (((p.centroid[a] - cb.min[a]) * scale) as usize).min(BINS - 1) <= last;
-    // Two-pointer partition (deterministic).
-    let (mut i, mut j) = (0, n);
-    while i < j {
-        if left(&prims[i]) {
-            i += 1;
+    best
+}
+
+impl ObjectSplit {
+    /// Partitions `prims` and returns the size of the first part, in `1..prims.len()`.
+    fn partition(&self, prims: &mut [Prim]) -> usize {
+        let (a, n) = (self.axis, prims.len());
+        let left = |p: &Prim| (((p.centroid[a] - self.origin) * self.scale) as usize).min(BINS - 1) <= self.last;
+        // Two-pointer partition (deterministic).
+        let (mut i, mut j) = (0, n);
+        while i < j {
+            if left(&prims[i]) {
+                i += 1;
+            } else {
+                j -= 1;
+                prims.swap(i, j);
+            }
+        }
+        if i == 0 || i == n {
+            let axis = widest(&centroid_box(prims));
+            median(prims, axis)
         } else {
-            j -= 1;
-            prims.swap(i, j);
+            i
         }
     }
-    if i == 0 || i == n { median(prims, axis) } else { i }
 }
 
 /// The object median along `axis` (centroid order, then id, so the order is total).
@@ -204,41 +426,41 @@ pub(crate) struct Collapsed<N> {
 }
 
 /// Collapses `root` into multi-nodes.
-pub(crate) fn collapse<N: MultiNode>(root: &Binary, prims: &[Prim]) -> Result<Collapsed<N>, BuildError> {
+pub(crate) fn collapse<N: MultiNode>(root: &Binary) -> Result<Collapsed<N>, BuildError> {
     let mut out = Collapsed { nodes: Vec::new(), leaves: Vec::new(), depth: 0 };
     match root {
         Binary::Leaf { .. } => {
             let mut node = N::empty();
-            if let Some(child) = leaf(root, prims, &mut out)? {
+            if let Some(child) = leaf(root, &mut out)? {
                 node.set(0, child, root.bounds());
             }
             out.nodes.push(node);
             out.depth = 1;
         }
         Binary::Inner { .. } => {
-            multi(root, prims, &mut out, 1)?;
+            multi(root, &mut out, 1)?;
         }
     }
     Ok(out)
 }
 
 /// A leaf child word (`LEAF | block`), or `None` for an empty leaf.
-fn leaf<N>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>) -> Result<Option<u32>, BuildError> {
-    let Binary::Leaf { start, len, .. } = b else { unreachable!("leaf() takes leaves") };
-    if *len == 0 {
+fn leaf<N>(b: &Binary, out: &mut Collapsed<N>) -> Result<Option<u32>, BuildError> {
+    let Binary::Leaf { ids, .. } = b else { unreachable!("leaf() takes leaves") };
+    if ids.is_empty() {
         return Ok(None);
     }
     let index = out.leaves.len();
     if index >= LEAF as usize - 1 {
         return Err(BuildError::TooLarge(format!("{index} leaves")));
     }
-    out.leaves.push(prims[*start..start + len].iter().map(|p| p.id).collect());
+    out.leaves.push(ids.to_vec());
     Ok(Some(LEAF | index as u32))
 }
 
 /// The multi-node of inner binary node `b` (section 4.2: pull up the largest inner child
 /// while there is room), then its inner children recursively. Returns its index.
-fn multi<N: MultiNode>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>, depth: u32) -> Result<u32, BuildError> {
+fn multi<N: MultiNode>(b: &Binary, out: &mut Collapsed<N>, depth: u32) -> Result<u32, BuildError> {
     let Binary::Inner { kids, .. } = b else { unreachable!("multi() takes inner nodes") };
     let mut slots: Vec<&Binary> = kids.iter().collect();
     while slots.len() < N::WIDTH {
@@ -260,8 +482,8 @@ fn multi<N: MultiNode>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>, depth
     out.depth = out.depth.max(depth);
     for (i, s) in slots.iter().enumerate() {
         let child = match s {
-            Binary::Leaf { .. } => leaf(s, prims, out)?,
-            Binary::Inner { .. } => Some(multi(s, prims, out, depth + 1)?),
+            Binary::Leaf { .. } => leaf(s, out)?,
+            Binary::Inner { .. } => Some(multi(s, out, depth + 1)?),
         };
         if let Some(child) = child {
             let bounds = *s.bounds();
@@ -269,4 +491,59 @@ fn multi<N: MultiNode>(b: &Binary, prims: &[Prim], out: &mut Collapsed<N>, depth
         }
     }
     Ok(index as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::node::Node8;
+
+    /// Small triangles and, every sixth, a long sliver across the whole box: spatial splits cut
+    /// the slivers.
+    fn slivers(n: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
+        };
+        let mut positions = Vec::new();
+        for i in 0..n {
+            let a = Vec3::new(rnd(), rnd(), rnd());
+            let c = if i % 6 == 0 { -a } else { a + Vec3::new(rnd(), rnd(), rnd()) * 0.05 };
+            positions.extend([a, c, c + Vec3::new(0.01, 0.02, 0.03)]);
+        }
+        (positions, (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect())
+    }
+
+    fn leaves(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
+        let prims = prims(positions, triangles).unwrap();
+        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+        let budget = split_budget(prims.len());
+        let root = Builder::new(positions, triangles, &bounds).binary(prims, 1, budget);
+        collapse::<Node8>(&root).unwrap().leaves
+    }
+
+    #[test]
+    fn spatial_splits_stay_in_budget_and_do_not_depend_on_the_threads() {
+        let (p, t) = slivers(6000);
+        let on =
+            |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| leaves(&p, &t));
+        let one = on(1);
+        assert_eq!(one, on(2), "the tree changed with the thread count");
+        let refs: usize = one.iter().map(Vec::len).sum();
+        assert!(refs > t.len() * 21 / 20 && refs <= t.len() + split_budget(t.len()), "{refs} references");
+    }
+
+    #[test]
+    fn a_slab_part_is_the_box_of_the_triangle_between_the_planes() {
+        let tri = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 2.0)];
+        let part = slab_part(&tri, 0, 1.0, 2.0);
+        assert_eq!((part.min, part.max), (Vec3::new(1.0, 0.0, 0.0), Vec3::new(2.0, 3.0, 1.5)));
+        // Planes outside the triangle: the whole triangle, or nothing.
+        let all = slab_part(&tri, 1, -1.0, 5.0);
+        assert_eq!((all.min, all.max), (Vec3::ZERO, Vec3::new(4.0, 4.0, 2.0)));
+        assert!(slab_part(&tri, 2, 3.0, 4.0).is_empty());
+    }
 }

@@ -24,8 +24,8 @@
 //! - [`simd16`]: [`Avx512`], the paper's 16-wide test in AVX-512 (one 512-bit register per
 //!   box coordinate, the hit mask a k-mask), a token chosen at run time like [`Avx2`];
 //!   without it 16-wide trees use [`Scalar16`].
-//! - [`build`]: binned SAH binary BVH collapsed top-down into `W`-wide multi-nodes
-//!   (section 4).
+//! - [`build`]: binned SAH binary BVH with spatial splits (Stich et al. 2009) collapsed
+//!   top-down into `W`-wide multi-nodes (section 4).
 //! - [`leaf`]: leaf blocks of up to four triangles SoA for both of `kdtree`'s intersectors,
 //!   each lane bit-identical to the scalar test.
 //! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), one loop
@@ -136,7 +136,8 @@ pub struct MbvhStats {
     pub nodes: usize,
     /// Leaves (blocks).
     pub leaves: usize,
-    /// Triangles in the leaves (the non-degenerate ones).
+    /// References in the leaves: every non-degenerate triangle, some in several leaves by
+    /// spatial splits (`build`).
     pub leaf_triangles: usize,
     /// The multi-node tree's depth (the root alone is 1).
     pub depth: u32,
@@ -151,10 +152,11 @@ impl<N: MultiNode> MultiBvh<N> {
     /// (zero area) are left out, as from the kd-tree; `Hit::prim` is the index into
     /// `triangles`. A non-finite vertex or an index out of range is an error naming it.
     pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<MultiBvh<N>, BuildError> {
-        let mut prims = build::prims(positions, triangles)?;
+        let prims = build::prims(positions, triangles)?;
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
-        let binary = build::binary(&mut prims, 0, 1);
-        let collapsed = build::collapse::<N>(&binary, &prims)?;
+        let budget = build::split_budget(prims.len());
+        let binary = build::Builder::new(positions, triangles, &bounds).binary(prims, 1, budget);
+        let collapsed = build::collapse::<N>(&binary)?;
         let tri = |id: u32| triangles[id as usize].map(|v| positions[v as usize]);
         let wald = collapsed
             .leaves
@@ -207,16 +209,19 @@ impl<N: MultiNode> MultiBvh<N> {
 
     /// Checks the tree against the mesh it was built from: every node and leaf reached
     /// exactly once from the root, every child box inside its parent's slot box, every
-    /// triangle's box inside its leaf's box, every non-degenerate triangle in exactly one
-    /// leaf (degenerate ones in none), both intersectors' records equal to the scalar records
-    /// bit for bit, and the depth within [`MAX_DEPTH`]. Returns the first violation.
+    /// non-degenerate triangle in at least one leaf (degenerate ones in none, none twice in
+    /// one leaf), each leaf's box meeting its triangles' boxes, each triangle covered by its
+    /// leaves' boxes (spatial splits put parts of it in several: its vertices exactly, and a
+    /// lattice of 36 inner points within `2^-20` of its largest coordinate), both
+    /// intersectors' records equal to the scalar records bit for bit, and the depth within
+    /// [`MAX_DEPTH`]. Returns the first violation.
     pub fn validate(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), String> {
         if triangles.len() != self.triangles {
             return Err(format!("built over {} triangles, given {}", self.triangles, triangles.len()));
         }
         let mut node_seen = vec![false; self.nodes.len()];
         let mut leaf_seen = vec![false; self.wald.len()];
-        let mut tri_seen = vec![false; triangles.len()];
+        let mut tri_boxes: Vec<Vec<Aabb>> = vec![Vec::new(); triangles.len()];
         let mut stack = vec![(0u32, Aabb { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY }, 1u32)];
         let inside = |a: &Aabb, b: &Aabb| a.min.cmpge(b.min).all() && a.max.cmple(b.max).all();
         while let Some((index, parent, depth)) = stack.pop() {
@@ -261,12 +266,14 @@ impl<N: MultiNode> MultiBvh<N> {
                         .get(id as usize)
                         .ok_or(format!("leaf {leaf}: triangle {id} does not exist"))?
                         .map(|v| positions[v as usize]);
-                    if std::mem::replace(&mut tri_seen[id as usize], true) {
-                        return Err(format!("triangle {id} in two leaves"));
+                    let boxes = &mut tri_boxes[id as usize];
+                    if (0..lane).any(|l| self.wald[leaf].record_prim(l) == id) {
+                        return Err(format!("triangle {id} twice in leaf {leaf}"));
                     }
-                    if !inside(&Aabb::from_points(&t), &b) {
+                    if Aabb::from_points(&t).intersection(b).is_empty() {
                         return Err(format!("triangle {id} outside its leaf box {b:?}"));
                     }
+                    boxes.push(b);
                     let (rw, rwt) = (WaldTriangle::new(&t), WatertightTriangle::new(&t));
                     let same_wald = format!("{rw:?}") == format!("{w:?}");
                     if !same_wald
@@ -284,12 +291,16 @@ impl<N: MultiNode> MultiBvh<N> {
             return Err(format!("leaf {i} unreachable"));
         }
         for (id, t) in triangles.iter().enumerate() {
-            let degenerate = is_degenerate(&t.map(|v| positions[v as usize]));
-            if tri_seen[id] == degenerate {
+            let t = t.map(|v| positions[v as usize]);
+            let (degenerate, boxes) = (is_degenerate(&t), &tri_boxes[id]);
+            if boxes.is_empty() != degenerate {
                 return Err(format!(
                     "triangle {id} (degenerate: {degenerate}) in {} leaf",
-                    if tri_seen[id] { "a" } else { "no" }
+                    if boxes.is_empty() { "no" } else { "a" }
                 ));
+            }
+            if !degenerate {
+                covered(&t, boxes).map_err(|p| format!("triangle {id}: point {p} in none of its leaves' boxes"))?;
             }
         }
         Ok(())
@@ -309,6 +320,28 @@ impl<N: DefaultTest> MultiBvh<N> {
     pub fn watertight(&self) -> Traversal<'_, WatertightBlock, N::Test> {
         Traversal::new(&self.nodes, &self.watertight, N::Test::default())
     }
+}
+
+/// Whether the boxes cover triangle `t`: each vertex inside one exactly, and the inner points
+/// of barycentric coordinates `(i + 1/3, j + 1/3, k + 1/3) / 9` (`i + j + k = 8`) inside one
+/// grown by `2^-20` of the triangle's largest coordinate magnitude (their rounding). The first
+/// point outside every box is the error.
+fn covered(t: &[Vec3; 3], boxes: &[Aabb]) -> Result<(), Vec3> {
+    let inside = |p: Vec3, grow: f32| boxes.iter().any(|b| p.cmpge(b.min - grow).all() && p.cmple(b.max + grow).all());
+    if let Some(&v) = t.iter().find(|&&v| !inside(v, 0.0)) {
+        return Err(v);
+    }
+    let grow = t.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max) * (1.0 / (1u32 << 20) as f32);
+    for i in 0..9 {
+        for j in 0..9 - i {
+            let w = [i as f32 + 1.0 / 3.0, j as f32 + 1.0 / 3.0, (8 - i - j) as f32 + 1.0 / 3.0].map(|w| w / 9.0);
+            let p = t[0] * w[0] + t[1] * w[1] + t[2] * w[2];
+            if !inside(p, grow) {
+                return Err(p);
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

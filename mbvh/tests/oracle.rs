@@ -135,3 +135,38 @@ proptest! {
         both("soup", &positions, &triangles, &rays);
     }
 }
+
+/// Spatial splits (Stich et al. 2009): long crossing slivers, whose boxes overlap everywhere,
+/// are cut into parts in several leaves. At scales from 1e-30 to 1e18 and 1e5 and 1e6 from the
+/// origin, every part's clipped box must keep the triangle findable: the traversals against
+/// the oracle on rays along the slivers, across them and from points on them.
+#[test]
+fn spatial_splits_keep_every_part_of_a_triangle() {
+    for (scale, offset) in [(1.0f32, 0.0f32), (1e-30, 0.0), (1e18, 0.0), (1.0, 1e5), (10.0, -1e6)] {
+        let mut rng = Rng::new(29);
+        let mut positions = Vec::new();
+        for i in 0..240 {
+            // A sixth are long slivers across the whole box (their boxes fill it), the rest small.
+            let a = Vec3::new(rng.range(-4.0, 4.0), rng.range(-4.0, 4.0), rng.range(-4.0, 4.0));
+            let c = if i % 6 == 0 { -a } else { a + Vec3::new(rng.range(-0.3, 0.3), rng.range(-0.3, 0.3), 0.3) };
+            let w = Vec3::new(rng.range(-0.05, 0.05), 0.05, rng.range(-0.05, 0.05));
+            positions.extend([a, c, c + w].map(|p| p * scale + Vec3::splat(offset)));
+        }
+        let triangles: Vec<[u32; 3]> = (0..240).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let refs = Mbvh::build(&positions, &triangles).unwrap().stats().leaf_triangles;
+        assert!(refs > triangles.len() * 11 / 10, "scale {scale}, offset {offset}: only {refs} references");
+        let mut rays = Vec::new();
+        for (i, t) in triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            for s in [0.0f32, 0.01, 0.25, 0.5, 0.75, 0.99, 1.0] {
+                let on = a + (b - a) * s + (c - b) * (0.5 * s);
+                let from = on + Vec3::new(0.3, -0.7, 1.1 + (i % 5) as f32) * scale;
+                rays.push(Ray::new(from, on - from, 0.0, f32::INFINITY));
+                rays.push(Ray::new(on, (b - a) * (1.0 - 2.0 * (i % 2) as f32), 0.0, f32::INFINITY));
+                rays.push(Ray::new(on, Vec3::Z, 0.0, f32::INFINITY));
+            }
+        }
+        let hits = both(&format!("slivers at scale {scale}, offset {offset}"), &positions, &triangles, &rays);
+        assert!(hits > rays.len() / 4, "scale {scale}, offset {offset}: {hits} hits of {}", rays.len());
+    }
+}

@@ -489,6 +489,19 @@ pub(crate) fn clipped_split_bounds(
     }
 }
 
+/// The boxes of the parts of triangle `tri` inside `bounds` on either side of the plane
+/// `x_axis = pos`: `[below, above]`, `None` for a side the part does not reach. Conservative,
+/// as the kd-tree's perfect splits (module docs): each box contains the exact box of its part.
+/// This is the reference split of spatial-split BVHs (Stich, Friedrich & Dietrich 2009,
+/// section 4.2), used by the multi-BVH's build.
+pub fn split_reference(tri: &[Vec3; 3], bounds: &crate::Aabb, axis: usize, pos: f32) -> [Option<crate::Aabb>; 2] {
+    let mut bufs = [Polygon::EMPTY; 2];
+    let (lo, hi) = (bounds.min.to_array(), bounds.max.to_array());
+    let (l, r) = clipped_split_bounds(tri, lo, hi, axis, pos, &mut bufs);
+    let to_box = |b: Option<Bounds>| b.map(|(lo, hi)| crate::Aabb::new(Vec3::from(lo), Vec3::from(hi)));
+    [to_box(l), to_box(r)]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

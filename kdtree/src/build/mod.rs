@@ -49,6 +49,7 @@ use glam::Vec3;
 use crate::node::MAX_NODE_FIELD;
 use crate::{Aabb, KdNode, triangle::Intersector};
 
+pub use clip::split_reference;
 pub(crate) use clip::{Polygon, clip_triangle};
 use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events, radix_sort_events};
 pub(crate) use sah::surface_area64;
