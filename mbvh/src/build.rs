@@ -256,6 +256,8 @@ impl<'a> Builder<'a> {
                 right.push(*p);
             } else {
                 let [below, above] = split_reference(&self.triangle(p.id), &p.bounds, a, pos);
+                // The box holds a part of the triangle, which the conservative clip keeps.
+                debug_assert!(below.is_some() || above.is_some(), "triangle {} lost at {pos}", p.id);
                 left.extend(below.map(|b| Prim::new(b, p.id)));
                 right.extend(above.map(|b| Prim::new(b, p.id)));
             }
