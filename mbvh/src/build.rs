@@ -26,6 +26,8 @@
 //!   references per triangle over the whole tree: each node's budget is shared between its
 //!   children by their counts, so the tree does not depend on the thread count. Costs are
 //!   summed in `f64`, so that neither tiny nor huge scenes round every area to 0 or infinity.
+//!   [`SpatialSplits`] sets the threshold and the budget (`MultiBvh::build_with`), or turns
+//!   spatial splits off.
 //! - **Depth.** Beyond binary depth [`MEDIAN_DEPTH`] nodes are split at the object median,
 //!   so the binary depth stays below `MEDIAN_DEPTH + 33` and the multi-node tree's (each
 //!   multi-node takes at least one binary level) within [`MAX_DEPTH`]: the traversal's
@@ -64,6 +66,45 @@ pub const SPATIAL_ALPHA: f64 = 1e-3;
 /// (the kitchen) to 0.18 (Sponza); of budgets 0.25, 0.5 and 1, 1 gave Sponza's fastest
 /// primary rays.
 pub const SPLIT_BUDGET: f64 = 1.0;
+
+/// Where and how much the build splits triangles (module docs): [`SpatialSplits::DEFAULT`], or
+/// [`SpatialSplits::OFF`] for the plain binned SAH (the kitchen's view was faster without
+/// them: `docs/results/incoherent-mbvh.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpatialSplits {
+    /// Spatial splits are tried where the best object split's boxes overlap by more than this
+    /// share of the root's surface area: at least 0 (`f64::INFINITY`: never).
+    pub alpha: f64,
+    /// The most extra references per triangle over the whole tree: finite, at least 0.
+    pub budget: f64,
+}
+
+impl SpatialSplits {
+    /// [`SPATIAL_ALPHA`] and [`SPLIT_BUDGET`].
+    pub const DEFAULT: SpatialSplits = SpatialSplits { alpha: SPATIAL_ALPHA, budget: SPLIT_BUDGET };
+    /// No spatial splits: every triangle in exactly one leaf.
+    pub const OFF: SpatialSplits = SpatialSplits { alpha: f64::INFINITY, budget: 0.0 };
+
+    /// An error naming the field that is NaN, negative or (for the budget) infinite.
+    pub fn check(&self) -> Result<(), BuildError> {
+        if self.alpha.is_nan() || self.alpha < 0.0 {
+            return Err(BuildError::BadConfig(format!("spatial split alpha = {} must be at least 0", self.alpha)));
+        }
+        if !(self.budget.is_finite() && self.budget >= 0.0) {
+            return Err(BuildError::BadConfig(format!(
+                "spatial split budget = {} must be finite and at least 0",
+                self.budget
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Default for SpatialSplits {
+    fn default() -> Self {
+        SpatialSplits::DEFAULT
+    }
+}
 
 /// Binary nodes with more triangles than this are split in parallel.
 const PARALLEL: usize = 4096;
@@ -132,16 +173,18 @@ pub(crate) fn prims(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<Pr
 pub(crate) struct Builder<'a> {
     positions: &'a [Vec3],
     triangles: &'a [[u32; 3]],
-    root_area: f64,
+    /// The overlap above which spatial splits are tried: alpha times the root's area.
+    min_overlap: f64,
 }
 
 /// A node's partition: the two sides' references and each side's share of the split budget.
 type Sides = ([Vec<Prim>; 2], [usize; 2]);
 
 impl<'a> Builder<'a> {
-    /// The build over `triangles`, whose references (from [`prims`]) have the box `bounds`.
-    pub(crate) fn new(positions: &'a [Vec3], triangles: &'a [[u32; 3]], bounds: &Aabb) -> Builder<'a> {
-        Builder { positions, triangles, root_area: area(bounds) }
+    /// The build over `triangles`, whose references (from [`prims`]) have the box `bounds`,
+    /// trying spatial splits above `alpha` (checked by [`SpatialSplits::check`]).
+    pub(crate) fn new(positions: &'a [Vec3], triangles: &'a [[u32; 3]], bounds: &Aabb, alpha: f64) -> Builder<'a> {
+        Builder { positions, triangles, min_overlap: alpha * area(bounds) }
     }
 
     fn triangle(&self, id: u32) -> [Vec3; 3] {
@@ -149,7 +192,7 @@ impl<'a> Builder<'a> {
     }
 
     /// The binary BVH over `prims`, which may make up to `budget` more references by spatial
-    /// splits (the whole tree's is [`split_budget`]).
+    /// splits (the whole tree's is [`split_budget`]'s).
     pub(crate) fn binary(&self, prims: Vec<Prim>, depth: u32, budget: usize) -> Binary {
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
         if prims.len() <= LEAF_SIZE {
@@ -171,7 +214,7 @@ impl<'a> Builder<'a> {
         let n = prims.len();
         let object = if depth >= MEDIAN_DEPTH { None } else { object_split(&prims) };
         let overlap = object.as_ref().map_or(f64::INFINITY, |o| area(&o.boxes[0].intersection(o.boxes[1])));
-        if depth < MEDIAN_DEPTH && budget > 0 && overlap > SPATIAL_ALPHA * self.root_area {
+        if depth < MEDIAN_DEPTH && budget > 0 && overlap > self.min_overlap {
             let limit = object.as_ref().map_or(f64::INFINITY, |o| o.cost);
             if let Some(sides) = self.spatial_split(&prims, bounds, limit, budget) {
                 return sides;
@@ -294,10 +337,9 @@ fn slab_part(tri: &[Vec3; 3], a: usize, lo: f32, hi: f32) -> Aabb {
     part
 }
 
-/// The spatial splits' budget for `n` triangles: [`SPLIT_BUDGET`] more references per
-/// triangle.
-pub(crate) fn split_budget(n: usize) -> usize {
-    (n as f64 * SPLIT_BUDGET) as usize
+/// The spatial splits' budget for `n` triangles: `per_triangle` more references per triangle.
+pub(crate) fn split_budget(n: usize, per_triangle: f64) -> usize {
+    (n as f64 * per_triangle) as usize
 }
 
 /// `ceil(n / 4)`: 4-wide tests for `n` triangles.
@@ -522,8 +564,8 @@ mod tests {
     fn leaves(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
         let prims = prims(positions, triangles).unwrap();
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
-        let budget = split_budget(prims.len());
-        let root = Builder::new(positions, triangles, &bounds).binary(prims, 1, budget);
+        let budget = split_budget(prims.len(), SPLIT_BUDGET);
+        let root = Builder::new(positions, triangles, &bounds, SPATIAL_ALPHA).binary(prims, 1, budget);
         collapse::<Node8>(&root).unwrap().leaves
     }
 
@@ -535,7 +577,7 @@ mod tests {
         let one = on(1);
         assert_eq!(one, on(2), "the tree changed with the thread count");
         let refs: usize = one.iter().map(Vec::len).sum();
-        assert!(refs > t.len() * 21 / 20 && refs <= t.len() + split_budget(t.len()), "{refs} references");
+        assert!(refs > t.len() * 21 / 20 && refs <= t.len() + split_budget(t.len(), SPLIT_BUDGET), "{refs} references");
     }
 
     #[test]

@@ -75,7 +75,7 @@ use kdtree::Aabb;
 use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
 
 pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8, Scalar16};
-pub use build::BuildError;
+pub use build::{BuildError, SpatialSplits};
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
 pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, Node16, NodeWidth, Width};
 pub use packet::{HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, LEAF_LANES, PacketLanes, PacketTraversal, Portable16};
@@ -152,10 +152,21 @@ impl<N: MultiNode> MultiBvh<N> {
     /// (zero area) are left out, as from the kd-tree; `Hit::prim` is the index into
     /// `triangles`. A non-finite vertex or an index out of range is an error naming it.
     pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<MultiBvh<N>, BuildError> {
+        Self::build_with(positions, triangles, SpatialSplits::DEFAULT)
+    }
+
+    /// [`MultiBvh::build`] with the given spatial splits ([`SpatialSplits::OFF`]: none); a
+    /// NaN, negative or infinite budget is an error naming it.
+    pub fn build_with(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        splits: SpatialSplits,
+    ) -> Result<MultiBvh<N>, BuildError> {
+        splits.check()?;
         let prims = build::prims(positions, triangles)?;
         let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
-        let budget = build::split_budget(prims.len());
-        let binary = build::Builder::new(positions, triangles, &bounds).binary(prims, 1, budget);
+        let budget = build::split_budget(prims.len(), splits.budget);
+        let binary = build::Builder::new(positions, triangles, &bounds, splits.alpha).binary(prims, 1, budget);
         let collapsed = build::collapse::<N>(&binary)?;
         let tri = |id: u32| triangles[id as usize].map(|v| positions[v as usize]);
         let wald = collapsed
@@ -490,6 +501,39 @@ mod tests {
         t[1][2] = 99;
         let e = Mbvh::build(&p, &t).unwrap_err().to_string();
         assert!(e.contains("triangle 1") && e.contains("99"), "{e}");
+    }
+
+    #[test]
+    fn spatial_splits_can_be_turned_off_and_bad_settings_are_errors() {
+        // Long slivers through a cloud of small triangles: their boxes overlap everywhere.
+        let mut p = Vec::new();
+        for i in 0..600 {
+            let f = i as f32;
+            let a = Vec3::new((f * 0.37).sin() * 4.0, (f * 0.73).cos() * 4.0, (f * 1.31).sin() * 4.0);
+            let c = if i % 6 == 0 { -a } else { a + Vec3::new(0.1, 0.05, 0.02) };
+            p.extend([a, c, c + Vec3::new(0.02, 0.03, 0.05)]);
+        }
+        let t: Vec<[u32; 3]> = (0..600).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let (on, off) = (Mbvh::build(&p, &t).unwrap(), Mbvh::build_with(&p, &t, SpatialSplits::OFF).unwrap());
+        off.validate(&p, &t).unwrap();
+        assert_eq!(off.stats().leaf_triangles, 600);
+        assert!(on.stats().leaf_triangles > 630, "{:?}", on.stats());
+        for i in 0..500 {
+            let f = i as f32;
+            let o = Vec3::new((f * 0.11).sin() * 6.0, (f * 0.29).cos() * 6.0, 7.0);
+            let ray = Ray::new(o, -o + Vec3::new(0.3, -0.2, (f * 0.05).sin()), 0.0, f32::INFINITY);
+            let hit = |b: &Mbvh| b.wald().intersect_counted(&ray, &mut NoCounters).map(|h| (h.t.to_bits(), h.prim));
+            assert_eq!(hit(&on), hit(&off), "{ray:?}");
+        }
+        for (alpha, budget, field) in [
+            (f64::NAN, 1.0, "alpha"),
+            (-1.0, 1.0, "alpha"),
+            (1e-3, f64::INFINITY, "budget"),
+            (1e-3, f64::NAN, "budget"),
+        ] {
+            let e = Mbvh::build_with(&p, &t, SpatialSplits { alpha, budget }).unwrap_err();
+            assert!(matches!(&e, BuildError::BadConfig(m) if m.contains(field)), "{e}");
+        }
     }
 
     #[test]
