@@ -156,7 +156,7 @@ impl<N: MultiNode> MultiBvh<N> {
     }
 
     /// [`MultiBvh::build`] with the given spatial splits ([`SpatialSplits::OFF`]: none); a
-    /// NaN, negative or infinite budget is an error naming it.
+    /// NaN or negative setting, or an infinite budget, is an error naming the field.
     pub fn build_with(
         positions: &[Vec3],
         triangles: &[[u32; 3]],
@@ -223,7 +223,7 @@ impl<N: MultiNode> MultiBvh<N> {
     /// non-degenerate triangle in at least one leaf (degenerate ones in none, none twice in
     /// one leaf), each leaf's box meeting its triangles' boxes, each triangle covered by its
     /// leaves' boxes (spatial splits put parts of it in several: its vertices exactly, and a
-    /// lattice of 36 inner points within `2^-20` of its largest coordinate), both
+    /// lattice of 45 inner points within `2^-20` of its largest coordinate), both
     /// intersectors' records equal to the scalar records bit for bit, and the depth within
     /// [`MAX_DEPTH`]. Returns the first violation.
     pub fn validate(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), String> {
