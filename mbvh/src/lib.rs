@@ -73,6 +73,7 @@ pub mod traverse;
 use glam::Vec3;
 use kdtree::Aabb;
 use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
+use rayon::prelude::*;
 
 pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8, Scalar16};
 pub use build::{BuildError, SpatialSplits};
@@ -169,14 +170,15 @@ impl<N: MultiNode> MultiBvh<N> {
         let binary = build::Builder::new(positions, triangles, &bounds, splits.alpha).binary(prims, 1, budget);
         let collapsed = build::collapse::<N>(&binary)?;
         let tri = |id: u32| triangles[id as usize].map(|v| positions[v as usize]);
+        // Packed in parallel (in order: the same blocks on any thread count).
         let wald = collapsed
             .leaves
-            .iter()
+            .par_iter()
             .map(|ids| WaldBlock::pack(&ids.iter().map(|&id| (WaldTriangle::new(&tri(id)), id)).collect::<Vec<_>>()))
             .collect();
         let watertight = collapsed
             .leaves
-            .iter()
+            .par_iter()
             .map(|ids| {
                 WatertightBlock::pack(
                     &ids.iter().map(|&id| (WatertightTriangle::new(&tri(id)), id)).collect::<Vec<_>>(),
