@@ -25,7 +25,8 @@
 //!   widening boxes across the scene. Spatial splits may add at most [`SPLIT_BUDGET`]
 //!   references per triangle over the whole tree: each node's budget is shared between its
 //!   children by their counts, so the tree does not depend on the thread count. Costs are
-//!   summed in `f64`, so that neither tiny nor huge scenes round every area to 0 or infinity.
+//!   summed in `f64` (`kdtree::build::surface_area64`), so that neither tiny nor huge scenes
+//!   round every area to 0 or infinity.
 //!   [`SpatialSplits`] sets the threshold and the budget (`MultiBvh::build_with`), or turns
 //!   spatial splits off.
 //! - **Depth.** Beyond binary depth [`MEDIAN_DEPTH`] nodes are split at the object median,
@@ -42,7 +43,7 @@
 
 use glam::Vec3;
 use kdtree::Aabb;
-use kdtree::build::split_reference;
+use kdtree::build::{split_reference, surface_area64};
 use kdtree::triangle::is_degenerate;
 
 use crate::node::{LEAF, MAX_DEPTH, MultiNode};
@@ -184,7 +185,7 @@ impl<'a> Builder<'a> {
     /// The build over `triangles`, whose references (from [`prims`]) have the box `bounds`,
     /// trying spatial splits above `alpha` (checked by [`SpatialSplits::check`]).
     pub(crate) fn new(positions: &'a [Vec3], triangles: &'a [[u32; 3]], bounds: &Aabb, alpha: f64) -> Builder<'a> {
-        Builder { positions, triangles, min_overlap: alpha * area(bounds) }
+        Builder { positions, triangles, min_overlap: alpha * surface_area64(bounds) }
     }
 
     fn triangle(&self, id: u32) -> [Vec3; 3] {
@@ -213,7 +214,7 @@ impl<'a> Builder<'a> {
     fn split(&self, mut prims: Vec<Prim>, bounds: &Aabb, depth: u32, budget: usize) -> Sides {
         let n = prims.len();
         let object = if depth >= MEDIAN_DEPTH { None } else { object_split(&prims) };
-        let overlap = object.as_ref().map_or(f64::INFINITY, |o| area(&o.boxes[0].intersection(o.boxes[1])));
+        let overlap = object.as_ref().map_or(f64::INFINITY, |o| surface_area64(&o.boxes[0].intersection(o.boxes[1])));
         if depth < MEDIAN_DEPTH && budget > 0 && overlap > self.min_overlap {
             let limit = object.as_ref().map_or(f64::INFINITY, |o| o.cost);
             if let Some(sides) = self.spatial_split(&prims, bounds, limit, budget) {
@@ -285,7 +286,7 @@ impl<'a> Builder<'a> {
             if count == 0 || rc == 0 || count >= n || rc >= n {
                 continue;
             }
-            let cost = area(&acc) * chunks(count) + area(&right_box) * chunks(rc);
+            let cost = surface_area64(&acc) * chunks(count) + surface_area64(&right_box) * chunks(rc);
             if cost < limit && best.is_none_or(|(c, _)| cost < c) {
                 best = Some((cost, plane(b + 1)));
             }
@@ -345,17 +346,6 @@ pub(crate) fn split_budget(n: usize, per_triangle: f64) -> usize {
 /// `ceil(n / 4)`: 4-wide tests for `n` triangles.
 fn chunks(n: usize) -> f64 {
     n.div_ceil(LEAF_SIZE) as f64
-}
-
-/// The surface area of `b` in `f64` (0 for an empty box): the costs' areas neither underflow
-/// for tiny scenes nor overflow for huge ones, as `f32` areas would below about 1e-22 and
-/// above 1e19.
-fn area(b: &Aabb) -> f64 {
-    if b.is_empty() {
-        return 0.0;
-    }
-    let [x, y, z] = b.extent().to_array().map(f64::from);
-    2.0 * (x * y + y * z + z * x)
 }
 
 /// The box of the references' centres.
@@ -422,7 +412,7 @@ fn object_split(prims: &[Prim]) -> Option<ObjectSplit> {
             if count == 0 || rc == 0 {
                 continue;
             }
-            let cost = area(&acc) * chunks(count) + area(&rbox) * chunks(rc);
+            let cost = surface_area64(&acc) * chunks(count) + surface_area64(&rbox) * chunks(rc);
             if best.as_ref().is_none_or(|o| cost < o.cost) {
                 best = Some(ObjectSplit { cost, axis: a, last: b, origin: cb.min[a], scale, boxes: [acc, rbox] });
             }

@@ -52,7 +52,7 @@ use crate::{Aabb, KdNode, triangle::Intersector};
 pub use clip::split_reference;
 pub(crate) use clip::{Polygon, clip_triangle};
 use events::{Lists, PLANAR, PRIM_MASK, START, ev_prim, ev_type, push_box_events, radix_sort_events};
-pub(crate) use sah::surface_area64;
+pub use sah::surface_area64;
 use sah::{Costs, Split, find_split};
 use small::{Item, SMALL, items_from_lists, small_partition, small_split};
 use split::{SplitScratch, child_boxes, split_lists};

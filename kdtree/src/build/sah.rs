@@ -68,7 +68,7 @@ pub(crate) struct Split {
 
 /// The surface area of a box in `f64` (no overflow or underflow for finite `f32` corners).
 #[inline]
-pub(crate) fn surface_area64(b: &Aabb) -> f64 {
+pub fn surface_area64(b: &Aabb) -> f64 {
     if b.is_empty() {
         return 0.0;
     }
