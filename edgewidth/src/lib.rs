@@ -20,6 +20,8 @@
 //!   projected onto the light (Parker, Shirley & Smits 1998).
 //! - [`sparse`]: the silhouette search on a coarse lattice inside the penumbra mask, the
 //!   pixels between blended from their corners where the surfaces and answers agree.
+//! - [`convolution`]: convolved edge widths: the frame's hard shadow blurred on the receiver
+//!   by the light's image through the nearest blocker (one shadow ray per pixel, no search).
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their
@@ -28,6 +30,7 @@
 pub mod adaptive;
 pub mod analytic;
 pub mod brute;
+pub mod convolution;
 pub mod filter;
 pub mod occlusion;
 pub mod packet;
@@ -35,6 +38,8 @@ pub mod pairing;
 pub mod sampling;
 pub mod silhouette;
 pub mod sparse;
+#[cfg(test)]
+mod test_scenes;
 pub mod traverse;
 
 pub use occlusion::{occlusion_factor, width_from_light};

@@ -242,6 +242,18 @@ impl Profile {
         }
     }
 
+    /// Whether the whole light lies above the plane through the point with unit `normal`, its
+    /// centre at `to` from the point: a quick test before the horizon's share (a sphere's
+    /// profile radius is at least its radius, so a true answer is always right).
+    #[inline]
+    pub fn above(&self, normal: Vec3, to: Vec3) -> bool {
+        let height = normal.dot(to);
+        match *self {
+            Profile::Rect { u, v } => height > normal.dot(u).abs() + normal.dot(v).abs(),
+            Profile::Disc(r) => height > r,
+        }
+    }
+
     /// The share of the light beyond the line `e . n = m` (`n` a unit vector perpendicular to
     /// the ray): `1/2` at `m = 0`, `0` from the support on, `1` below minus the support. For
     /// a rectangle `e . n` is the sum of two uniform variables (a trapezoid density), for a
@@ -499,6 +511,18 @@ pub const MAX_REACH: f32 = 6.0;
 /// blocker at `t` of the ray, stretched by the receiver's slant to the light, plus a pixel,
 /// at most [`MAX_REACH`]). One ray (a nearest-hit one), none for a `Done` without rays.
 pub fn hard_probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32) -> Probe {
+    centre_probe(tree, light, p, pixel, true)
+}
+
+/// [`hard_probe`] with an any-hit ray, which does not find the nearest blocker: a blocked
+/// probe's reach is [`MAX_REACH`]. For frames that need the blocker's distance only at some
+/// pixels ([`crate::convolution`]).
+pub fn hard_probe_any_hit(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32) -> Probe {
+    centre_probe(tree, light, p, pixel, false)
+}
+
+/// [`hard_probe`] (`nearest`) or [`hard_probe_any_hit`].
+fn centre_probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32, nearest: bool) -> Probe {
     let center = light.center();
     let (Some(profile), Some(ray)) = (Profile::of(light, p.point), p.shadow_ray(center)) else {
         return Probe::Done(silhouette_visibility(
@@ -515,14 +539,16 @@ pub fn hard_probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32
     if !(to.is_finite() && normal.is_finite()) || dir == Vec3::ZERO || normal == Vec3::ZERO {
         return Probe::Done(SilhouetteVisibility { fraction: 0.0, rays: 0 });
     }
-    match tree.intersect(&ray) {
+    let blocker = if nearest { tree.intersect(&ray).map(|hit| hit.t) } else { tree.occluded(&ray).then_some(f32::NAN) };
+    match blocker {
+        None if profile.above(normal, to) => Probe::Lit(1.0),
         None => {
             let (h, m_h) = horizon_line(normal, to, dir);
             let horizon = if h == Vec3::ZERO { 1.0 } else { 1.0 - profile.tail(h, m_h) };
             Probe::Lit(if horizon.is_nan() { 1.0 } else { horizon.clamp(0.0, 1.0) })
         }
-        Some(hit) => {
-            let t = hit.t.clamp(0.0, 1.0);
+        Some(t) => {
+            let t = t.clamp(0.0, 1.0);
             let width = profile.max_support() * t / (1.0 - t).max(1e-3);
             let slant = normal.dot(dir).max(0.1);
             let reach = width / (slant * pixel) + 1.0;
@@ -838,32 +864,10 @@ mod tests {
     use super::*;
     use crate::analytic::sphere_visible_fraction;
     use crate::sampling::{Rng, visible_fraction};
-    use kdtree::{BuildConfig, Intersector, Ray};
-    use scenes::builtin::shapes::{MeshBuilder, Part};
-    use scenes::{RectLight, SphereLight};
-
-    /// A tree over `parts` (closed boxes and spheres) and `open` (loose triangles), each
-    /// built once per triangle test.
-    fn trees(parts: &[Part], open: &[[Vec3; 3]]) -> Vec<KdTree> {
-        let mut b = MeshBuilder::new();
-        let m = b.material("m", Vec3::ONE);
-        for p in parts {
-            b.add(p, m);
-        }
-        let mesh = b.finish();
-        let mut soup: Vec<[Vec3; 3]> = mesh.triangles.iter().map(|t| t.map(|i| mesh.positions[i as usize])).collect();
-        soup.extend_from_slice(open);
-        [Intersector::Wald, Intersector::Watertight]
-            .into_iter()
-            .map(|intersector| {
-                KdTree::build_soup(&soup, &BuildConfig { intersector, ..BuildConfig::default() }).unwrap()
-            })
-            .collect()
-    }
-
-    fn floor() -> Part {
-        Part::cuboid(Vec3::new(-10.0, -1.0, -10.0), Vec3::new(10.0, 0.0, 10.0))
-    }
+    use crate::test_scenes::{floor, rect_light, trees};
+    use kdtree::{BuildConfig, Ray};
+    use scenes::SphereLight;
+    use scenes::builtin::shapes::Part;
 
     /// A one-sided quad (two triangles) with corners `a`, `a + u`, `a + u + v`, `a + v`.
     fn quad(a: Vec3, u: Vec3, v: Vec3) -> [[Vec3; 3]; 2] {
@@ -875,11 +879,6 @@ mod tests {
         let ray = Ray::new(Vec3::new(x, 0.01, z), Vec3::NEG_Y, 0.0, 1.0);
         let hit = tree.intersect(&ray).expect("the floor");
         ShadingPoint::new(tree.triangle(hit.prim), hit, Vec3::NEG_Y)
-    }
-
-    fn rect_light(center: Vec3, half: f32) -> AreaLight {
-        let (u, v) = (Vec3::new(2.0 * half, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * half));
-        AreaLight::Rect(RectLight { corner: center - 0.5 * (u + v), edge_u: u, edge_v: v, intensity: Vec3::ONE })
     }
 
     /// Ours, hard and a 1024-sample reference at each point.

@@ -13,6 +13,11 @@
 //!   edge (a frame pass of hard rays first), the others keep the hard answer, and among
 //!   those only on a coarse lattice, the pixels between blended from their corners where
 //!   that is safe (`edgewidth::sparse`);
+//! - `edge-width-convolution`: one hard shadow ray to the centre per pixel, one more for the
+//!   nearest blocker at each pixel of the hard shadow's edge, then, within the penumbra's
+//!   reach, the hard answers of the neighbouring pixels on the same surface averaged over the
+//!   light's image through that blocker (`edgewidth::convolution`; no search), on the sparse
+//!   passes' lattice;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
 //! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
 //!   12 only where the probes of the pixel or of a neighbour disagree
@@ -46,6 +51,7 @@ use std::time::Instant;
 use crate::shadow_plot::{Point, plot};
 use edgewidth::adaptive;
 use edgewidth::analytic::sphere_visible_fraction;
+use edgewidth::convolution;
 use edgewidth::filter::{FilterParams, GBuffer, filter_pixel};
 use edgewidth::packet::{EdgeScratch4, edge_width4};
 use edgewidth::sampling::{InterleavedSets, Rng, ShadingPoint, strata, stratified, visible_fraction};
@@ -196,6 +202,12 @@ pub enum ShadowMethod {
     /// near the hard shadow's edges (`silhouette::penumbra_mask`) and there sparsely
     /// (`edgewidth::sparse`).
     Silhouette,
+    /// Convolved edge widths (`edgewidth::convolution`): each pixel's hard shadow ray, then,
+    /// within a penumbra's reach of the hard shadow's edge, the hard answers of the pixels on
+    /// its surface averaged over the light's image through the edge's nearest blocker, on
+    /// the sparse passes' lattice. No search: one shadow ray per pixel, and one more per
+    /// pixel of the hard shadow's edge.
+    Convolution,
     /// `N` stratified samples of the light.
     Sampled(u32),
     /// The same `N` samples (the same rays, so the same image), traced per stratum as 2x2
@@ -218,11 +230,12 @@ pub enum ShadowMethod {
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 15] = [
+pub const METHODS: [ShadowMethod; 16] = [
     ShadowMethod::Hard,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
     ShadowMethod::Silhouette,
+    ShadowMethod::Convolution,
     ShadowMethod::Sampled(4),
     ShadowMethod::Sampled(8),
     ShadowMethod::Sampled(16),
@@ -244,6 +257,7 @@ impl ShadowMethod {
             ShadowMethod::EdgeWidth => "edge-width".into(),
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Silhouette => "edge-width-silhouette".into(),
+            ShadowMethod::Convolution => "edge-width-convolution".into(),
             ShadowMethod::Sampled(n) => format!("sampled-{n}"),
             ShadowMethod::SampledPackets(n) => format!("sampled-{n}-packets"),
             ShadowMethod::SampledLanes(n) => format!("sampled-{n}-lanes"),
@@ -356,6 +370,12 @@ impl<'a> ShadowSetup<'a> {
         let mut hits = vec![None; n];
         // The frame driver's primary pass with single rays, as `rttest render --method mono`.
         primary_pass::<_, NoCounters>(&SingleRays(self.tree), &self.layout, &self.camera, &mut hits);
+        if method == ShadowMethod::Convolution {
+            let hits = self.layout.to_row_major(&hits);
+            let (visibility, shadow_rays) = self.convolution(&hits);
+            let image = self.shade(&hits, &visibility);
+            return ShadowFrame { visibility, hits, shadow_rays, secs: start.elapsed().as_secs_f64(), image };
+        }
         let mut vis = vec![0.0f32; n];
         let shadow_rays = if method == ShadowMethod::Adaptive {
             self.adaptive(&hits, &mut vis)
@@ -453,6 +473,7 @@ impl<'a> ShadowSetup<'a> {
                         | ShadowMethod::SampledLanes(_)
                         | ShadowMethod::InterleavedLanes
                         | ShadowMethod::Silhouette
+                        | ShadowMethod::Convolution
                         | ShadowMethod::Adaptive => {
                             unreachable!("handled above")
                         }
@@ -610,6 +631,21 @@ impl<'a> ShadowSetup<'a> {
             *slot = answer.fraction();
         }
         probed + searched
+    }
+
+    /// [`ShadowMethod::Convolution`] over the frame (`hits` row-major): the whole of
+    /// `convolution::convolved_frame`, its passes over the rows in parallel. Returns the
+    /// visible fractions (row-major) and the rays traced.
+    fn convolution(&self, hits: &[Option<Hit>]) -> (Vec<f32>, u64) {
+        // A pixel's footprint per unit of distance from the eye.
+        let pixel_angle = 2.0 * self.camera.tan_half_fovy / self.camera.height as f32;
+        let (w, h) = (self.camera.width, self.camera.height);
+        let point = |x: u32, y: u32| {
+            let p = self.shading_point(x, y, hits.get((y * w + x) as usize)?.as_ref()?);
+            Some((p, pixel_angle * p.point.distance(self.camera.eye)))
+        };
+        let params = convolution::Params::DEFAULT;
+        convolution::convolved_frame(self.tree, &self.light, (w, h), params, convolution::TOLERANCES, point)
     }
 
     /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as

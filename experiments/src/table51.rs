@@ -1,6 +1,7 @@
 //! Table 5.1 of the thesis (chapter 5, "Performance"): frame rates of single-sample hard
-//! shadows, edge widths (the thesis's, and our silhouette widths), 4 and 32 samples (and 32 samples as 2x2 shadow packets), on Sponza (when the shared scenes are present)
-//! and on `atrium`, beside the thesis's Sponza figures (15.0, 12.0, 4.26, 1.42 fps).
+//! shadows, edge widths (the thesis's, and our silhouette and convolved widths), 4 and 32
+//! samples (and 32 samples as 2x2 shadow packets), on Sponza (when the shared scenes are
+//! present) and on `atrium`, beside the thesis's Sponza figures (15.0, 12.0, 4.26, 1.42 fps).
 //!
 //! A frame is primary rays, visibility and shading ([`crate::shadows::ShadowSetup::frame`]),
 //! lit by the scene's rectangular area light; the four methods' frames are interleaved and
@@ -15,15 +16,17 @@ use kdtree::{BuildConfig, KdTree};
 use crate::Error;
 use crate::shadows::{ShadowMethod, ShadowSetup, median};
 
-/// The rows of Table 5.1 with the thesis's Sponza frame rates: its four, our silhouette-width
-/// variant of the edge widths (`edgewidth::silhouette`: both halves of the penumbra, no
-/// leaks) after the thesis's edge widths, and the 32 samples traced per stratum as 2x2 packets
-/// of neighbouring pixels' rays (the same image; the thesis's own 32-sample row used cone
-/// frusta); the thesis has no figure for the last two.
-pub const ROWS: [(ShadowMethod, &str, Option<f64>); 6] = [
+/// The rows of Table 5.1 with the thesis's Sponza frame rates: its four, our two variants of
+/// the edge widths after the thesis's (silhouette widths, `edgewidth::silhouette`, and
+/// convolved widths, `edgewidth::convolution`: both halves of the penumbra, no leaks), and
+/// the 32 samples traced per stratum as 2x2 packets of neighbouring pixels' rays (the same
+/// image; the thesis's own 32-sample row used cone frusta); the thesis has no figure for our
+/// three.
+pub const ROWS: [(ShadowMethod, &str, Option<f64>); 7] = [
     (ShadowMethod::Hard, "Single Sample", Some(15.0)),
     (ShadowMethod::EdgeWidth, "Edge Width", Some(12.0)),
     (ShadowMethod::Silhouette, "Edge Width, silhouettes (ours)", None),
+    (ShadowMethod::Convolution, "Edge Width, convolved (ours)", None),
     (ShadowMethod::Sampled(4), "4 Sample", Some(4.26)),
     (ShadowMethod::Sampled(32), "32 Sample", Some(1.42)),
     (ShadowMethod::SampledPackets(32), "32 Sample, 2x2 packets", None),

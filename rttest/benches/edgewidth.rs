@@ -1,5 +1,7 @@
 //! Criterion bench `edgewidth` (thesis chapter 5, Table 5.1): one whole frame of atrium (and
-//! Sponza when present) at 256x256 for hard shadows, single-ray and packet edge widths, silhouette widths (`edgewidth::silhouette`), 4 samples, and the interleaved 16 samples with their filter. Scene,
+//! Sponza when present) at 256x256 for hard shadows, single-ray and packet edge widths,
+//! silhouette widths (`edgewidth::silhouette`), convolved edge widths
+//! (`edgewidth::convolution`), 4 samples, and the interleaved 16 samples with their filter. Scene,
 //! tree and camera are made outside the timed loop; each iteration renders one whole frame
 //! (primary rays, visibility, shading), as Table 5.1 counts it.
 
@@ -25,6 +27,7 @@ fn frames(c: &mut Criterion) {
             ShadowMethod::EdgeWidth,
             ShadowMethod::EdgeWidthPacket,
             ShadowMethod::Silhouette,
+            ShadowMethod::Convolution,
             ShadowMethod::Sampled(4),
             ShadowMethod::Interleaved,
         ] {

@@ -4,7 +4,8 @@
 //! Every method is taken by name from the one catalogue, `baselines::registry()` (a
 //! `trace::Registry`), and bound to the scene's kd-tree; a frame is `trace::Renderer`'s passes
 //! (primary, then hard, edge-width or soft shadows) and its shading (silhouette widths,
-//! `edgewidth::silhouette`, are filled in after the renderer's primary pass), or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
+//! `edgewidth::silhouette`, and convolved edge widths, `edgewidth::convolution`, are filled
+//! in after the renderer's primary pass), or, with a cost overlay, the cost pass of `trace::aov` drawn as a heat map.
 //! Edge widths (thesis chapter 5) are traced over the kd-tree given to [`FrameLoop::new`]
 //! whatever the method, to the centre of the soft shadows' light. Soft shadows
 //! refine while the camera rests ([`crate::refine`]): the primary hits are kept and each frame
@@ -16,6 +17,7 @@
 use std::time::Instant;
 
 use cones::shadows::SAMPLES;
+use edgewidth::convolution::{Params as ConvolutionParams, TOLERANCES, convolved_frame};
 use edgewidth::sampling::ShadingPoint;
 use edgewidth::{AreaLight, SilhouetteScratch, Silhouettes, silhouette_visibility};
 use kdtree::surface::Surfaces;
@@ -239,6 +241,12 @@ impl<'a> FrameLoop<'a> {
                     info.rays += silhouette_pass(self.tree, silhouettes, &light, &renderer, &mut self.buffers);
                     info.trace_secs += t.elapsed().as_secs_f64();
                 }
+                if state.shadows == ShadowMode::Convolution {
+                    let t = Instant::now();
+                    let light = AreaLight::Sphere(self.light);
+                    info.rays += convolution_pass(self.tree, &light, &renderer, &mut self.buffers);
+                    info.trace_secs += t.elapsed().as_secs_f64();
+                }
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
                 // The sum refinement adds to: soft shadows only (edge widths fill `visible` too).
                 if state.shadows == ShadowMode::Soft {
@@ -372,6 +380,26 @@ fn silhouette_pass(
     rays
 }
 
+/// Convolved edge widths (`edgewidth::convolution::convolved_frame`) of the primary hits in
+/// `buffers` (traced by `renderer`, whose surfaces and camera they use) to `light`, into
+/// `buffers.visible` (tile order; 0 for misses). Returns the shadow rays traced.
+fn convolution_pass(tree: &KdTree, light: &AreaLight, renderer: &Renderer<'_>, buffers: &mut FrameBuffers) -> u64 {
+    let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), renderer.surfaces());
+    let (w, h) = (camera.width, camera.height);
+    let hits = layout.to_row_major(&buffers.hits);
+    // A pixel's footprint per unit of distance from the eye.
+    let pixel_angle = 2.0 * camera.tan_half_fovy / h as f32;
+    let point = |x: u32, y: u32| {
+        let hit = hits.get((y * w + x) as usize)?.as_ref()?;
+        let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
+        Some((p, pixel_angle * p.point.distance(camera.eye)))
+    };
+    let (visible, rays) = convolved_frame(tree, light, (w, h), ConvolutionParams::DEFAULT, TOLERANCES, point);
+    let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
+    buffers.visible = pixels.map(|(x, y)| visible[(y * w + x) as usize]).collect();
+    rays
+}
+
 impl Refinement {
     /// One refinement pass over the primary hits of `buffers`: 16 jittered rays per lit pixel
     /// through the method's stream kernel, averaged into `buffers.visible`. Returns the rays
@@ -429,8 +457,9 @@ fn renderer_shadows(mode: ShadowMode) -> Shadows {
         ShadowMode::None => Shadows::None,
         ShadowMode::Hard => Shadows::Hard,
         ShadowMode::EdgeWidth => Shadows::EdgeWidth,
-        // Primary rays only: `FrameLoop::silhouette_pass` fills the visible fractions.
-        ShadowMode::Silhouette => Shadows::None,
+        // Primary rays only: `silhouette_pass` or `convolution_pass` fills the visible
+        // fractions.
+        ShadowMode::Silhouette | ShadowMode::Convolution => Shadows::None,
         ShadowMode::Soft => Shadows::Soft16,
     }
 }
@@ -575,31 +604,36 @@ mod tests {
         assert!(frames.render(&state, Change::default(), 300, 7, &mut out).unwrap().is_some());
         assert_eq!(out.len(), 2100);
     }
-    /// Silhouette widths (H after edge widths): a frame shaded with `edgewidth::silhouette`'s
-    /// visible fractions, which are the hard shadow's outside the penumbrae and fractional in
-    /// them; nothing to refine; the status line names the mode.
+    /// Silhouette widths and convolved edge widths (H after edge widths): a frame shaded with
+    /// `edgewidth::silhouette`'s or `edgewidth::convolution`'s visible fractions, which are
+    /// the hard shadow's outside the penumbrae and fractional in them; nothing to refine; the
+    /// status line names the mode.
     #[test]
-    fn silhouette_frames_soften_the_hard_shadows() {
+    fn edge_width_variants_soften_the_hard_shadows() {
         let (scene, tree) = setup();
-        let mut frames = FrameLoop::new(&scene, &tree);
-        let mut state = ViewerState::new(&scene, frames.method_names(), 0);
-        let (w, h) = (96, 64);
-        let settings = Change { settings: true, camera: false };
-        let mut hard = Vec::new();
-        frames.render(&state, settings, w, h, &mut hard).unwrap().unwrap();
-        state.shadows = ShadowMode::Silhouette;
-        let mut soft = Vec::new();
-        let info = frames.render(&state, settings, w, h, &mut soft).unwrap().unwrap();
-        assert!(info.status(&state).ends_with("edge-width-silhouette"), "{}", info.status(&state));
-        assert!(info.rays > u64::from(w * h), "primary and shadow rays: {}", info.rays);
-        assert!(frames.render(&state, Change::default(), w, h, &mut soft).unwrap().is_none(), "nothing to refine");
-        looks_like_a_scene(&soft);
-        let visible = &frames.buffers.visible;
-        assert_eq!(visible.len(), w as usize * h as usize);
-        assert!(visible.iter().all(|v| (0.0..=1.0).contains(v)));
-        assert!(visible.iter().any(|&v| v > 0.0 && v < 1.0), "a penumbra");
-        assert!(visible.iter().filter(|&&v| v == 1.0).count() > visible.len() / 10, "lit pixels");
-        assert_ne!(soft, hard);
+        for (mode, name) in
+            [(ShadowMode::Silhouette, "edge-width-silhouette"), (ShadowMode::Convolution, "edge-width-convolution")]
+        {
+            let mut frames = FrameLoop::new(&scene, &tree);
+            let mut state = ViewerState::new(&scene, frames.method_names(), 0);
+            let (w, h) = (96, 64);
+            let settings = Change { settings: true, camera: false };
+            let mut hard = Vec::new();
+            frames.render(&state, settings, w, h, &mut hard).unwrap().unwrap();
+            state.shadows = mode;
+            let mut soft = Vec::new();
+            let info = frames.render(&state, settings, w, h, &mut soft).unwrap().unwrap();
+            assert!(info.status(&state).ends_with(name), "{}", info.status(&state));
+            assert!(info.rays > u64::from(w * h), "primary and shadow rays: {}", info.rays);
+            assert!(frames.render(&state, Change::default(), w, h, &mut soft).unwrap().is_none(), "nothing to refine");
+            looks_like_a_scene(&soft);
+            let visible = &frames.buffers.visible;
+            assert_eq!(visible.len(), w as usize * h as usize);
+            assert!(visible.iter().all(|v| (0.0..=1.0).contains(v)));
+            assert!(visible.iter().any(|&v| v > 0.0 && v < 1.0), "{name}: a penumbra");
+            assert!(visible.iter().filter(|&&v| v == 1.0).count() > visible.len() / 10, "lit pixels");
+            assert_ne!(soft, hard);
+        }
     }
 
     /// Edge-width shadows (H: none, hard, edge width, soft): the frame is the renderer's

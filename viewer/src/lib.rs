@@ -3,7 +3,7 @@
 //!
 //! - [`state`]: the state machine: one frame's input (keys pressed and held, mouse drag,
 //!   elapsed time) moves the camera and switches the primary method (a `trace::Registry`
-//!   name), the shadows (none, hard, edge width, silhouette widths, soft) and the cost overlay (`trace::aov`).
+//!   name), the shadows (none, hard, edge width, silhouette widths, convolved edge widths, soft) and the cost overlay (`trace::aov`).
 //! - [`frame_loop`]: a state and a size to a framebuffer with a status line (fps, Mrays/s,
 //!   method, threads, N and I per packet), through `trace::Renderer`; soft shadows refine
 //!   while the camera rests.

@@ -2,7 +2,7 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up, drag with the left mouse button to turn; 1-9 the
 //! scene's named views; M/N next/previous method (every `trace::Registry` method, tiled ones
-//! with 16x16 tiles); H shadows (none, hard, edge width, silhouette widths, soft: refined while the camera
+//! with 16x16 tiles); H shadows (none, hard, edge width, silhouette widths, convolved edge widths, soft: refined while the camera
 //! rests); R secondary rays on or off (reflections and refractions; not in the progressive soft
 //! mode); C cost overlay (none, nodes, leaves, isects, culled per ray; its scale is fixed
 //! per method, overlay and named view); L locks the overlay's scale; Escape quits.
@@ -34,8 +34,8 @@ struct Args {
     /// The first method (a registry name; M and N switch).
     #[arg(long, default_value = "mft-16", value_name = "METHOD")]
     method: String,
-    /// The first shadow mode (H switches): none, hard, edge-width, edge-width-silhouette or
-    /// soft.
+    /// The first shadow mode (H switches): none, hard, edge-width, edge-width-silhouette,
+    /// edge-width-convolution or soft.
     #[arg(long, default_value = "hard", value_name = "MODE", value_parser = parse_shadows)]
     shadows: ShadowMode,
     /// Rayon threads (default: all cores).

@@ -73,6 +73,10 @@ pub enum ShadowMode {
     /// halves of the penumbra and does not leak; one shadow ray per hit to the centre of the
     /// same spherical light, the silhouette edges in its cone, a check ray per claimed exit.
     Silhouette,
+    /// Convolved edge widths (`edgewidth::convolution`): one shadow ray per hit to the centre
+    /// of the same spherical light, and the hard shadow averaged over the light's image
+    /// through the nearest blocker near its edges; no search.
+    Convolution,
     /// 16 rays per hit to a spherical light (the method's soft-shadow pass), refined with 16
     /// more per hit each frame while the camera rests.
     Soft,
@@ -80,21 +84,29 @@ pub enum ShadowMode {
 
 impl ShadowMode {
     /// Every mode, in the order of the `H` key.
-    pub const ALL: [ShadowMode; 5] =
-        [ShadowMode::None, ShadowMode::Hard, ShadowMode::EdgeWidth, ShadowMode::Silhouette, ShadowMode::Soft];
+    pub const ALL: [ShadowMode; 6] = [
+        ShadowMode::None,
+        ShadowMode::Hard,
+        ShadowMode::EdgeWidth,
+        ShadowMode::Silhouette,
+        ShadowMode::Convolution,
+        ShadowMode::Soft,
+    ];
 
     /// The mode called `name` (its [`ShadowMode::name`]).
     pub fn from_name(name: &str) -> Option<ShadowMode> {
         ShadowMode::ALL.into_iter().find(|m| m.name() == name)
     }
 
-    /// The next mode (`H` key): none, hard, edge width, silhouette widths, soft, none.
+    /// The next mode (`H` key): none, hard, edge width, silhouette widths, convolved edge
+    /// widths, soft, none.
     pub fn next(self) -> ShadowMode {
         match self {
             ShadowMode::None => ShadowMode::Hard,
             ShadowMode::Hard => ShadowMode::EdgeWidth,
             ShadowMode::EdgeWidth => ShadowMode::Silhouette,
-            ShadowMode::Silhouette => ShadowMode::Soft,
+            ShadowMode::Silhouette => ShadowMode::Convolution,
+            ShadowMode::Convolution => ShadowMode::Soft,
             ShadowMode::Soft => ShadowMode::None,
         }
     }
@@ -106,6 +118,7 @@ impl ShadowMode {
             ShadowMode::Hard => "hard",
             ShadowMode::EdgeWidth => "edge-width",
             ShadowMode::Silhouette => "edge-width-silhouette",
+            ShadowMode::Convolution => "edge-width-convolution",
             ShadowMode::Soft => "soft",
         }
     }
@@ -332,20 +345,27 @@ mod tests {
         assert!(s.apply(&press(Action::ToggleSecondary)).settings && s.secondary);
         assert!(s.apply(&press(Action::ToggleSecondary)).settings && !s.secondary);
         let mut cycle = Vec::new();
-        for _ in 0..5 {
+        for _ in 0..6 {
             assert!(s.apply(&press(Action::NextShadows)).settings);
             cycle.push(s.shadows);
         }
         assert_eq!(
             cycle,
-            [ShadowMode::EdgeWidth, ShadowMode::Silhouette, ShadowMode::Soft, ShadowMode::None, ShadowMode::Hard]
+            [
+                ShadowMode::EdgeWidth,
+                ShadowMode::Silhouette,
+                ShadowMode::Convolution,
+                ShadowMode::Soft,
+                ShadowMode::None,
+                ShadowMode::Hard
+            ]
         );
         for m in ShadowMode::ALL {
             assert_eq!(ShadowMode::from_name(m.name()), Some(m));
-            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 5], m.next());
+            assert_eq!(ShadowMode::ALL[(ShadowMode::ALL.iter().position(|&x| x == m).unwrap() + 1) % 6], m.next());
         }
         assert_eq!(ShadowMode::from_name("soft16"), None);
-        for _ in 0..3 {
+        for _ in 0..4 {
             s.apply(&press(Action::NextShadows));
         }
         assert_eq!(s.shadows, ShadowMode::Soft);

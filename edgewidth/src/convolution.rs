@@ -1,0 +1,775 @@
+//! Convolved edge widths: the hard shadow of one ray per pixel, blurred on the receiver by the
+//! light's image through the nearest blocker. Both halves of the penumbra, no leaks, and no
+//! search: one any-hit shadow ray per pixel, one nearest-hit ray per pixel of the hard
+//! shadow's edge, and a gather over neighbouring pixels.
+//!
+//! ## What it changes against Eq. 5.1, and why
+//! The thesis's Edge Width Soft Shadows (Tsakok 2008, chapter 5, Eq. 5.1) measure an edge
+//! width *along* the shadow ray, which draws only the inner half of the penumbra and leaks
+//! through thin occluders (`docs/results/soft-shadows-quality.md`). [`crate::silhouette`]
+//! measures it *across* the ray instead, by searching the silhouette edges in the light's
+//! cone: exact in both respects, but each search costs about 150 hard rays. Here the width
+//! across the ray is read off the frame's own hard shadow: how far a pixel lies from the hard
+//! shadow's edge, on its own surface, against the penumbra's width there.
+//!
+//! Precisely, for a planar occluder parallel to a planar receiver the visible fraction is the
+//! hard shadow (the light's centre seen or not) convolved with the light's shape, scaled by
+//! `t / (1 - t)` for a blocker at the fraction `t` of the way to the light and projected onto
+//! the receiver along the ray (Soler & Sillion 1998, "Fast calculation of soft shadow
+//! textures using convolution"): a receiver point `p + d` whose centre ray crosses the
+//! blocker's plane inside the light's cone from `p` has its hard answer weighed in `p`'s.
+//! PCSS (Fernando 2005) uses the same width from the blocker's distance, over a shadow map;
+//! here the hard shadow is exact per pixel, traced by rays, so nothing leaks, and the kernel
+//! is tested in world space ([`Kernel`]), so it keeps the light's shape and the receiver's
+//! slant.
+//!
+//! ## A frame
+//! 1. Every hit pixel traces its hard shadow ray, any hit ([`probe`]).
+//! 2. The blocked pixels with a lit 8-neighbour, the hard shadow's edge ([`hard_edges`]),
+//!    trace one more ray for their nearest blocker ([`blocker`]).
+//! 3. [`ConvolutionFrame::new`] finds the pixels a penumbra can reach: around each edge
+//!    pixel, as far as its blocker's penumbra reaches in pixels (at most
+//!    [`Params::max_reach`] of the frame's height). Each takes the blocker of the nearest
+//!    edge pixel reaching it.
+//! 4. [`ConvolutionFrame::visibility`] averages the hard answers of the pixels inside the
+//!    pixel's kernel that lie on its surface (normals and tangent planes close), reading at
+//!    most `(2 taps + 1)^2` of them ([`Params::taps`]; wider kernels are read on a coarser
+//!    grid). Pixels outside the reach keep their hard answer.
+//! 5. [`convolved_frame`] runs steps 1 to 4 over a frame, convolving inside the reach only on
+//!    the lattice of the sparse passes ([`crate::sparse`]): every fourth pixel, then the
+//!    others only where blending their corners is not safe ([`TOLERANCES`]).
+//!
+//! ## What it gets wrong
+//! The convolution is exact only for parallel planes. Where the occluder is not flat across
+//! the penumbra, the one blocker distance is a guess (the nearest edge pixel's); where the
+//! receiver's continuation is hidden from the camera (behind the occluder itself), the
+//! kernel averages the part it sees; an occluder thinner than a pixel casts no hard shadow
+//! to blur. Those are the errors `rttest shadows` measures against its reference.
+
+use glam::Vec3;
+use kdtree::KdTree;
+
+use crate::sampling::{AreaLight, ShadingPoint};
+use crate::silhouette::{Probe, Profile, hard_probe_any_hit};
+use crate::sparse::{self, Answer, Pixel, SparseFrame, Tolerances};
+use rayon::prelude::*;
+
+/// Traces the hard shadow ray of `p` (any hit), whose pixel covers `footprint` world units
+/// across: the pixel as the convolution (and the sparse passes) read it. A blocked probe does
+/// not know its blocker ([`blocker`] finds it where needed).
+pub fn probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, footprint: f32) -> Pixel {
+    Pixel::new(p, footprint, hard_probe_any_hit(tree, light, p, footprint))
+}
+
+/// The hard shadow's edge in a `width` x `height` frame of `receivers` (row-major): the
+/// blocked pixels with a lit 8-neighbour, as ascending row-major indices (found in parallel).
+/// Empty for a buffer of the wrong length.
+pub fn hard_edges(width: u32, height: u32, receivers: &[Option<Pixel>]) -> Vec<usize> {
+    let (w, h) = (width as usize, height as usize);
+    if receivers.len() != w * h {
+        return Vec::new();
+    }
+    let probe = |x: usize, y: usize| receivers[y * w + x].as_ref().map(|r| r.probe);
+    (0..w * h)
+        .into_par_iter()
+        .filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            matches!(probe(x, y), Some(Probe::Blocked(_)))
+                && (y.saturating_sub(1)..(y + 2).min(h)).any(|ny| {
+                    (x.saturating_sub(1)..(x + 2).min(w)).any(|nx| matches!(probe(nx, ny), Some(Probe::Lit(_))))
+                })
+        })
+        .collect()
+}
+
+/// Where the ray from `p` to the light's centre first meets an occluder, as the fraction of
+/// the way (one nearest-hit ray); `None` when nothing blocks it or the ray is degenerate.
+pub fn blocker(tree: &KdTree, light: &AreaLight, p: &ShadingPoint) -> Option<f32> {
+    let t = tree.intersect(&p.shadow_ray(light.center())?)?.t;
+    (t > 0.0 && t < 1.0).then_some(t)
+}
+
+/// One frame's convolved visible fractions, row-major, and the shadow rays traced: every
+/// step of the module's text, each pass over the rows in parallel. `point(x, y)` gives pixel
+/// `(x, y)`'s shading point and footprint (world units across), `None` where nothing was hit
+/// (visibility 0). Inside the penumbrae's reach the convolution runs on the sparse passes'
+/// lattice ([`crate::sparse`], with `tolerances`): on every fourth pixel, then on the
+/// others only where blending their corners is not safe.
+pub fn convolved_frame(
+    tree: &KdTree,
+    light: &AreaLight,
+    (width, height): (u32, u32),
+    params: Params,
+    tolerances: Tolerances,
+    point: impl Fn(u32, u32) -> Option<(ShadingPoint, f32)> + Sync,
+) -> (Vec<f32>, u64) {
+    let w = width.max(1) as usize;
+    let n = width as usize * height as usize;
+    let xy = |i: usize| ((i % w) as u32, (i / w) as u32);
+    let pixels: Vec<Option<Pixel>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = xy(i);
+            point(x, y).map(|(p, footprint)| probe(tree, light, &p, footprint))
+        })
+        .collect();
+    let probed: u64 = pixels.par_iter().flatten().map(|p| u64::from(rays_of(p.probe))).sum();
+    let edges: Vec<(usize, f32)> = hard_edges(width, height, &pixels)
+        .into_par_iter()
+        .filter_map(|i| {
+            let (x, y) = xy(i);
+            Some((i, blocker(tree, light, &point(x, y)?.0)?))
+        })
+        .collect();
+    let convolved = ConvolutionFrame::new(width, height, &pixels, &edges, light, params);
+    let mask = convolved.mask();
+    let sparse = SparseFrame::new(width, height, &pixels, &mask, tolerances);
+    // Pass 0 (the pixels outside the mask and the mask's 4-lattice) reads no other pixel; the
+    // later passes answer only masked pixels, reading the earlier passes' answers.
+    let mut known = vec![Answer::Pending; n];
+    known.par_iter_mut().enumerate().for_each(|(i, slot)| {
+        let (x, y) = xy(i);
+        if let Some(answer) = sparse.resolve(&[], x, y, 0, |_| convolved.visibility(x, y)) {
+            *slot = answer;
+        }
+    });
+    let masked: Vec<usize> = (0..n).filter(|&i| mask[i]).collect();
+    for pass in 1..sparse::PASSES {
+        let answers: Vec<(usize, Answer)> = masked
+            .par_iter()
+            .filter_map(|&i| {
+                let (x, y) = xy(i);
+                Some((i, sparse.resolve(&known, x, y, pass, |_| convolved.visibility(x, y))?))
+            })
+            .collect();
+        for (i, answer) in answers {
+            known[i] = answer;
+        }
+    }
+    (known.iter().map(|a| a.fraction()).collect(), probed + edges.len() as u64)
+}
+
+/// The rays a hard probe traced: one, or a final probe's own count (none, or one towards the
+/// part of the light above the horizon).
+fn rays_of(probe: Probe) -> u32 {
+    match probe {
+        Probe::Done(v) => v.rays,
+        Probe::Lit(_) | Probe::Blocked(_) => 1,
+    }
+}
+
+/// When the sparse passes ([`crate::sparse`]) blend a pixel's lattice corners instead of
+/// convolving it: [`Tolerances::DEFAULT`] with a spread of 0.5. On the scenes of
+/// `docs/results/soft-shadows-quality.md` that convolves 10% to 15% fewer pixels than a spread
+/// of 0.3, and its error is lower on all four real scenes (blending smooths the kernel's
+/// coarse grid).
+pub const TOLERANCES: Tolerances = Tolerances { spread: 0.5, ..Tolerances::DEFAULT };
+
+/// How far the convolution reaches and what it counts as one surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    /// A kernel is read on a grid of at most `2 taps + 1` pixels across: every pixel while
+    /// its radius is at most `taps` pixels, every `ceil(radius / taps)`-th beyond.
+    pub taps: u32,
+    /// The widest penumbra, from the hard shadow's edge, as a share of the frame's height
+    /// (at least a pixel); wider ones are cut there.
+    pub max_reach: f32,
+    /// The smallest cosine between the normals of a pixel and a pixel it reads.
+    pub cos_normal: f32,
+    /// How far the pixel read may lie from the pixel's tangent plane, in footprints (the
+    /// larger of the two pixels'), plus [`Params::bend`] per pixel between them.
+    pub plane: f32,
+    /// The tangent plane's allowance per pixel between the two, in footprints (a gently
+    /// curved receiver).
+    pub bend: f32,
+}
+
+impl Params {
+    /// The defaults: kernels read on at most 13 x 13 pixels, penumbrae up to 1/32 of the
+    /// frame's height (8 pixels at 256 x 256), normals within 25 degrees, two footprints and a
+    /// quarter per pixel off the plane.
+    ///
+    /// On the scenes of `docs/results/soft-shadows-quality.md` a reach of 1/16 of the height
+    /// (16 pixels at 256 x 256) had more error on all four real scenes (atrium 0.068 against
+    /// 0.064): a wide kernel reads more of what a screen does not show (the receiver hidden
+    /// behind the occluder, surfaces that end inside it). Only the analytic sphere, which
+    /// fits the model, gained (0.0055 against 0.0065).
+    pub const DEFAULT: Params = Params { taps: 6, max_reach: 1.0 / 32.0, cos_normal: 0.906, plane: 2.0, bend: 0.25 };
+}
+
+impl Default for Params {
+    fn default() -> Params {
+        Params::DEFAULT
+    }
+}
+
+/// The light's image through a blocker, as a test on offsets `d` from the receiver point: the
+/// point `p + d`'s centre ray crosses the blocker's plane inside the light's cone from `p`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Kernel {
+    /// A parallelogram light: `|d . a| <= 1` and `|d . b| <= 1` (the offset projected along
+    /// the ray onto the light's plane, in the light's half edges, over `t / (1 - t)`).
+    Rect {
+        /// The first half edge's dual, projected and scaled.
+        a: Vec3,
+        /// The second half edge's dual, projected and scaled.
+        b: Vec3,
+    },
+    /// A disc (a spherical light's cone): the offset across the unit ray direction `dir`
+    /// within `sqrt(r2)`.
+    Disc {
+        /// The unit direction to the light's centre.
+        dir: Vec3,
+        /// The squared radius of the light's image on the receiver side.
+        r2: f32,
+    },
+}
+
+impl Kernel {
+    /// The kernel of a receiver at `p` whose ray to the light's centre is blocked at the
+    /// fraction `t` of the way; `None` for a degenerate one (`t` not in `(0, 1)`, the point
+    /// inside a spherical light, a ray along a rectangle's plane, non-finite input).
+    pub fn new(light: &AreaLight, p: Vec3, t: f32) -> Option<Kernel> {
+        if !(t > 0.0 && t < 1.0) {
+            return None;
+        }
+        let k = t / (1.0 - t);
+        let dir = (light.center() - p).normalize_or_zero();
+        let kernel = match (light, Profile::of(light, p)?) {
+            (AreaLight::Rect(l), Profile::Rect { u, v }) => {
+                let n = l.edge_u.cross(l.edge_v);
+                let dn = dir.dot(n);
+                if dn.abs() <= 1e-3 * n.length() {
+                    return None;
+                }
+                // Duals of the half edges in the light's plane: e = alpha u + beta v has
+                // alpha = e . du and beta = e . dv.
+                let (du, dv) = (v.cross(n) / u.dot(v.cross(n)), n.cross(u) / v.dot(n.cross(u)));
+                // Projected along the ray onto the light's plane: e = d - dir (d . n) / (dir . n).
+                let along = |dual: Vec3| (dual - n * (dir.dot(dual) / dn)) / k;
+                Kernel::Rect { a: along(du), b: along(dv) }
+            }
+            (_, profile) => {
+                let r = profile.max_support() * k;
+                Kernel::Disc { dir, r2: r * r }
+            }
+        };
+        let finite = match kernel {
+            Kernel::Rect { a, b } => a.is_finite() && b.is_finite(),
+            Kernel::Disc { dir, r2 } => dir != Vec3::ZERO && r2.is_finite(),
+        };
+        finite.then_some(kernel)
+    }
+
+    /// Whether the offset `d` from the receiver point lies inside.
+    #[inline]
+    pub fn contains(&self, d: Vec3) -> bool {
+        match *self {
+            Kernel::Rect { a, b } => d.dot(a).abs() <= 1.0 && d.dot(b).abs() <= 1.0,
+            Kernel::Disc { dir, r2 } => {
+                let along = d.dot(dir);
+                d.length_squared() - along * along <= r2
+            }
+        }
+    }
+}
+
+/// One frame's receivers (row-major, `None` where nothing was hit), with each pixel's
+/// blocker for the kernel: ready to answer any pixel ([`ConvolutionFrame::visibility`]).
+#[derive(Clone, Debug)]
+pub struct ConvolutionFrame<'a> {
+    width: u32,
+    height: u32,
+    receivers: &'a [Option<Pixel>],
+    light: &'a AreaLight,
+    params: Params,
+    /// The widest reach in pixels ([`Params::max_reach`] of the height).
+    widest: f32,
+    /// Per pixel, the blocker fraction its kernel takes (NaN: keep the hard answer).
+    blockers: Vec<f32>,
+    /// Per pixel, what a kernel reads of it (row-major, as `receivers`).
+    taps: Vec<Tap>,
+}
+
+/// The pixels a kernel reads: every `step`-th one from `(x, y)`, `taps` steps each way.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    x: i64,
+    y: i64,
+    step: i64,
+    taps: i64,
+}
+
+/// A pixel as a kernel reads it, 32 bytes: its point, hard answer, normal and footprint; a
+/// pixel without a hit has NaN in all, and no kernel contains it.
+#[derive(Clone, Copy, Debug)]
+struct Tap {
+    point: Vec3,
+    value: f32,
+    normal: Vec3,
+    footprint: f32,
+}
+
+impl Tap {
+    const NONE: Tap = Tap { point: Vec3::NAN, value: f32::NAN, normal: Vec3::NAN, footprint: f32::NAN };
+
+    fn of(pixel: &Option<Pixel>) -> Tap {
+        let Some(p) = pixel else { return Tap::NONE };
+        let value = match p.probe {
+            Probe::Lit(_) => 1.0,
+            Probe::Blocked(_) => 0.0,
+            Probe::Done(_) => return Tap::NONE,
+        };
+        Tap { point: p.point, value, normal: p.normal, footprint: p.footprint }
+    }
+}
+
+impl<'a> ConvolutionFrame<'a> {
+    /// A `width` x `height` frame of `receivers` (row-major) under `light`, with the blockers
+    /// of its hard shadow's edge (`edges`: row-major index and [`blocker`], ascending by
+    /// index, as [`hard_edges`] lists them). Each pixel within an edge pixel's penumbra reach
+    /// (a disc of [`Params::max_reach`] of the height at most) takes the blocker of the nearest such
+    /// edge pixel; rows in parallel. A buffer of the wrong length gives a frame of hard
+    /// answers.
+    pub fn new(
+        width: u32,
+        height: u32,
+        receivers: &'a [Option<Pixel>],
+        edges: &[(usize, f32)],
+        light: &'a AreaLight,
+        params: Params,
+    ) -> ConvolutionFrame<'a> {
+        let w = width as usize;
+        let widest = (params.max_reach * height as f32).max(1.0);
+        let mut blockers = vec![f32::NAN; receivers.len()];
+        if receivers.len() == w * height as usize && w > 0 {
+            // Each edge pixel's position, reach (pixels) and blocker.
+            let reached: Vec<(usize, usize, f32, f32)> = edges
+                .iter()
+                .filter_map(|&(i, t)| {
+                    let r = receivers.get(i)?.as_ref()?;
+                    Some((i % w, i / w, reach_pixels(light, r, t, widest), t))
+                })
+                .collect();
+            let widest = widest.ceil() as usize;
+            blockers.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                let mut nearest = vec![f32::INFINITY; w];
+                let first = reached.partition_point(|e| e.1 + widest < y);
+                for &(ex, ey, reach, t) in reached[first..].iter().take_while(|e| e.1 <= y + widest) {
+                    let dy2 = (ey.abs_diff(y) as f32).powi(2);
+                    let half = reach * reach - dy2;
+                    if half < 0.0 {
+                        continue;
+                    }
+                    let half = half.sqrt() as usize;
+                    for (x, (slot, near)) in
+                        row.iter_mut().zip(&mut nearest).enumerate().take(ex + half + 1).skip(ex.saturating_sub(half))
+                    {
+                        let d2 = (ex.abs_diff(x) as f32).powi(2) + dy2;
+                        if d2 < *near {
+                            *near = d2;
+                            *slot = t;
+                        }
+                    }
+                }
+            });
+        }
+        let taps =
+            if blockers.iter().all(|b| b.is_nan()) { Vec::new() } else { receivers.par_iter().map(Tap::of).collect() };
+        ConvolutionFrame { width, height, receivers, light, params, widest, blockers, taps }
+    }
+
+    /// How many pixels are within a penumbra's reach (answered by the convolution).
+    pub fn reached(&self) -> usize {
+        self.blockers.iter().filter(|b| !b.is_nan()).count()
+    }
+
+    /// Per pixel (row-major), whether it is within a penumbra's reach: the mask of the sparse
+    /// passes ([`crate::sparse`]), which convolve on a coarse lattice of these pixels and
+    /// blend the pixels between where that is safe.
+    pub fn mask(&self) -> Vec<bool> {
+        self.blockers.iter().map(|b| !b.is_nan()).collect()
+    }
+
+    /// The visible fraction at pixel `(x, y)`: its hard answer out of the penumbrae's reach,
+    /// else the mean hard answer of the pixels of its kernel on its surface (at most its
+    /// horizon's share when its centre is lit). `0` where nothing was hit.
+    pub fn visibility(&self, x: u32, y: u32) -> f32 {
+        let i = y as usize * self.width as usize + x as usize;
+        let Some(Some(r)) = self.receivers.get(i) else { return 0.0 };
+        let hard = r.probe.fraction();
+        let t = self.blockers[i];
+        let (Probe::Lit(_) | Probe::Blocked(_), false) = (r.probe, t.is_nan()) else { return hard };
+        let Some(kernel) = Kernel::new(self.light, r.point, t) else { return hard };
+        let p = &self.params;
+        // Every `step`-th pixel, at most `2 taps + 1` across: each stands for a `step`-wide
+        // cell, and the cells cover the reach.
+        let reach = reach_pixels(self.light, r, t, self.widest).ceil() as i64;
+        let step = (reach + i64::from(p.taps.max(1)) - 1) / i64::from(p.taps.max(1));
+        let step = step.max(1);
+        let taps = reach / step;
+        let grid = Grid { x: i64::from(x), y: i64::from(y), step, taps };
+        // Each tap weighs the share of its cell (`step` pixels across, taken as `step`
+        // footprints on the receiver) inside the kernel, from its distance to the kernel's
+        // boundary: a smooth edge instead of a kernel that grows by whole cells.
+        let cell = (step as f32 * r.footprint).max(f32::MIN_POSITIVE);
+        let (sum, weight) = match kernel {
+            Kernel::Rect { a, b } => {
+                let (ca, cb) = ((a.length() * cell).recip(), (b.length() * cell).recip());
+                self.gather(r, grid, |d| {
+                    let wa = ((1.0 - d.dot(a).abs()) * ca + 0.5).clamp(0.0, 1.0);
+                    let wb = ((1.0 - d.dot(b).abs()) * cb + 0.5).clamp(0.0, 1.0);
+                    wa * wb
+                })
+            }
+            Kernel::Disc { dir, r2 } => {
+                let (radius, inv) = (r2.sqrt(), cell.recip());
+                self.gather(r, grid, |d| {
+                    let along = d.dot(dir);
+                    let across = (d.length_squared() - along * along).max(0.0).sqrt();
+                    ((radius - across) * inv + 0.5).clamp(0.0, 1.0)
+                })
+            }
+        };
+        // The pixel itself always weighs at least a half (d = 0), unless its own input is not
+        // finite.
+        let v = if weight > 0.0 { sum / weight } else { hard };
+        match r.probe {
+            Probe::Lit(horizon) => v.min(horizon),
+            _ => v,
+        }
+    }
+
+    /// The weighted sum of the hard answers of the pixels of `grid` around `r` that lie on
+    /// `r`'s surface, and the sum of their weights (`weight` of the offset: the share of the
+    /// pixel's cell inside the kernel, [`Kernel::contains`] made smooth).
+    #[inline(always)]
+    fn gather(&self, r: &Pixel, grid: Grid, weight: impl Fn(Vec3) -> f32) -> (f32, f32) {
+        let (w, h) = (i64::from(self.width), i64::from(self.height));
+        let Grid { x, y, step, taps } = grid;
+        // The columns of the kernel's rows inside the frame.
+        let (k0, k1) = ((-taps).max(-x / step), taps.min((w - 1 - x) / step));
+        let (mut sum, mut total) = (0.0f32, 0.0f32);
+        for ky in -taps..=taps {
+            let dy = ky * step;
+            let ny = y + dy;
+            if ny < 0 || ny >= h {
+                continue;
+            }
+            let row = &self.taps[(ny * w) as usize..((ny + 1) * w) as usize];
+            for kx in k0..=k1 {
+                let dx = kx * step;
+                let q = &row[(x + dx) as usize];
+                let d = q.point - r.point;
+                let apart = dx.abs().max(dy.abs()) as f32;
+                // A pixel without a hit has a NaN point: its weight is NaN, and fails.
+                let wq = weight(d);
+                if wq > 0.0 && self.same_surface(r, q, d, apart) {
+                    sum += wq * q.value;
+                    total += wq;
+                }
+            }
+        }
+        (sum, total)
+    }
+
+    /// Whether `q`, at `d` from `r` and `apart` pixels across or down, lies on `r`'s surface:
+    /// normals close, and each near the other's tangent plane.
+    #[inline]
+    fn same_surface(&self, r: &Pixel, q: &Tap, d: Vec3, apart: f32) -> bool {
+        let p = &self.params;
+        let off = r.footprint.max(q.footprint) * (p.plane + p.bend * apart);
+        r.normal.dot(q.normal) >= p.cos_normal && r.normal.dot(d).abs() <= off && q.normal.dot(d).abs() <= off
+    }
+}
+
+/// How many pixels from `r` its kernel for a blocker at `t` reaches: the light's image
+/// radius, stretched by the receiver's slant to the light, over the pixel's footprint, plus
+/// one; at most `widest`, and at most that for non-finite input.
+fn reach_pixels(light: &AreaLight, r: &Pixel, t: f32, widest: f32) -> f32 {
+    let Some(profile) = Profile::of(light, r.point) else { return 0.0 };
+    let dir = (light.center() - r.point).normalize_or_zero();
+    let width = profile.max_support() * t / (1.0 - t).max(1e-3);
+    let slant = r.normal.dot(dir).max(0.1);
+    let reach = width / (slant * r.footprint) + 1.0;
+    if reach.is_nan() { widest } else { reach.clamp(0.0, widest) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analytic::sphere_visible_fraction;
+    use crate::sampling::{Rng, visible_fraction};
+    use crate::test_scenes::{floor, rect_light, trees};
+    use kdtree::Ray;
+    use scenes::builtin::shapes::Part;
+    use scenes::{RectLight, SphereLight};
+
+    /// The test frames are small (20 to 64 pixels): penumbrae up to a quarter of their height.
+    const WIDE: Params = Params { max_reach: 0.25, ..Params::DEFAULT };
+
+    /// The floor seen straight down as an `n` x `n` frame from `(x0, z0)`, `step` apart (the
+    /// footprint), each pixel the first surface below `(x, 0.01, z)`.
+    struct Floor {
+        n: u32,
+        points: Vec<ShadingPoint>,
+        pixels: Vec<Option<Pixel>>,
+        edges: Vec<(usize, f32)>,
+    }
+
+    impl Floor {
+        fn new(tree: &KdTree, light: &AreaLight, n: u32, (x0, z0): (f32, f32), step: f32) -> Floor {
+            let points: Vec<ShadingPoint> = (0..n * n)
+                .map(|i| {
+                    let (x, z) = (x0 + step * (i % n) as f32, z0 + step * (i / n) as f32);
+                    let ray = Ray::new(Vec3::new(x, 0.01, z), Vec3::NEG_Y, 0.0, 1.0);
+                    let hit = tree.intersect(&ray).expect("the floor");
+                    ShadingPoint::new(tree.triangle(hit.prim), hit, Vec3::NEG_Y)
+                })
+                .collect();
+            let pixels: Vec<Option<Pixel>> = points.iter().map(|p| Some(probe(tree, light, p, step))).collect();
+            let edges = hard_edges(n, n, &pixels)
+                .into_iter()
+                .filter_map(|i| Some((i, blocker(tree, light, &points[i])?)))
+                .collect();
+            Floor { n, points, pixels, edges }
+        }
+
+        fn frame<'a>(&'a self, light: &'a AreaLight) -> ConvolutionFrame<'a> {
+            ConvolutionFrame::new(self.n, self.n, &self.pixels, &self.edges, light, WIDE)
+        }
+
+        /// Every pixel convolved.
+        fn dense(&self, light: &AreaLight) -> Vec<f32> {
+            let frame = self.frame(light);
+            (0..self.n * self.n).map(|i| frame.visibility(i % self.n, i / self.n)).collect()
+        }
+
+        /// The whole frame ([`convolved_frame`]): the sparse passes over the convolution, as
+        /// `rttest shadows` runs them. Its rays: a probe per pixel and a blocker per edge.
+        fn sparse(&self, tree: &KdTree, light: &AreaLight) -> Vec<f32> {
+            let n = self.n;
+            let step = self.pixels[0].unwrap().footprint;
+            let point = |x: u32, y: u32| Some((self.points[(y * n + x) as usize], step));
+            let (v, rays) = convolved_frame(tree, light, (n, n), WIDE, TOLERANCES, point);
+            // A probe per pixel (a final one may trace none) and a blocker per edge pixel.
+            assert!(rays <= u64::from(n * n) + self.edges.len() as u64 && rays >= self.edges.len() as u64);
+            v
+        }
+
+        fn hard(&self) -> Vec<f32> {
+            self.pixels.iter().map(|p| p.unwrap().probe.fraction()).collect()
+        }
+
+        /// A 256-sample reference per pixel.
+        fn reference(&self, tree: &KdTree, light: &AreaLight) -> Vec<f32> {
+            let points = self.points.iter().enumerate();
+            points.map(|(i, p)| visible_fraction(tree, light, p, 256, &mut Rng::new(i as u64))).collect()
+        }
+    }
+
+    fn rmse(a: &[f32], b: &[f32]) -> f32 {
+        (a.iter().zip(b).map(|(a, b)| (a - b).powi(2)).sum::<f32>() / a.len() as f32).sqrt()
+    }
+
+    /// A slab over half the floor, closed (a box) or one triangle thick (a quad), under a
+    /// square light: both halves of the penumbra drawn, far closer to the reference than hard
+    /// shadows, densely and sparsely; the umbra stays dark (no leak through the sheet). The
+    /// pixel column at `x = 0` lies in the slab's face plane, a split plane of the tree: its
+    /// shadow rays run inside it.
+    #[test]
+    fn a_straight_edge_gets_both_halves_of_its_penumbra() {
+        let light = rect_light(Vec3::new(0.0, 6.0, 0.0), 1.0);
+        let slab = Part::cuboid(Vec3::new(-8.0, 2.0, -8.0), Vec3::new(0.0, 2.2, 8.0));
+        let a = Vec3::new(-8.0, 2.0, -8.0);
+        let sheet = [
+            [a, a + Vec3::new(8.0, 0.0, 0.0), a + Vec3::new(8.0, 0.0, 16.0)],
+            [a, a + Vec3::new(8.0, 0.0, 16.0), a + Vec3::new(0.0, 0.0, 16.0)],
+        ];
+        for tree in trees(&[floor(), slab], &[]).iter().chain(&trees(&[floor()], &sheet)) {
+            // 40 x 40 pixels 0.125 apart from x = -2.5 (column 20 at x = 0 exactly): the
+            // penumbra is x in [-0.5, 0.5].
+            let f = Floor::new(tree, &light, 40, (-2.5, -2.5), 0.125);
+            let (dense, sparse, hard) = (f.dense(&light), f.sparse(tree, &light), f.hard());
+            let reference = f.reference(tree, &light);
+            let (e_dense, e_sparse, e_hard) =
+                (rmse(&dense, &reference), rmse(&sparse, &reference), rmse(&hard, &reference));
+            assert!(e_dense < 0.35 * e_hard && e_sparse < 0.45 * e_hard, "{e_dense} {e_sparse} {e_hard}");
+            let row = |v: &[f32], x: usize| v[20 * 40 + x];
+            // Lit half (x = 0.25, pixel 22): partly shadowed; dark half (x = -0.25): partly lit.
+            assert!(row(&dense, 22) < 0.95 && row(&dense, 22) > 0.5, "{}", row(&dense, 22));
+            assert!(row(&dense, 18) > 0.05 && row(&dense, 18) < 0.5, "{}", row(&dense, 18));
+            // Deep in the umbra and in full light: exact.
+            assert_eq!((row(&dense, 2), row(&dense, 38)), (0.0, 1.0));
+            assert!(dense.iter().chain(&sparse).all(|v| (0.0..=1.0).contains(v)));
+        }
+    }
+
+    /// The closed form: a sphere over the floor under a spherical light. The convolution
+    /// comes within a small RMSE of it, well under hard shadows'.
+    #[test]
+    fn the_sphere_matches_the_closed_form() {
+        let (center, radius) = (Vec3::new(0.0, 2.0, 0.0), 1.0);
+        let l = SphereLight { center: Vec3::new(1.2, 8.0, 0.0), radius: 1.0, intensity: Vec3::ONE };
+        let light = AreaLight::Sphere(l);
+        for tree in trees(&[floor(), Part::icosphere(radius, 4).translated(center)], &[]) {
+            // The whole shadow and penumbra, x in [-2.1, 1.3], z in [-1.7, 1.7].
+            let f = Floor::new(&tree, &light, 64, (-2.6, -2.2), 4.4 / 63.0);
+            let exact: Vec<f32> = f
+                .points
+                .iter()
+                .map(|p| sphere_visible_fraction(p.point, l.center, l.radius, center, radius) as f32)
+                .collect();
+            let (dense, sparse) = (f.dense(&light), f.sparse(&tree, &light));
+            let (e_dense, e_sparse, e_hard) = (rmse(&dense, &exact), rmse(&sparse, &exact), rmse(&f.hard(), &exact));
+            assert!(e_dense < 0.3 * e_hard && e_sparse < 0.3 * e_hard, "{e_dense} {e_sparse} {e_hard}");
+        }
+    }
+
+    /// A box standing on the floor: next to its foot the blocker is close, the kernel small,
+    /// and the contact shadow stays dark; a second, smaller box in the first one's shadow
+    /// (nested occluders) changes nothing there.
+    #[test]
+    fn contact_and_nested_occluders_keep_the_umbra() {
+        let light = rect_light(Vec3::new(3.0, 5.0, 0.0), 1.0);
+        let foot = Part::cuboid(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, 1.0));
+        let inner = Part::cuboid(Vec3::new(-1.6, 0.0, -0.5), Vec3::new(-1.1, 0.3, 0.5));
+        for parts in [vec![floor(), foot.clone()], vec![floor(), foot, inner]] {
+            for tree in trees(&parts, &[]) {
+                // The shadow and its penumbra: x in [-2.3, -1], z in [-1.3, 1.3].
+                let f = Floor::new(&tree, &light, 32, (-3.0, -1.6), 0.1);
+                let (dense, reference) = (f.dense(&light), f.reference(&tree, &light));
+                // Right behind the box's foot (x = -1.1, z = 0): dark in both.
+                let i = 16 * 32 + 19;
+                assert!(reference[i] < 0.05 && dense[i] < 0.05, "{} {}", reference[i], dense[i]);
+                let (e_dense, e_hard) = (rmse(&dense, &reference), rmse(&f.hard(), &reference));
+                assert!(e_dense < 0.6 * e_hard, "{e_dense} {e_hard}");
+            }
+        }
+    }
+
+    /// A one-sided vertical plane containing the light's centre: its hard shadow is at most
+    /// the line of pixels whose centre rays lie in its plane, and the convolution stays as
+    /// close to the reference as hard shadows (from points a little off its plane it blocks
+    /// a sliver of the light); a light partly below the horizon keeps each pixel at most its
+    /// horizon's share.
+    #[test]
+    fn an_edge_on_plane_and_a_light_below_the_horizon() {
+        let light = rect_light(Vec3::new(0.0, 6.0, 0.0), 1.0);
+        let (a, u, v) = (Vec3::new(-2.0, 1.0, 0.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0));
+        let plane = [[a, a + u, a + u + v], [a, a + u + v, a + v]];
+        for tree in trees(&[floor()], &plane) {
+            let f = Floor::new(&tree, &light, 21, (-1.0, -1.0), 0.1);
+            let (dense, sparse, hard) = (f.dense(&light), f.sparse(&tree, &light), f.hard());
+            let reference = f.reference(&tree, &light);
+            let (e_dense, e_sparse, e_hard) =
+                (rmse(&dense, &reference), rmse(&sparse, &reference), rmse(&hard, &reference));
+            assert!(e_dense <= e_hard + 0.01 && e_sparse <= e_hard + 0.01, "{e_dense} {e_sparse} {e_hard}");
+        }
+        // A light level with the floor, half below it, and a wall casting a shadow.
+        let low = rect_light(Vec3::new(6.0, 0.0, 0.0), 1.0);
+        let wall = Part::cuboid(Vec3::new(2.0, 0.0, -8.0), Vec3::new(2.2, 2.0, 0.0));
+        for tree in trees(&[floor(), wall], &[]) {
+            let f = Floor::new(&tree, &low, 24, (-1.0, -1.2), 0.1);
+            let (dense, sparse) = (f.dense(&low), f.sparse(&tree, &low));
+            for ((d, s), p) in dense.iter().zip(&sparse).zip(&f.pixels) {
+                let limit = match p.unwrap().probe {
+                    Probe::Lit(horizon) => horizon,
+                    Probe::Done(v) => v.fraction,
+                    Probe::Blocked(_) => 0.5,
+                };
+                assert!(*d <= limit + 1e-6 && *s <= limit + 1e-6 && (0.0..=1.0).contains(d), "{d} {s} {limit}");
+            }
+        }
+    }
+
+    /// The kernel as the offsets whose centre rays cross the blocker's plane inside the
+    /// light's cone from the point: checked against that construction on a tilted
+    /// rectangle and a sphere, away from the boundary (where the linearised kernel and the
+    /// construction may differ by the offset's share of the ray's length).
+    #[test]
+    fn the_kernel_is_the_light_seen_through_the_blocker() {
+        let tilted = AreaLight::Rect(RectLight {
+            corner: Vec3::new(-1.0, 6.0, -0.5),
+            edge_u: Vec3::new(2.0, 0.6, 0.0),
+            edge_v: Vec3::new(0.3, 0.0, 1.2),
+            intensity: Vec3::ONE,
+        });
+        let sphere =
+            AreaLight::Sphere(SphereLight { center: Vec3::new(1.0, 5.0, 0.5), radius: 0.8, intensity: Vec3::ONE });
+        let p = Vec3::new(0.3, 0.0, -0.2);
+        let mut rng = Rng::new(3);
+        for light in [tilted, sphere] {
+            let c = light.center();
+            for t in [0.1f32, 0.3, 0.6] {
+                let kernel = Kernel::new(&light, p, t).unwrap();
+                // The exact test: where on the light, seen from `p`, the centre ray of `p + d`
+                // crosses the plane at `t` parallel to the light (perpendicular to the ray for
+                // the sphere), and how far inside the light that is (1 on its boundary).
+                let normal = match light {
+                    AreaLight::Rect(l) => l.edge_u.cross(l.edge_v).normalize(),
+                    AreaLight::Sphere(_) => (c - p).normalize(),
+                };
+                let b = p + t * (c - p);
+                let inside = |d: Vec3| {
+                    let q = p + d;
+                    let s = (b - q).dot(normal) / (c - q).dot(normal);
+                    let on_light = p + (q + s * (c - q) - p) / t;
+                    match light {
+                        AreaLight::Rect(l) => {
+                            let (u, v) = (0.5 * l.edge_u, 0.5 * l.edge_v);
+                            let n = u.cross(v);
+                            let e = on_light - c;
+                            let (a, bb) =
+                                (e.dot(v.cross(n)) / u.dot(v.cross(n)), e.dot(n.cross(u)) / v.dot(n.cross(u)));
+                            a.abs().max(bb.abs())
+                        }
+                        AreaLight::Sphere(_) => {
+                            let Some(Profile::Disc(rho)) = Profile::of(&light, p) else { unreachable!() };
+                            (on_light - c).length() / rho
+                        }
+                    }
+                };
+                let reach = 3.0 * t / (1.0 - t);
+                for _ in 0..400 {
+                    let d = Vec3::new(rng.next_f32() - 0.5, 0.0, rng.next_f32() - 0.5) * 2.0 * reach;
+                    let exact = inside(d);
+                    if (exact - 1.0).abs() > 0.1 {
+                        assert_eq!(kernel.contains(d), exact < 1.0, "{d} at t = {t}: {exact}");
+                    }
+                }
+                assert!(kernel.contains(Vec3::ZERO));
+            }
+            // Degenerate blockers have no kernel.
+            for t in [0.0, 1.0, -0.5, f32::NAN, f32::INFINITY] {
+                assert_eq!(Kernel::new(&light, p, t), None, "{t}");
+            }
+        }
+        // A ray along a rectangle's plane, and a point inside a sphere.
+        let flat = rect_light(Vec3::new(0.0, 6.0, 0.0), 1.0);
+        assert_eq!(Kernel::new(&flat, Vec3::new(10.0, 6.0, 0.0), 0.5), None);
+        assert_eq!(Kernel::new(&sphere, Vec3::new(1.0, 5.2, 0.5), 0.5), None);
+    }
+
+    /// Damaged input answers, never panics: buffers of the wrong length, non-finite points,
+    /// edges out of range; a frame without hits is dark.
+    #[test]
+    fn damaged_frames_give_hard_answers() {
+        let light = rect_light(Vec3::new(0.0, 6.0, 0.0), 1.0);
+        let lit = Pixel { point: Vec3::ZERO, normal: Vec3::Y, footprint: 0.1, probe: Probe::Lit(1.0) };
+        let blocked = Pixel { probe: Probe::Blocked(3.0), ..lit };
+        let nan = Pixel { point: Vec3::NAN, ..blocked };
+        let pixels = vec![Some(lit), Some(blocked), Some(nan), None];
+        assert_eq!(hard_edges(3, 2, &pixels), Vec::<usize>::new());
+        let edges = [(1, 0.5), (2, 0.5), (99, 0.5)];
+        let frame = ConvolutionFrame::new(3, 2, &pixels, &edges, &light, Params::DEFAULT);
+        assert_eq!(frame.reached(), 0);
+        let frame = ConvolutionFrame::new(2, 2, &pixels, &edges, &light, Params::DEFAULT);
+        assert_eq!(hard_edges(2, 2, &pixels), vec![1, 2]);
+        for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1), (5, 5)] {
+            let v = frame.visibility(x, y);
+            assert!((0.0..=1.0).contains(&v), "{v} at ({x}, {y})");
+        }
+        assert_eq!(frame.visibility(1, 1), 0.0);
+    }
+}
