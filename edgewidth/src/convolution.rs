@@ -161,8 +161,8 @@ fn rays_of(probe: Probe) -> u32 {
 /// When the sparse passes ([`crate::sparse`]) blend a pixel's lattice corners instead of
 /// convolving it: [`Tolerances::DEFAULT`] with a spread of 0.5. On the scenes of
 /// `docs/results/soft-shadows-quality.md` that convolves 10% to 15% fewer pixels than a spread
-/// of 0.3, and its error is lower on all four real scenes (blending smooths the kernel's
-/// coarse grid).
+/// of 0.3, and its error is lower on three of the four real scenes and the same on the
+/// kitchen (blending smooths the kernel's coarse grid).
 pub const TOLERANCES: Tolerances = Tolerances { spread: 0.5, ..Tolerances::DEFAULT };
 
 /// How far the convolution reaches and what it counts as one surface.
@@ -191,7 +191,7 @@ impl Params {
     ///
     /// On the scenes of `docs/results/soft-shadows-quality.md` a reach of 1/16 of the height
     /// (16 pixels at 256 x 256) had more error on all four real scenes (atrium 0.068 against
-    /// 0.064): a wide kernel reads more of what a screen does not show (the receiver hidden
+    /// 0.064, before the cells' weights): a wide kernel reads more of what a screen does not show (the receiver hidden
     /// behind the occluder, surfaces that end inside it). Only the analytic sphere, which
     /// fits the model, gained (0.0055 against 0.0065).
     pub const DEFAULT: Params = Params { taps: 6, max_reach: 1.0 / 32.0, cos_normal: 0.906, plane: 2.0, bend: 0.25 };
@@ -300,8 +300,9 @@ struct Grid {
     taps: i64,
 }
 
-/// A pixel as a kernel reads it, 32 bytes: its point, hard answer, normal and footprint; a
-/// pixel without a hit has NaN in all, and no kernel contains it.
+/// A pixel as a kernel reads it, 32 bytes: its point, its hard ray's answer (1 lit, 0
+/// blocked), normal and footprint. A pixel without a hit, or whose light centre is below its
+/// horizon (its answer is the horizon's, not an occluder's), has NaN in all and is never read.
 #[derive(Clone, Copy, Debug)]
 struct Tap {
     point: Vec3,
