@@ -998,6 +998,14 @@ mod tests {
         }
         // A uniform rectangle cut along one edge: linear.
         assert!((rect.tail(Vec3::X, 1.0) - 0.25).abs() < 1e-6);
+        // Above the plane: the rectangle's corners reach 2 along x and 0.5 along z; the disc
+        // 1.5 every way.
+        let up = Vec3::Y;
+        assert!(rect.above(up, Vec3::new(0.0, 0.1, 0.0)) && disc.above(up, Vec3::new(0.0, 1.6, 0.0)));
+        assert!(!disc.above(up, Vec3::new(0.0, 1.4, 0.0)));
+        let tilted = Vec3::new(0.6, 0.8, 0.0);
+        assert!(!rect.above(tilted, Vec3::new(0.0, 1.0, 0.0)) && rect.above(tilted, Vec3::new(0.0, 1.6, 0.0)));
+        assert!(!rect.above(up, Vec3::new(0.0, f32::NAN, 0.0)));
         // A point light: a step.
         let point = Profile::Rect { u: Vec3::ZERO, v: Vec3::ZERO };
         assert_eq!((point.tail(Vec3::X, -1e-3), point.tail(Vec3::X, 1e-3)), (1.0, 0.0));
