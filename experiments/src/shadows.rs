@@ -570,8 +570,6 @@ impl<'a> ShadowSetup<'a> {
     /// the mask keep the hard answer (times the horizon's share). Returns the rays traced.
     fn silhouette(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         let silhouettes = self.silhouettes.get().unwrap_or(&NO_SILHOUETTES);
-        // A pixel's footprint per unit of distance from the eye.
-        let pixel_angle = 2.0 * self.camera.tan_half_fovy / self.camera.height as f32;
         let mut pixels = vec![None; hits.len()];
         let chunks: Vec<_> = self.layout.chunks(hits).into_iter().zip(self.layout.chunks_mut(&mut pixels)).collect();
         let probed: u64 = for_tiles(
@@ -583,7 +581,7 @@ impl<'a> ShadowSetup<'a> {
                 for (((x, y), hit), slot) in tile.pixels().zip(hits).zip(pixels.iter_mut()) {
                     let Some(hit) = hit else { continue };
                     let point = self.shading_point(x, y, hit);
-                    let footprint = pixel_angle * point.point.distance(self.camera.eye);
+                    let footprint = self.camera.footprint(point.point);
                     let probe = hard_probe(self.tree, &self.light, &point, footprint);
                     rays += match probe {
                         Probe::Done(v) => u64::from(v.rays),
@@ -637,12 +635,10 @@ impl<'a> ShadowSetup<'a> {
     /// `convolution::convolved_frame`, its passes over the rows in parallel. Returns the
     /// visible fractions (row-major) and the rays traced.
     fn convolution(&self, hits: &[Option<Hit>]) -> (Vec<f32>, u64) {
-        // A pixel's footprint per unit of distance from the eye.
-        let pixel_angle = 2.0 * self.camera.tan_half_fovy / self.camera.height as f32;
         let (w, h) = (self.camera.width, self.camera.height);
         let point = |x: u32, y: u32| {
             let p = self.shading_point(x, y, hits.get((y * w + x) as usize)?.as_ref()?);
-            Some((p, pixel_angle * p.point.distance(self.camera.eye)))
+            Some((p, self.camera.footprint(p.point)))
         };
         let params = convolution::Params::DEFAULT;
         convolution::convolved_frame(self.tree, &self.light, (w, h), params, convolution::TOLERANCES, point)

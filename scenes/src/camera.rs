@@ -65,12 +65,31 @@ impl Camera {
     pub fn pixel_ray(&self, x: u32, y: u32) -> (Vec3, Vec3) {
         (self.eye, self.direction(x as f32 + 0.5, y as f32 + 0.5))
     }
+
+    /// How many world units a pixel covers across at `point`'s distance from the eye (the
+    /// image plane's height at that distance over the pixel rows): the screen-space
+    /// techniques' unit (the edge widths' penumbra reach, `edgewidth::sparse`). NaN for a
+    /// non-finite point.
+    #[inline]
+    pub fn footprint(&self, point: Vec3) -> f32 {
+        2.0 * self.tan_half_fovy / self.height as f32 * point.distance(self.eye)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    #[test]
+    fn a_pixel_covers_the_image_plane_over_the_rows() {
+        let c = Camera::look_at(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0), 90.0, 200, 100).unwrap();
+        // At distance 10 the image plane is 20 high: 0.2 per row, whatever the direction.
+        assert_relative_eq!(c.footprint(Vec3::new(0.0, 0.0, -10.0)), 0.2, epsilon = 1e-6);
+        assert_relative_eq!(c.footprint(Vec3::new(6.0, 0.0, 8.0)), 0.2, epsilon = 1e-6);
+        assert_eq!(c.footprint(c.eye), 0.0);
+        assert!(c.footprint(Vec3::NAN).is_nan());
+    }
 
     #[test]
     fn centre_ray_points_at_target_for_odd_sizes() {

@@ -387,12 +387,10 @@ fn convolution_pass(tree: &KdTree, light: &AreaLight, renderer: &Renderer<'_>, b
     let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), renderer.surfaces());
     let (w, h) = (camera.width, camera.height);
     let hits = layout.to_row_major(&buffers.hits);
-    // A pixel's footprint per unit of distance from the eye.
-    let pixel_angle = 2.0 * camera.tan_half_fovy / h as f32;
     let point = |x: u32, y: u32| {
         let hit = hits.get((y * w + x) as usize)?.as_ref()?;
         let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
-        Some((p, pixel_angle * p.point.distance(camera.eye)))
+        Some((p, camera.footprint(p.point)))
     };
     let (visible, rays) = convolved_frame(tree, light, (w, h), ConvolutionParams::DEFAULT, TOLERANCES, point);
     let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
