@@ -72,6 +72,14 @@ pub trait SimdF32:
     fn copysign(self, sign: Self) -> Self;
     /// Per lane, `1.0 / self`.
     fn recip(self) -> Self;
+    /// Per lane, the square root (IEEE, correctly rounded: the same bits at every width).
+    fn sqrt(self) -> Self;
+    /// Lane `l` is `values[start + l * stride]`: a row of a structure-of-arrays frame read
+    /// every `stride`-th entry (one vector load at stride 1, a gather otherwise).
+    ///
+    /// # Panics
+    /// If the last lane's index is past `values`, or `stride` is 0.
+    fn strided(values: &[f32], start: usize, stride: usize) -> Self;
 
     /// Per lane, `self == rhs`.
     fn cmpeq(self, rhs: Self) -> Self::Mask;
@@ -136,6 +144,18 @@ pub fn array_fn<T: Copy, const N: usize>(mut f: impl FnMut(usize) -> T) -> [T; N
     unsafe { std::mem::transmute_copy::<[std::mem::MaybeUninit<T>; N], [T; N]>(&out) }
 }
 
+/// The entries `values[start..]` that [`SimdF32::strided`]'s `lanes` lanes read, every
+/// `stride`-th from the first; checked once, so that the lanes' reads need no check of their
+/// own.
+///
+/// # Panics
+/// If the last lane's index is past `values`, or `stride` is 0.
+#[inline(always)]
+pub fn strided_lanes(values: &[f32], start: usize, stride: usize, lanes: usize) -> &[f32] {
+    assert!(stride > 0, "a strided read needs a stride");
+    &values[start..=start + (lanes - 1) * stride]
+}
+
 /// glam's SSE vector: the 4-wide packets, each operation the glam method of the same name.
 impl SimdF32 for Vec4 {
     const LANES: usize = 4;
@@ -188,6 +208,15 @@ impl SimdF32 for Vec4 {
     #[inline(always)]
     fn recip(self) -> Vec4 {
         Vec4::recip(self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Vec4 {
+        Vec4::from_array(self.to_array().map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn strided(values: &[f32], start: usize, stride: usize) -> Vec4 {
+        let lanes = strided_lanes(values, start, stride, 4);
+        Vec4::new(lanes[0], lanes[stride], lanes[2 * stride], lanes[3 * stride])
     }
     #[inline(always)]
     fn cmpeq(self, rhs: Vec4) -> BVec4A {
@@ -375,6 +404,15 @@ impl<const W: usize> SimdF32 for PortableF32<W> {
         PortableF32(self.0.map(|a| 1.0 / a))
     }
     #[inline(always)]
+    fn sqrt(self) -> Self {
+        PortableF32(self.0.map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn strided(values: &[f32], start: usize, stride: usize) -> Self {
+        let lanes = strided_lanes(values, start, stride, W);
+        Self::from_fn(|l| lanes[l * stride])
+    }
+    #[inline(always)]
     fn cmpeq(self, rhs: Self) -> PortableMask<W> {
         self.test(rhs, |a, b| a == b)
     }
@@ -510,7 +548,7 @@ mod tests {
                 let (pa, pb) = (PortableF32(a), PortableF32(b));
                 let m = BVec4A::from_array([s[i] < s[j], true, false, s[i].is_nan()]);
                 let pm = PortableMask(m.into());
-                let ops: [(Vec4, PortableF32<4>, &str); 10] = [
+                let ops: [(Vec4, PortableF32<4>, &str); 11] = [
                     (ga + gb, pa + pb, "add"),
                     (ga - gb, pa - pb, "sub"),
                     (ga * gb, pa * pb, "mul"),
@@ -520,6 +558,7 @@ mod tests {
                     (SimdF32::abs(ga), SimdF32::abs(pa), "abs"),
                     (SimdF32::copysign(ga, gb), SimdF32::copysign(pa, pb), "copysign"),
                     (SimdF32::recip(ga), SimdF32::recip(pa), "recip"),
+                    (SimdF32::sqrt(ga), SimdF32::sqrt(pa), "sqrt"),
                     (<Vec4 as SimdF32>::select(m, ga, gb), PortableF32::select(pm, pa, pb), "select"),
                 ];
                 for (g, p, name) in ops {
@@ -570,5 +609,24 @@ mod tests {
         assert!(!PortableMask::<8>::splat(false).any() && PortableMask::<8>::splat(true).all());
         let wide = PortableF32::<16>::from_fn(|l| if l % 2 == 0 { -(l as f32) } else { l as f32 });
         assert_eq!(wide.is_negative_bitmask(), 0x5555, "lane 0 is -0.0");
+        // `strided`: one load at stride 1, every `stride`-th entry otherwise, and the glam
+        // lanes are the portable ones.
+        let values: Vec<f32> = (0..20).map(|i| i as f32 * 0.5 - 3.0).collect();
+        for (start, stride) in [(0, 1), (3, 1), (1, 2), (2, 5), (16, 1)] {
+            let g = <Vec4 as SimdF32>::strided(&values, start, stride);
+            assert_eq!(g.to_array(), std::array::from_fn(|l| values[start + l * stride]));
+            assert_eq!(bits4(g), bits_p(PortableF32::<4>::strided(&values, start, stride)));
+        }
+    }
+
+    /// A strided read past the end, or with no stride, panics before reading anything.
+    #[test]
+    fn strided_reads_are_checked() {
+        let values = [1.0f32; 10];
+        for (start, stride) in [(7, 1), (0, 4), (3, 0), (11, 1)] {
+            let read = std::panic::catch_unwind(|| <Vec4 as SimdF32>::strided(&values, start, stride));
+            assert!(read.is_err(), "start {start} stride {stride}");
+            assert!(std::panic::catch_unwind(|| PortableF32::<4>::strided(&values, start, stride)).is_err());
+        }
     }
 }

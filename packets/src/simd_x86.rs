@@ -300,6 +300,40 @@ impl SimdF32 for F32x8 {
         F32x8::ONE / self
     }
     #[inline(always)]
+    fn sqrt(self) -> F32x8 {
+        // SAFETY: the type's contract (AVX2).
+        F32x8(unsafe { _mm256_sqrt_ps(self.0) })
+    }
+    #[inline(always)]
+    fn strided(values: &[f32], start: usize, stride: usize) -> F32x8 {
+        let lanes = crate::simd::strided_lanes(values, start, stride, 8);
+        if stride == 1 {
+            // SAFETY: `lanes` holds 8 f32 (checked above); an unaligned load; the type's
+            // contract (AVX2).
+            return F32x8(unsafe { _mm256_loadu_ps(lanes.as_ptr()) });
+        }
+        // Stride 2 as two vectors and shuffles where they fit (see `F32x16::strided`).
+        let whole = &values[start..];
+        if stride == 2 && whole.len() >= 16 {
+            // SAFETY: `whole` holds 16 f32 (checked); unaligned loads; the type's contract.
+            return F32x8(unsafe {
+                let (a, b) = (_mm256_loadu_ps(whole.as_ptr()), _mm256_loadu_ps(whole.as_ptr().add(8)));
+                // Per 128-bit half: a0 a2 b0 b2 | a4 a6 b4 b6; then the 64-bit pairs in order.
+                let even = _mm256_shuffle_ps::<0b10_00_10_00>(a, b);
+                _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(even)))
+            });
+        }
+        // The lanes' offsets in f32, `l * stride`, at most `lanes.len() - 1`.
+        assert!(i32::try_from(lanes.len()).is_ok(), "a gather's offsets are i32");
+        let step = stride as i32;
+        let offsets: [i32; 8] = crate::simd::array_fn(|l| l as i32 * step);
+        // SAFETY: every offset is inside `lanes` (checked above); the type's contract (AVX2).
+        F32x8(unsafe {
+            let idx = transmute::<[i32; 8], __m256i>(offsets);
+            _mm256_i32gather_ps::<4>(lanes.as_ptr(), idx)
+        })
+    }
+    #[inline(always)]
     fn cmpeq(self, rhs: F32x8) -> Mask8 {
         self.cmp::<_CMP_EQ_OQ>(rhs)
     }
@@ -616,6 +650,53 @@ impl SimdF32 for F32x16 {
         F32x16::ONE / self
     }
     #[inline(always)]
+    fn sqrt(self) -> F32x16 {
+        // SAFETY: the type's contract (AVX-512F).
+        F32x16(unsafe { _mm512_sqrt_ps(self.0) })
+    }
+    #[inline(always)]
+    fn strided(values: &[f32], start: usize, stride: usize) -> F32x16 {
+        let lanes = crate::simd::strided_lanes(values, start, stride, 16);
+        if stride == 1 {
+            // SAFETY: `lanes` holds 16 f32 (checked above); an unaligned load; the type's
+            // contract (AVX-512F).
+            return F32x16(unsafe { _mm512_loadu_ps(lanes.as_ptr()) });
+        }
+        // Strides 2 and 3 as whole vectors and permutes where they fit (a gather is slow on
+        // some CPUs: on Zen 4 it was half of the convolution's time).
+        let whole = &values[start..];
+        if stride == 2 && whole.len() >= 32 {
+            const EVEN: [i32; 16] = [0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30];
+            // SAFETY: `whole` holds 32 f32 (checked); unaligned loads; the type's contract.
+            return F32x16(unsafe {
+                let (a, b) = (_mm512_loadu_ps(whole.as_ptr()), _mm512_loadu_ps(whole.as_ptr().add(16)));
+                _mm512_permutex2var_ps(a, transmute::<[i32; 16], __m512i>(EVEN), b)
+            });
+        }
+        if stride == 3 && whole.len() >= 48 {
+            // Lanes 0 to 10 from the first two vectors (entries 0 to 30), 11 to 15 from the
+            // third (entries 33 to 45, its 1 to 13).
+            const FIRST: [i32; 16] = [0, 3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 0, 0, 0, 0, 0];
+            const THIRD: [i32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 17, 20, 23, 26, 29];
+            // SAFETY: `whole` holds 48 f32 (checked); unaligned loads; the type's contract.
+            return F32x16(unsafe {
+                let p = whole.as_ptr();
+                let (a, b, c) = (_mm512_loadu_ps(p), _mm512_loadu_ps(p.add(16)), _mm512_loadu_ps(p.add(32)));
+                let ab = _mm512_permutex2var_ps(a, transmute::<[i32; 16], __m512i>(FIRST), b);
+                _mm512_permutex2var_ps(ab, transmute::<[i32; 16], __m512i>(THIRD), c)
+            });
+        }
+        // The lanes' offsets in f32, `l * stride`, at most `lanes.len() - 1`.
+        assert!(i32::try_from(lanes.len()).is_ok(), "a gather's offsets are i32");
+        let step = stride as i32;
+        let offsets: [i32; 16] = crate::simd::array_fn(|l| l as i32 * step);
+        // SAFETY: every offset is inside `lanes` (checked above); the type's contract (AVX-512F).
+        F32x16(unsafe {
+            let idx = transmute::<[i32; 16], __m512i>(offsets);
+            _mm512_i32gather_ps::<4>(idx, lanes.as_ptr())
+        })
+    }
+    #[inline(always)]
     fn cmpeq(self, rhs: F32x16) -> Mask16 {
         self.cmp::<_CMP_EQ_OQ>(rhs)
     }
@@ -852,12 +933,13 @@ mod tests {
         assert_eq!(exact::<V, W>(va), a.map(f32::to_bits), "from_fn and index");
         let array: Vec<u32> = V::to_array(va).as_ref().iter().map(|x| x.to_bits()).collect();
         assert_eq!(array, a.map(f32::to_bits), "to_array");
-        let arithmetic: [(V, PortableF32<W>, &str); 5] = [
+        let arithmetic: [(V, PortableF32<W>, &str); 6] = [
             (va + vb, pa + pb, "add"),
             (va - vb, pa - pb, "sub"),
             (va * vb, pa * pb, "mul"),
             (va / vb, pa / pb, "div"),
             (va.recip(), pa.recip(), "recip"),
+            (va.sqrt(), pa.sqrt(), "sqrt"),
         ];
         for (v, p, name) in arithmetic {
             assert_eq!(arith::<V, W>(v), arith::<_, W>(p), "{}", what(name));
@@ -947,6 +1029,16 @@ mod tests {
         }
         for v in [false, true] {
             assert_eq!(V::Mask::splat(v).bitmask(), PortableMask::<W>::splat(v).bitmask());
+        }
+        // `strided`: every start and stride that fits, against the entries themselves; near
+        // the end too, where whole vectors would not fit.
+        let long: Vec<f32> = (0..100).map(|i| s[(7 * i) % n]).collect();
+        for stride in 1..=4 {
+            for start in 0..=long.len() - ((W - 1) * stride + 1) {
+                let v = V::strided(&long, start, stride);
+                assert_eq!(exact::<V, W>(v), std::array::from_fn(|l| long[start + l * stride].to_bits()), "strided");
+                assert_eq!(exact::<V, W>(v), exact::<_, W>(PortableF32::<W>::strided(&long, start, stride)));
+            }
         }
         // `axes`: the blends and permutation against the lane-by-lane transpose.
         let mut rng = Rng(0x0a8e_5eed);
