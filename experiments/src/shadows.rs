@@ -45,7 +45,7 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
 
 use crate::shadow_plot::{Point, plot};
@@ -283,6 +283,8 @@ pub struct ShadowSetup<'a> {
     surfaces: Surfaces,
     /// The triangles' adjacency for [`ShadowMethod::Silhouette`], made on its first frame.
     silhouettes: OnceLock<Silhouettes>,
+    /// [`ShadowMethod::Convolution`]'s buffers, kept from frame to frame.
+    convolution: Mutex<convolution::ConvolutionBuffers>,
 }
 
 /// One rendered frame.
@@ -323,6 +325,7 @@ impl<'a> ShadowSetup<'a> {
             thickness: None,
             surfaces,
             silhouettes: OnceLock::new(),
+            convolution: Mutex::default(),
         }
     }
 
@@ -641,7 +644,17 @@ impl<'a> ShadowSetup<'a> {
             Some((p, self.camera.footprint(p.point)))
         };
         let params = convolution::Params::DEFAULT;
-        convolution::convolved_frame(self.tree, &self.light, (w, h), params, convolution::TOLERANCES, point)
+        // Locked once a frame, by the frame's one caller.
+        let mut buffers = self.convolution.lock().unwrap_or_else(|e| e.into_inner());
+        convolution::convolved_frame(
+            self.tree,
+            &self.light,
+            (w, h),
+            params,
+            convolution::TOLERANCES,
+            &mut buffers,
+            point,
+        )
     }
 
     /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as

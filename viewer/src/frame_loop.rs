@@ -17,7 +17,7 @@
 use std::time::Instant;
 
 use cones::shadows::SAMPLES;
-use edgewidth::convolution::{Params as ConvolutionParams, TOLERANCES, convolved_frame};
+use edgewidth::convolution::{ConvolutionBuffers, Params as ConvolutionParams, TOLERANCES, convolved_frame};
 use edgewidth::sampling::ShadingPoint;
 use edgewidth::{AreaLight, SilhouetteScratch, Silhouettes, silhouette_visibility};
 use kdtree::surface::Surfaces;
@@ -103,6 +103,8 @@ pub struct FrameLoop<'a> {
     /// Size of `buffers` and the method/shadows they were traced with.
     size: (u32, u32),
     buffers: FrameBuffers,
+    /// The convolved edge widths' buffers, kept from frame to frame.
+    convolution: ConvolutionBuffers,
     soft: Refinement,
     /// Whether the last frame is final (nothing left to refine).
     done: bool,
@@ -150,6 +152,7 @@ impl<'a> FrameLoop<'a> {
             light: trace::soft::scene_light(scene, tree, 1.0),
             size: (0, 0),
             buffers: FrameBuffers::new(0),
+            convolution: ConvolutionBuffers::default(),
             soft: Refinement::default(),
             done: false,
             n_i: None,
@@ -244,7 +247,8 @@ impl<'a> FrameLoop<'a> {
                 if state.shadows == ShadowMode::Convolution {
                     let t = Instant::now();
                     let light = AreaLight::Sphere(self.light);
-                    info.rays += convolution_pass(self.tree, &light, &renderer, &mut self.buffers);
+                    info.rays +=
+                        convolution_pass(self.tree, &light, &renderer, &mut self.buffers, &mut self.convolution);
                     info.trace_secs += t.elapsed().as_secs_f64();
                 }
                 self.soft.passes = u32::from(state.shadows == ShadowMode::Soft);
@@ -382,8 +386,15 @@ fn silhouette_pass(
 
 /// Convolved edge widths (`edgewidth::convolution::convolved_frame`) of the primary hits in
 /// `buffers` (traced by `renderer`, whose surfaces and camera they use) to `light`, into
-/// `buffers.visible` (tile order; 0 for misses). Returns the shadow rays traced.
-fn convolution_pass(tree: &KdTree, light: &AreaLight, renderer: &Renderer<'_>, buffers: &mut FrameBuffers) -> u64 {
+/// `buffers.visible` (tile order; 0 for misses), in the `convolution`'s buffers of the last
+/// frame. Returns the shadow rays traced.
+fn convolution_pass(
+    tree: &KdTree,
+    light: &AreaLight,
+    renderer: &Renderer<'_>,
+    buffers: &mut FrameBuffers,
+    convolution: &mut ConvolutionBuffers,
+) -> u64 {
     let (layout, camera, surfaces) = (renderer.layout(), renderer.camera(), renderer.surfaces());
     let (w, h) = (camera.width, camera.height);
     let hits = layout.to_row_major(&buffers.hits);
@@ -392,7 +403,8 @@ fn convolution_pass(tree: &KdTree, light: &AreaLight, renderer: &Renderer<'_>, b
         let p = ShadingPoint::on(surfaces.get(hit.prim), hit, camera.pixel_ray(x, y).1);
         Some((p, camera.footprint(p.point)))
     };
-    let (visible, rays) = convolved_frame(tree, light, (w, h), ConvolutionParams::DEFAULT, TOLERANCES, point);
+    let params = ConvolutionParams::DEFAULT;
+    let (visible, rays) = convolved_frame(tree, light, (w, h), params, TOLERANCES, convolution, point);
     let pixels = layout.tiles().iter().flat_map(|t| t.pixels());
     buffers.visible = pixels.map(|(x, y)| visible[(y * w + x) as usize]).collect();
     rays
