@@ -179,8 +179,10 @@ impl ShadingPoint {
     /// The shadow ray from this point to `target` (`t` in `[0, 1]`, reaching `target` at 1),
     /// or `None` when `target` lies behind the surface, or when `target`, the point or its
     /// normal is not finite (NaN or infinite input: no ray, never a NaN one). It starts at
-    /// `kdtree::ray::offset_origin(tri, hit, target - point)`.
-    #[inline]
+    /// `kdtree::ray::offset_origin(tri, hit, target - point)`. Always inlined: returned through
+    /// memory, the ray is read back wider than it was written, a stalled load on every shadow
+    /// ray (`perf annotate` of the convolved edge widths' probes).
+    #[inline(always)]
     pub fn shadow_ray(&self, target: Vec3) -> Option<Ray> {
         let (start, target) = self.shadow_segment(target)?;
         Some(Ray::segment(start, target))
@@ -189,7 +191,7 @@ impl ShadingPoint {
     /// The ends of [`ShadingPoint::shadow_ray`]: its origin and `target` (the ray is
     /// `Ray::segment(start, target)`), for kernels that build their packets
     /// from the ends (`packets::RayPacket::segments`).
-    #[inline]
+    #[inline(always)]
     pub fn shadow_segment(&self, target: Vec3) -> Option<(Vec3, Vec3)> {
         let to = target - self.point;
         // Written so that NaN fails.
