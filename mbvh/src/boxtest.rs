@@ -27,8 +27,19 @@
 //! return their second operand when either is NaN, and the accumulator, starting at the
 //! ray's non-NaN `t_min` / `t_max`, never is), and the scalar test says the same with an
 //! explicit test.
-//! Every SIMD test does the same operations in the same order without fused multiply-add,
-//! so it gives the scalar test's masks and entry distances bit for bit (`tests/twins.rs`).
+//! Every SIMD test does the same operations in the same order as the scalar test, so it
+//! gives the scalar test's masks and entry distances bit for bit (`tests/twins.rs`).
+//!
+//! **The widening, fused where the instruction set has it** ([`NodeWidth::FUSED`]). The
+//! 8- and 16-wide tests (AVX2 with FMA, AVX-512) widen with one fused multiply-add and one
+//! addition ([`lowered`], [`raised`]: `fma(-|t|, WIDEN, t) - TINY`), the 4-wide SSE test with
+//! a product and two additions ([`lowered_unfused`], [`raised_unfused`]); the scalar twin of
+//! each width does what its SIMD test does (`f32::mul_add`, a correctly rounded fused
+//! multiply-add on every CPU). The fused form rounds twice instead of three times, so it
+//! lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
+//! `gamma_3`, the error of the distance itself); it takes one operation off the node step's
+//! critical path, where the single-ray traversal spends its time waiting
+//! (`docs/results/incoherent-mbvh.md#fused-widening`).
 
 use std::fmt::Debug;
 use std::ops::Index;
@@ -44,6 +55,35 @@ pub const WIDEN: f32 = 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSI
 /// The absolute part of the widening: a product that underflows to a subnormal or zero has
 /// an absolute, not a relative, error (below `2^-149`); the smallest normal float covers it.
 pub const TINY: f32 = f32::MIN_POSITIVE;
+
+/// The entry distance `near` lowered by [`WIDEN`] and [`TINY`] with one fused multiply-add
+/// (`near - |near| WIDEN`, rounded once, then `- TINY`): the 8- and 16-wide tests' widening
+/// (module docs).
+#[inline(always)]
+pub fn lowered(near: f32) -> f32 {
+    near.abs().mul_add(-WIDEN, near) - TINY
+}
+
+/// The exit distance `far` raised by [`WIDEN`] and [`TINY`] with one fused multiply-add: the
+/// 8- and 16-wide tests' widening (module docs).
+#[inline(always)]
+pub fn raised(far: f32) -> f32 {
+    far.abs().mul_add(WIDEN, far) + TINY
+}
+
+/// The entry distance `near` lowered by [`WIDEN`] and [`TINY`], each operation rounded: the
+/// 4-wide SSE test's widening (SSE has no fused multiply-add).
+#[inline(always)]
+pub fn lowered_unfused(near: f32) -> f32 {
+    near - (near.abs() * WIDEN + TINY)
+}
+
+/// The exit distance `far` raised by [`WIDEN`] and [`TINY`], each operation rounded: the
+/// 4-wide SSE test's widening.
+#[inline(always)]
+pub fn raised_unfused(far: f32) -> f32 {
+    far + (far.abs() * WIDEN + TINY)
+}
 
 /// The traversal loops of one tree, leaf test and node test, as a node test's entry points
 /// ([`BoxTest::closest`], [`BoxTest::any`]) run them: `crate::Traversal` implements it.
@@ -118,7 +158,8 @@ impl RayBoxes {
 }
 
 /// The `W` children's box test, scalar: lane by lane the arithmetic of every SIMD test,
-/// NaN dropped by an explicit test (module docs).
+/// NaN dropped by an explicit test, widened fused or not as the width's SIMD test does
+/// ([`NodeWidth::FUSED`], module docs).
 #[inline(always)]
 pub fn hit_scalar<const W: usize>(node: &Node<W>, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; W])
 where
@@ -140,8 +181,11 @@ where
                 far = if f < far { f } else { far };
             }
         }
-        let near = near - (near.abs() * WIDEN + TINY);
-        let far = far + (far.abs() * WIDEN + TINY);
+        let (near, far) = if <Width<W> as NodeWidth>::FUSED {
+            (lowered(near), raised(far))
+        } else {
+            (lowered_unfused(near), raised_unfused(far))
+        };
         if near <= far {
             mask |= 1 << i;
         }

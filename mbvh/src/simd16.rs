@@ -7,9 +7,11 @@
 //! / `vminps` on 512-bit registers return their second operand when either is NaN, as on
 //! 128 and 256 bits), then the entry lowered and the exit raised by `WIDEN` and `TINY`, and
 //! one ordered `<=` compare into a k-mask (`vcmpps k, _CMP_LE_OQ`), which is the hit mask
-//! itself (bit `i` for slot `i`). No fused multiply-add: every lane rounds as
-//! [`crate::boxtest::hit_scalar`] does, so the AVX-512 test and its twin give the same mask
-//! and distances bit for bit (`tests/twins.rs`).
+//! itself (bit `i` for slot `i`). The widening is one fused multiply-add and one addition
+//! each (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and
+//! [`crate::boxtest::raised`]); every lane rounds as [`crate::boxtest::hit_scalar`] does, so
+//! the AVX-512 test and its twin give the same mask and distances bit for bit
+//! (`tests/twins.rs`).
 //!
 //! **AVX-512 is chosen at run time**, as AVX2 is in [`crate::simd8`]: [`Avx512::detect`]
 //! asks the CPU once (AVX-512 F and VL, with the AVX2, FMA, BMI1/2, POPCNT and LZCNT the
@@ -33,13 +35,14 @@ use crate::boxtest::{TINY, WIDEN};
 use crate::node::Node16;
 
 /// The sixteen children's box test in AVX-512 (512-bit `vsubps`, `vmulps`, `vmaxps`,
-/// `vminps`, `vandps` for the absolute values, and one `vcmpps` into a k-mask).
+/// `vminps`, `vandps` for the absolute values, `vfnmadd` / `vfmadd` for the widening, and one
+/// `vcmpps` into a k-mask).
 ///
 /// # Safety
-/// The CPU must have AVX-512 F: call it where an [`Avx512`] token exists (or from a function
-/// compiled for AVX-512 F).
+/// The CPU must have AVX-512 F (which implies FMA): call it where an [`Avx512`] token exists
+/// (or from a function compiled for AVX-512 F).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,fma")]
 #[inline]
 pub fn hit16_avx512(node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
     use std::arch::x86_64::*;
@@ -61,9 +64,10 @@ pub fn hit16_avx512(node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32
         far = _mm512_min_ps(f, far);
     }
     let (widen, tiny) = (_mm512_set1_ps(WIDEN), _mm512_set1_ps(TINY));
-    // `_mm512_abs_ps` clears the sign bit, as `f32::abs` does.
-    let near = _mm512_sub_ps(near, _mm512_add_ps(_mm512_mul_ps(_mm512_abs_ps(near), widen), tiny));
-    let far = _mm512_add_ps(far, _mm512_add_ps(_mm512_mul_ps(_mm512_abs_ps(far), widen), tiny));
+    // `_mm512_abs_ps` clears the sign bit, as `f32::abs` does; `boxtest::lowered` / `raised`:
+    // `near - |near| WIDEN` rounded once, then `TINY`.
+    let near = _mm512_sub_ps(_mm512_fnmadd_ps(_mm512_abs_ps(near), widen, near), tiny);
+    let far = _mm512_add_ps(_mm512_fmadd_ps(_mm512_abs_ps(far), widen, far), tiny);
     let mask = u32::from(_mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, far));
     let mut nears = Lanes::<16>::splat(0.0);
     // SAFETY: a `Lanes<16>` is sixteen `f32` aligned to 64 bytes.
@@ -245,7 +249,7 @@ mod tests {
     /// ordered less-or-equal, not less-than), in every slot.
     #[test]
     fn an_interval_widened_to_a_point_is_entered() {
-        use crate::boxtest::{TINY, WIDEN};
+        use crate::boxtest::{lowered, raised};
 
         let Some(avx) = token() else { return };
         let everything = Aabb { min: Vec3::NEG_INFINITY, max: Vec3::INFINITY };
@@ -253,12 +257,12 @@ mod tests {
         let mut found = 0;
         for k in 1..200u32 {
             let b = k as f32 * 0.731;
-            let raised = b + (b.abs() * WIDEN + TINY);
+            let up = raised(b);
             // The floats above `b` whose lowered value is `b` raised.
             let mut a = b;
             for _ in 0..64 {
                 a = f32::from_bits(a.to_bits() + 1);
-                if a - (a.abs() * WIDEN + TINY) == raised {
+                if lowered(a) == up {
                     // The box is all of space: only the interval bounds the ray.
                     let ray = Ray::new(Vec3::ZERO, Vec3::X, a, b);
                     assert_eq!(check(avx, &n, &ray), 0xffff, "{ray:?}");

@@ -5,14 +5,15 @@
 //! twin [`Scalar8`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
 //! candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator
 //! (`vmaxps` returns its second operand when either is NaN, like `maxps`), then the entry
-//! lowered and the exit raised by `WIDEN` and `TINY`. No fused multiply-add: every lane
-//! rounds as [`crate::boxtest::hit_scalar`] does, so the AVX2 test and its twin give the same mask and
-//! distances bit for bit (`tests/twins.rs`).
+//! lowered and the exit raised by `WIDEN` and `TINY` with one fused multiply-add each
+//! (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and [`crate::boxtest::raised`]):
+//! every lane rounds as [`crate::boxtest::hit_scalar`] does, so the AVX2 test and its twin
+//! give the same mask and distances bit for bit (`tests/twins.rs`).
 //!
 //! **AVX2 is chosen at run time.** [`Avx2::detect`] asks the CPU once
-//! (`is_x86_feature_detected!("avx2")`) and returns a token only where it has AVX2; a
+//! (`is_x86_feature_detected!` for AVX2 and FMA) and returns a token only where it has both; a
 //! traversal made with the token ([`crate::Traversal::with_test`]) runs its whole loop in a
-//! `#[target_feature(enable = "avx2")]` function (so the node test inlines into it), and no
+//! `#[target_feature(enable = "avx2,fma")]` function (so the node test inlines into it), and no
 //! check is made per ray. Without the token, or on another architecture, the 8-wide tree is
 //! traversed with [`Scalar8`]. On this project's CPU (AMD Zen 1) every 256-bit operation is
 //! executed as two 128-bit halves, so one 8-wide node test costs about two 4-wide ones; what
@@ -31,13 +32,13 @@ use crate::boxtest::{TINY, WIDEN};
 use crate::node::Node8;
 
 /// The eight children's box test in AVX2 (256-bit `vsubps`, `vmulps`, `vmaxps`, `vminps`,
-/// one `vcmpps` and `vmovmskps`).
+/// `vfnmadd` / `vfmadd` for the widening, one `vcmpps` and `vmovmskps`).
 ///
 /// # Safety
-/// The CPU must have AVX2: call it where an [`Avx2`] token exists (or from a function
-/// compiled for AVX2).
+/// The CPU must have AVX2 and FMA: call it where an [`Avx2`] token exists (or from a
+/// function compiled for both).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 #[inline]
 pub fn hit8_avx2(node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
     use std::arch::x86_64::*;
@@ -60,8 +61,9 @@ pub fn hit8_avx2(node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f
     }
     let sign = _mm256_set1_ps(-0.0);
     let (widen, tiny) = (_mm256_set1_ps(WIDEN), _mm256_set1_ps(TINY));
-    let near = _mm256_sub_ps(near, _mm256_add_ps(_mm256_mul_ps(_mm256_andnot_ps(sign, near), widen), tiny));
-    let far = _mm256_add_ps(far, _mm256_add_ps(_mm256_mul_ps(_mm256_andnot_ps(sign, far), widen), tiny));
+    // `boxtest::lowered` / `raised`: `near - |near| WIDEN` rounded once, then `TINY`.
+    let near = _mm256_sub_ps(_mm256_fnmadd_ps(_mm256_andnot_ps(sign, near), widen, near), tiny);
+    let far = _mm256_add_ps(_mm256_fmadd_ps(_mm256_andnot_ps(sign, far), widen, far), tiny);
     let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
     let mut nears = Lanes::<8>::splat(0.0);
     // SAFETY: a `Lanes<8>` is eight `f32` aligned to 32 bytes.
@@ -70,19 +72,22 @@ pub fn hit8_avx2(node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f
 }
 
 /// The AVX2 box test ([`hit8_avx2`]), as a token: made only by [`Avx2::detect`] on a CPU
-/// with AVX2, so a traversal holding one may run AVX2 instructions.
+/// with AVX2 and FMA, so a traversal holding one may run those instructions.
 #[derive(Clone, Copy, Debug)]
 pub struct Avx2 {
     _detected: (),
 }
 
 impl Avx2 {
-    /// The token if this CPU has AVX2 (`is_x86_feature_detected!`) and the SIMD level is not
+    /// The token if this CPU has AVX2 and FMA (`is_x86_feature_detected!`) and the SIMD level is not
     /// capped below it (`kdtree::isa::SimdLevel::active`, `rttest --simd`), else `None`
     /// (always on architectures other than x86-64). Call it once, when a traversal is set up.
     pub fn detect() -> Option<Avx2> {
         #[cfg(target_arch = "x86_64")]
-        if kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx2) && is_x86_feature_detected!("avx2") {
+        if kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx2)
+            && is_x86_feature_detected!("avx2")
+            && is_x86_feature_detected!("fma")
+        {
             return Some(Avx2 { _detected: () });
         }
         None
@@ -129,28 +134,28 @@ mod avx2 {
 
     #[inline(always)]
     pub(super) fn hit(_: Avx2, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
-        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 on this CPU.
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 and FMA on this CPU.
         unsafe { hit8_avx2(node, r, t_min, t_max) }
     }
 
     #[inline(always)]
     pub(super) fn closest<L: TraversalLoop, C: Counters>(_: Avx2, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
-        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 on this CPU.
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 and FMA on this CPU.
         unsafe { closest_avx2(l, ray, counters) }
     }
 
     #[inline(always)]
     pub(super) fn any<L: TraversalLoop, C: Counters>(_: Avx2, l: &L, ray: &Ray, counters: &mut C) -> bool {
-        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 on this CPU.
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 and FMA on this CPU.
         unsafe { any_avx2(l, ray, counters) }
     }
 
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     fn closest_avx2<L: TraversalLoop, C: Counters>(l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
         l.closest(ray, counters)
     }
 
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     fn any_avx2<L: TraversalLoop, C: Counters>(l: &L, ray: &Ray, counters: &mut C) -> bool {
         l.any(ray, counters)
     }
