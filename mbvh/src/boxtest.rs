@@ -30,12 +30,16 @@
 //! Every SIMD test does the same operations in the same order as the scalar test, so it
 //! gives the scalar test's masks and entry distances bit for bit (`tests/twins.rs`).
 //!
-//! **The widening, fused where the instruction set has it** ([`NodeWidth::FUSED`]). The
-//! 8- and 16-wide tests (AVX2 with FMA, AVX-512) widen with one fused multiply-add and one
-//! addition ([`lowered`], [`raised`]: `fma(-|t|, WIDEN, t) - TINY`), the 4-wide SSE test with
-//! a product and two additions ([`lowered_unfused`], [`raised_unfused`]); the scalar twin of
-//! each width does what its SIMD test does (`f32::mul_add`, a correctly rounded fused
-//! multiply-add on every CPU). The fused form rounds twice instead of three times, so it
+//! **The widening, fused where the instruction set has it.** The 8- and 16-wide tests (AVX2
+//! with FMA, AVX-512) widen with one fused multiply-add and one addition ([`lowered`],
+//! [`raised`]: `fma(-|t|, WIDEN, t) - TINY`), the 4-wide SSE test with a product and two
+//! additions ([`lowered_unfused`], [`raised_unfused`]). Each SIMD test's twin does what it
+//! does: [`FusedScalar8`] and [`FusedScalar16`] (`f32::mul_add`, a correctly rounded fused
+//! multiply-add on every CPU, but a software routine where the CPU has none) for the fused
+//! ones. The portable test a tree falls back to without its SIMD test ([`Scalar8`],
+//! [`Scalar16`]) is unfused: a software `fmaf` per lane made that fallback 2-2.4x slower. The
+//! two portable forms may order a node's children differently by a rounding, never cull what
+//! the other enters beyond it: both are conservative. The fused form rounds twice instead of three times, so it
 //! lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
 //! `gamma_3`, the error of the distance itself); it takes one operation off the node step's
 //! critical path, where the single-ray traversal spends its time waiting
@@ -158,10 +162,15 @@ impl RayBoxes {
 }
 
 /// The `W` children's box test, scalar: lane by lane the arithmetic of every SIMD test,
-/// NaN dropped by an explicit test, widened fused or not as the width's SIMD test does
-/// ([`NodeWidth::FUSED`], module docs).
+/// NaN dropped by an explicit test, widened with a fused multiply-add (`FUSED`, as the 8- and
+/// 16-wide SIMD tests do) or without (module docs).
 #[inline(always)]
-pub fn hit_scalar<const W: usize>(node: &Node<W>, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; W])
+pub fn hit_scalar<const W: usize, const FUSED: bool>(
+    node: &Node<W>,
+    r: &RayBoxes,
+    t_min: f32,
+    t_max: f32,
+) -> (u32, [f32; W])
 where
     Width<W>: NodeWidth,
 {
@@ -181,11 +190,8 @@ where
                 far = if f < far { f } else { far };
             }
         }
-        let (near, far) = if <Width<W> as NodeWidth>::FUSED {
-            (lowered(near), raised(far))
-        } else {
-            (lowered_unfused(near), raised_unfused(far))
-        };
+        let (near, far) =
+            if FUSED { (lowered(near), raised(far)) } else { (lowered_unfused(near), raised_unfused(far)) };
         if near <= far {
             mask |= 1 << i;
         }
@@ -194,30 +200,37 @@ where
     (mask, nears)
 }
 
-/// [`hit_scalar`] as a [`BoxTest`]: the portable test of every width (on every CPU) and the
-/// scalar twin of each SIMD test.
+/// [`hit_scalar`] as a [`BoxTest`]: with `FUSED = false` the portable test of every width (on
+/// every CPU) and the twin of [`crate::Simd4`]; with `FUSED = true` the twin of the fused
+/// SIMD tests ([`crate::Avx2`], [`crate::Avx512`]).
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Scalar<const W: usize>;
+pub struct Scalar<const W: usize, const FUSED: bool = false>;
 
-/// The scalar twin of [`crate::Simd4`].
+/// The 4-wide tree's portable test and the scalar twin of [`crate::Simd4`].
 pub type Scalar4 = Scalar<4>;
 
-/// The 8-wide tree's portable test and the scalar twin of [`crate::Avx2`].
+/// The 8-wide tree's portable test (unfused widening).
 pub type Scalar8 = Scalar<8>;
 
-/// The 16-wide tree's portable test and the scalar twin of [`crate::Avx512`].
+/// The 16-wide tree's portable test (unfused widening).
 pub type Scalar16 = Scalar<16>;
 
-impl<const W: usize> BoxTest for Scalar<W>
+/// The scalar twin of [`crate::Avx2`] (fused widening).
+pub type FusedScalar8 = Scalar<8, true>;
+
+/// The scalar twin of [`crate::Avx512`] (fused widening).
+pub type FusedScalar16 = Scalar<16, true>;
+
+impl<const W: usize, const FUSED: bool> BoxTest for Scalar<W, FUSED>
 where
     Width<W>: NodeWidth,
 {
     type Node = Node<W>;
     type RayData = RayBoxes;
     type Nears = [f32; W];
-    type Twin = Scalar<W>;
+    type Twin = Scalar<W, FUSED>;
 
-    fn twin(self) -> Scalar<W> {
+    fn twin(self) -> Scalar<W, FUSED> {
         self
     }
 
@@ -228,7 +241,7 @@ where
 
     #[inline(always)]
     fn hit(self, node: &Node<W>, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; W]) {
-        hit_scalar(node, r, t_min, t_max)
+        hit_scalar::<W, FUSED>(node, r, t_min, t_max)
     }
 }
 
@@ -341,11 +354,11 @@ mod tests {
     /// The mask of `boxes` at width `W`, after checking it (at every width) against an
     /// exact-enough reference: a box the segment enters, sampled densely in f64, is never
     /// culled.
-    fn conservative<const W: usize>(boxes: &[Aabb], ray: &Ray) -> Result<u32, TestCaseError>
+    fn conservative<const W: usize, const FUSED: bool>(boxes: &[Aabb], ray: &Ray) -> Result<u32, TestCaseError>
     where
         Width<W>: NodeWidth,
     {
-        let m = check(Scalar::<W>, &node::<W>(boxes), ray);
+        let m = check(Scalar::<W, FUSED>, &node::<W>(boxes), ray);
         let (o, d) = (ray.origin, ray.dir);
         for (i, b) in boxes.iter().enumerate() {
             let inside =
@@ -376,21 +389,29 @@ mod tests {
             prop_assume!(d != Vec3::ZERO);
             let o = Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32) * 0.5;
             let ray = Ray::new(o, d, t_min, t_max);
-            let m16 = conservative::<16>(&boxes, &ray)?;
-            let r = RayBoxes::new(&ray);
-            let (_, n16) = hit_scalar(&node::<16>(&boxes), &r, t_min, t_max);
-            for chunk in 0..boxes.len().div_ceil(8) {
-                let part = &boxes[8 * chunk..boxes.len().min(8 * chunk + 8)];
-                let m8 = conservative::<8>(part, &ray)?;
-                let (_, n8) = hit_scalar(&node::<8>(part), &r, t_min, t_max);
-                prop_assert_eq!(m8, (m16 >> (8 * chunk)) & ((1 << part.len()) - 1));
-                for (i, near) in n8.iter().enumerate().take(part.len()) {
-                    prop_assert_eq!(near.to_bits(), n16[8 * chunk + i].to_bits());
-                }
-                let part = &part[..part.len().min(4)];
-                let m4 = conservative::<4>(part, &ray)?;
-                prop_assert_eq!(m4, m8 & ((1 << part.len()) - 1));
-            }
+            every_width::<false>(&boxes, &ray)?;
+            every_width::<true>(&boxes, &ray)?;
         }
+    }
+
+    /// The body of the property above for one widening form (fused or not).
+    fn every_width<const FUSED: bool>(boxes: &[Aabb], ray: &Ray) -> Result<(), TestCaseError> {
+        let (t_min, t_max) = (ray.t_min, ray.t_max);
+        let m16 = conservative::<16, FUSED>(boxes, ray)?;
+        let r = RayBoxes::new(ray);
+        let (_, n16) = hit_scalar::<16, FUSED>(&node::<16>(boxes), &r, t_min, t_max);
+        for chunk in 0..boxes.len().div_ceil(8) {
+            let part = &boxes[8 * chunk..boxes.len().min(8 * chunk + 8)];
+            let m8 = conservative::<8, FUSED>(part, ray)?;
+            let (_, n8) = hit_scalar::<8, FUSED>(&node::<8>(part), &r, t_min, t_max);
+            prop_assert_eq!(m8, (m16 >> (8 * chunk)) & ((1 << part.len()) - 1));
+            for (i, near) in n8.iter().enumerate().take(part.len()) {
+                prop_assert_eq!(near.to_bits(), n16[8 * chunk + i].to_bits());
+            }
+            let part = &part[..part.len().min(4)];
+            let m4 = conservative::<4, FUSED>(part, ray)?;
+            prop_assert_eq!(m4, m8 & ((1 << part.len()) - 1));
+        }
+        Ok(())
     }
 }

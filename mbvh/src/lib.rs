@@ -18,7 +18,8 @@
 //!   traversal see it.
 //! - [`boxtest`]: the conservative slab test (section 5.2): [`BoxTest`] (a node test as a
 //!   value, with its scalar twin and the traversal's entry points) and the portable scalar
-//!   test of every width, [`Scalar<W>`], the twin of every SIMD test.
+//!   test of every width, [`Scalar<W>`], the twin of every SIMD test (with fused widening,
+//!   [`FusedScalar8`] and [`FusedScalar16`], for the AVX2 and AVX-512 tests).
 //! - [`simd4`]: [`Simd4`], the 4-wide test in SSE (glam's `Vec4`).
 //! - [`simd8`]: [`Avx2`], the 8-wide test in AVX2, a token chosen at run time.
 //! - [`simd16`]: [`Avx512`], the paper's 16-wide test in AVX-512 (one 512-bit register per
@@ -75,7 +76,7 @@ use kdtree::Aabb;
 use kdtree::triangle::{WaldTriangle, WatertightTriangle, is_degenerate};
 use rayon::prelude::*;
 
-pub use boxtest::{BoxTest, Scalar, Scalar4, Scalar8, Scalar16};
+pub use boxtest::{BoxTest, FusedScalar8, FusedScalar16, Scalar, Scalar4, Scalar8, Scalar16};
 pub use build::{BuildError, SpatialSplits};
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
 pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, Node16, NodeWidth, Width};

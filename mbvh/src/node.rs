@@ -51,11 +51,6 @@ pub trait NodeWidth {
     type Align: Copy + Debug + Default + Send + Sync + 'static;
     /// The traversal's stack of entries `T`: [`stack_capacity`]`(W)` of them, uninitialised.
     type Stack<T: Copy>: StackArray<T>;
-    /// Whether this width's SIMD node test widens its distances with a fused multiply-add
-    /// (`crate::boxtest::lowered`, `raised`; the 8- and 16-wide tests, whose AVX2 + FMA and
-    /// AVX-512 have it) or with separately rounded operations (the 4-wide SSE test). The
-    /// scalar twin follows it, so every test and its twin give the same bits.
-    const FUSED: bool;
 }
 
 /// Zero-sized, 16-byte aligned: the lanes of a 4-wide node (one SSE register).
@@ -76,19 +71,16 @@ pub struct Align64;
 impl NodeWidth for Width<4> {
     type Align = Align16;
     type Stack<T: Copy> = [MaybeUninit<T>; stack_capacity(4)];
-    const FUSED: bool = false;
 }
 
 impl NodeWidth for Width<8> {
     type Align = Align32;
     type Stack<T: Copy> = [MaybeUninit<T>; stack_capacity(8)];
-    const FUSED: bool = true;
 }
 
 impl NodeWidth for Width<16> {
     type Align = Align64;
     type Stack<T: Copy> = [MaybeUninit<T>; stack_capacity(16)];
-    const FUSED: bool = true;
 }
 
 /// A traversal stack's storage: a fixed array left uninitialised (only the entries below the

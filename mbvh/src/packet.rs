@@ -97,10 +97,9 @@ const STACK: usize = stack_capacity(8);
 #[repr(C, align(64))]
 pub struct Row(pub [f32; PACKET]);
 
-/// The operations of the packet's box test on 16 lanes, each rounding as the scalar test
-/// does (one fused multiply-add, [`Lanes::mul_add`], for the widening, as the 8-wide
-/// single-ray test widens: `crate::boxtest::lowered`). Implemented by [`Row`] and, on
-/// x86-64, by an AVX-512 register; both give the same bits.
+/// The operations of the packet's box test on 16 lanes, each rounding once as the scalar
+/// test does (no fused multiply-add). Implemented by [`Row`] and, on x86-64, by an AVX-512
+/// register; both give the same bits.
 pub trait Lanes: Copy {
     /// `x` in every lane.
     fn splat(x: f32) -> Self;
@@ -114,8 +113,6 @@ pub trait Lanes: Copy {
     fn add(self, b: Self) -> Self;
     /// `self * b`.
     fn mul(self, b: Self) -> Self;
-    /// `self * b + c`, rounded once (fused multiply-add).
-    fn mul_add(self, b: Self, c: Self) -> Self;
     /// `self > b ? self : b` per lane (`vmaxps`: `b` where either is NaN).
     fn max(self, b: Self) -> Self;
     /// `self < b ? self : b` per lane (`vminps`: `b` where either is NaN).
@@ -163,11 +160,6 @@ impl Lanes for Row {
     #[inline(always)]
     fn mul(self, b: Row) -> Row {
         Row(std::array::from_fn(|i| self.0[i] * b.0[i]))
-    }
-
-    #[inline(always)]
-    fn mul_add(self, b: Row, c: Row) -> Row {
-        Row(std::array::from_fn(|i| self.0[i].mul_add(b.0[i], c.0[i])))
     }
 
     #[inline(always)]
@@ -410,7 +402,7 @@ fn leaf_data<B: LeafBlock>(rays: &[Ray], active: u16) -> [B::RayData; PACKET] {
 }
 
 /// Slot `i` of `node` against every lane: the lanes whose `[t_min, t_far]` enters the box and
-/// the widened entry distances, lane for lane [`crate::boxtest::hit_scalar`]'s arithmetic.
+/// the widened entry distances, lane for lane [`crate::boxtest::hit_scalar`]'s unfused arithmetic (as [`crate::Scalar8`]).
 #[inline(always)]
 fn child_test<V: Lanes>(node: &Node8, i: usize, p: &Packet<V>, t_far: V) -> (u16, V) {
     let mut near = p.t_min;
@@ -426,10 +418,9 @@ fn child_test<V: Lanes>(node: &Node8, i: usize, p: &Packet<V>, t_far: V) -> (u16
         near = n.max(near);
         far = f.min(far);
     }
-    // `boxtest::lowered` / `raised`, the 8-wide tree's widening: one fused multiply-add each.
     let (widen, tiny) = (V::splat(WIDEN), V::splat(TINY));
-    let near = near.abs().mul_add(V::splat(-WIDEN), near).sub(tiny);
-    let far = far.abs().mul_add(widen, far).add(tiny);
+    let near = near.sub(near.abs().mul(widen).add(tiny));
+    let far = far.add(far.abs().mul(widen).add(tiny));
     (near.le(far), near)
 }
 
@@ -841,11 +832,6 @@ mod zmm {
         #[inline(always)]
         fn mul(self, b: Zmm) -> Zmm {
             Zmm(unsafe { _mm512_mul_ps(self.0, b.0) })
-        }
-
-        #[inline(always)]
-        fn mul_add(self, b: Zmm, c: Zmm) -> Zmm {
-            Zmm(unsafe { _mm512_fmadd_ps(self.0, b.0, c.0) })
         }
 
         #[inline(always)]

@@ -2,7 +2,7 @@
 //! (section 5.2: one 16-wide SIMD register per box coordinate, a node's sixteen children
 //! tested at once): [`crate::boxtest`]'s slab test on a [`Node16`], one 512-bit register per
 //! box coordinate, with the same arithmetic in the same order as its scalar twin
-//! [`Scalar16`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
+//! [`crate::boxtest::FusedScalar16`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
 //! candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator (`vmaxps`
 //! / `vminps` on 512-bit registers return their second operand when either is NaN, as on
 //! 128 and 256 bits), then the entry lowered and the exit raised by `WIDEN` and `TINY`, and
@@ -19,7 +19,8 @@
 //! --simd`), and returns a token only where both allow it; a traversal made with the token
 //! ([`crate::Traversal::with_test`]) runs its whole loop in a function compiled for those
 //! features (so the node test inlines into it), and no check is made per ray. Without the
-//! token, or on another architecture, the 16-wide tree is traversed with [`Scalar16`].
+//! token, or on another architecture, the 16-wide tree is traversed with [`crate::Scalar16`]
+//! (the unfused portable test).
 //!
 //! The traversal is the one loop of every width ([`crate::traverse`]): the entered children
 //! are taken from the mask bit by bit (`tzcnt`, `blsr`) and insertion-sorted onto the stack,
@@ -29,7 +30,7 @@
 
 use kdtree::{Counters, Hit, Ray};
 
-use crate::boxtest::{BoxTest, RayBoxes, Scalar16, TraversalLoop};
+use crate::boxtest::{BoxTest, FusedScalar16, RayBoxes, TraversalLoop};
 #[cfg(target_arch = "x86_64")]
 use crate::boxtest::{TINY, WIDEN};
 use crate::node::Node16;
@@ -110,10 +111,10 @@ impl BoxTest for Avx512 {
     type Node = Node16;
     type RayData = RayBoxes;
     type Nears = [f32; 16];
-    type Twin = Scalar16;
+    type Twin = FusedScalar16;
 
-    fn twin(self) -> Scalar16 {
-        Scalar16::default()
+    fn twin(self) -> FusedScalar16 {
+        FusedScalar16::default()
     }
 
     #[inline(always)]
@@ -181,7 +182,7 @@ mod avx512 {
     use super::*;
 
     pub(super) fn hit(_: Avx512, node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
-        crate::boxtest::hit_scalar(node, r, t_min, t_max)
+        crate::boxtest::hit_scalar::<16, true>(node, r, t_min, t_max)
     }
 
     pub(super) fn closest<L: TraversalLoop, C: Counters>(_: Avx512, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {

@@ -2,7 +2,7 @@
 //! branching factor their section 6.4 finds best by the cost metric, "somewhere between 4
 //! and 8"): [`crate::boxtest`]'s slab test, one 256-bit register per box coordinate of a
 //! [`Node8`]'s eight children, with the same arithmetic in the same order as its scalar
-//! twin [`Scalar8`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
+//! twin [`crate::boxtest::FusedScalar8`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
 //! candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator
 //! (`vmaxps` returns its second operand when either is NaN, like `maxps`), then the entry
 //! lowered and the exit raised by `WIDEN` and `TINY` with one fused multiply-add each
@@ -15,7 +15,7 @@
 //! traversal made with the token ([`crate::Traversal::with_test`]) runs its whole loop in a
 //! `#[target_feature(enable = "avx2,fma")]` function (so the node test inlines into it), and no
 //! check is made per ray. Without the token, or on another architecture, the 8-wide tree is
-//! traversed with [`Scalar8`]. On this project's CPU (AMD Zen 1) every 256-bit operation is
+//! traversed with [`crate::Scalar8`] (the unfused portable test). On this project's CPU (AMD Zen 1) every 256-bit operation is
 //! executed as two 128-bit halves, so one 8-wide node test costs about two 4-wide ones; what
 //! the wider node can save is node fetches and traversal steps, not arithmetic.
 //!
@@ -26,7 +26,7 @@
 
 use kdtree::{Counters, Hit, Ray};
 
-use crate::boxtest::{BoxTest, RayBoxes, Scalar8, TraversalLoop};
+use crate::boxtest::{BoxTest, FusedScalar8, RayBoxes, TraversalLoop};
 #[cfg(target_arch = "x86_64")]
 use crate::boxtest::{TINY, WIDEN};
 use crate::node::Node8;
@@ -98,10 +98,10 @@ impl BoxTest for Avx2 {
     type Node = Node8;
     type RayData = RayBoxes;
     type Nears = [f32; 8];
-    type Twin = Scalar8;
+    type Twin = FusedScalar8;
 
-    fn twin(self) -> Scalar8 {
-        Scalar8::default()
+    fn twin(self) -> FusedScalar8 {
+        FusedScalar8::default()
     }
 
     #[inline(always)]
@@ -168,7 +168,7 @@ mod avx2 {
     use super::*;
 
     pub(super) fn hit(_: Avx2, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
-        crate::boxtest::hit_scalar(node, r, t_min, t_max)
+        crate::boxtest::hit_scalar::<8, true>(node, r, t_min, t_max)
     }
 
     pub(super) fn closest<L: TraversalLoop, C: Counters>(_: Avx2, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
