@@ -38,9 +38,9 @@
 //! multiply-add on every CPU, but a software routine where the CPU has none) for the fused
 //! ones. The portable test a tree falls back to without its SIMD test ([`Scalar8`],
 //! [`Scalar16`]) is unfused: a software `fmaf` per lane made that fallback 2-2.4x slower. The
-//! two portable forms may order a node's children differently by a rounding, never cull what
-//! the other enters beyond it: both are conservative. The fused form rounds twice instead of three times, so it
-//! lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
+//! two forms can differ in the last bit of an entry distance, and so order two equally near
+//! children differently; both are conservative. The fused form rounds twice instead of three
+//! times, so it lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
 //! `gamma_3`, the error of the distance itself); it takes one operation off the node step's
 //! critical path, where the single-ray traversal spends its time waiting
 //! (`docs/results/incoherent-mbvh.md#fused-widening`).
