@@ -32,18 +32,18 @@
 //!
 //! **The widening, fused where the instruction set has it.** The 8- and 16-wide tests (AVX2
 //! with FMA, AVX-512) widen with one fused multiply-add and one addition ([`lowered`],
-//! [`raised`]: `fma(-|t|, WIDEN, t) - TINY`), the 4-wide SSE test with a product and two
-//! additions ([`lowered_unfused`], [`raised_unfused`]). Each SIMD test's twin does what it
-//! does: [`FusedScalar8`] and [`FusedScalar16`] (`f32::mul_add`, a correctly rounded fused
-//! multiply-add on every CPU, but a software routine where the CPU has none) for the fused
-//! ones. The portable test a tree falls back to without its SIMD test ([`Scalar8`],
-//! [`Scalar16`]) is unfused: a software `fmaf` per lane made that fallback 2-2.4x slower. The
-//! two forms can differ in the last bit of an entry distance, and so order two equally near
-//! children differently; both are conservative. The fused form rounds twice instead of three
-//! times, so it lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
+//! [`raised`]: `fma(-|t|, WIDEN, t) - TINY`); their twins are [`FusedScalar8`] and
+//! [`FusedScalar16`] (`f32::mul_add`, correctly rounded on every CPU, a software routine
+//! where the CPU has no FMA). Everything else widens unfused, a product and two additions
+//! ([`lowered_unfused`], [`raised_unfused`], lane for lane): the 4-wide SSE test, the
+//! 16-ray packet test, and the portable tests a tree falls back to without its SIMD test
+//! ([`Scalar8`], [`Scalar16`]), where a software `fmaf` per lane would cost more than the
+//! operation it saves (`docs/results/incoherent-mbvh.md#fused-widening`). The two forms can
+//! differ in the last bit of an entry distance, and so order two equally near children
+//! differently; both are conservative. The fused form rounds twice instead of three times,
+//! so it lowers and raises by at least what the unfused form's bound asks (`WIDEN` is twice
 //! `gamma_3`, the error of the distance itself); it takes one operation off the node step's
-//! critical path, where the single-ray traversal spends its time waiting
-//! (`docs/results/incoherent-mbvh.md#fused-widening`).
+//! critical path, where the single-ray traversal spends its time waiting.
 
 use std::fmt::Debug;
 use std::ops::Index;
@@ -76,14 +76,14 @@ pub fn raised(far: f32) -> f32 {
 }
 
 /// The entry distance `near` lowered by [`WIDEN`] and [`TINY`], each operation rounded: the
-/// 4-wide SSE test's widening (SSE has no fused multiply-add).
+/// unfused widening (module docs), which the SSE, portable and packet tests do lane for lane.
 #[inline(always)]
 pub fn lowered_unfused(near: f32) -> f32 {
     near - (near.abs() * WIDEN + TINY)
 }
 
 /// The exit distance `far` raised by [`WIDEN`] and [`TINY`], each operation rounded: the
-/// 4-wide SSE test's widening.
+/// unfused widening (module docs).
 #[inline(always)]
 pub fn raised_unfused(far: f32) -> f32 {
     far + (far.abs() * WIDEN + TINY)

@@ -402,7 +402,8 @@ fn leaf_data<B: LeafBlock>(rays: &[Ray], active: u16) -> [B::RayData; PACKET] {
 }
 
 /// Slot `i` of `node` against every lane: the lanes whose `[t_min, t_far]` enters the box and
-/// the widened entry distances, lane for lane [`crate::boxtest::hit_scalar`]'s unfused arithmetic (as [`crate::Scalar8`]).
+/// the widened entry distances, lane for lane [`crate::boxtest::hit_scalar`]'s unfused
+/// arithmetic (as [`crate::Scalar8`]).
 #[inline(always)]
 fn child_test<V: Lanes>(node: &Node8, i: usize, p: &Packet<V>, t_far: V) -> (u16, V) {
     let mut near = p.t_min;

@@ -2,8 +2,8 @@
 //! branching factor their section 6.4 finds best by the cost metric, "somewhere between 4
 //! and 8"): [`crate::boxtest`]'s slab test, one 256-bit register per box coordinate of a
 //! [`Node8`]'s eight children, with the same arithmetic in the same order as its scalar
-//! twin [`crate::boxtest::FusedScalar8`]: planes picked by the direction's sign bit, `(p - o) * (1 / d)`, the
-//! candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator
+//! twin [`crate::boxtest::FusedScalar8`]: planes picked by the direction's sign bit,
+//! `(p - o) * (1 / d)`, the candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator
 //! (`vmaxps` returns its second operand when either is NaN, like `maxps`), then the entry
 //! lowered and the exit raised by `WIDEN` and `TINY` with one fused multiply-add each
 //! (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and [`crate::boxtest::raised`]):
