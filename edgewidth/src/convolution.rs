@@ -349,61 +349,124 @@ struct Grid {
     taps: i64,
 }
 
-/// The pixels as a kernel reads them, structure of arrays: each one's point, its hard ray's
-/// answer (1 lit, 0 blocked), normal and footprint. A pixel without a hit, or whose light
-/// centre is below its horizon (its answer is the horizon's, not an occluder's), is NaN in
-/// every field and is never read. Each row has `pad` NaN pixels on both sides, as many as a
-/// kernel's lanes reach past the frame, so a row's lanes are read with no test of their own.
+/// The pixels as a kernel reads them, structure of arrays: each one's point, normal and
+/// footprint, the footprint's sign its hard ray's answer (`+` lit, `-` blocked). A pixel
+/// without a hit, or whose light centre is below its horizon (its answer is the horizon's,
+/// not an occluder's), is NaN in every field and is never read. Each field's row has `pad`
+/// NaN pixels on both sides, as many as a kernel's lanes reach past the frame, so a row's
+/// lanes are read with no test of their own; a field's right padding is the next one's left.
 #[derive(Clone, Debug)]
 struct Taps {
-    /// The entries of one padded row of one field: the frame's width and `2 pad`.
+    /// The entries of one image row: its 7 fields' rows, each `width + pad` entries, and a
+    /// final `pad`.
     row: usize,
+    /// The entries from one field's row to the next.
+    field: usize,
     pad: usize,
-    /// Row after row, each the padded rows of its 8 fields: `x`, `y`, `z`, value, normal `x`,
-    /// `y`, `z`, footprint.
+    /// Row after row, each its 7 fields' rows: `x`, `y`, `z`, normal `x`, `y`, `z`, signed
+    /// footprint.
     values: Vec<f32>,
 }
 
 impl Taps {
-    const FIELDS: usize = 8;
+    const FIELDS: usize = 7;
     const X: usize = 0;
-    const VALUE: usize = 3;
-    const NORMAL: usize = 4;
-    const FOOTPRINT: usize = 7;
+    const NORMAL: usize = 3;
+    const FOOTPRINT: usize = 6;
 
     /// The taps of `receivers` (`width` per row), rows in parallel, in `values` (overwritten).
     fn new(width: usize, receivers: &[Option<Pixel>], pad: usize, mut values: Vec<f32>) -> Taps {
-        let (w, row) = (width.max(1), width + 2 * pad);
+        let (w, field) = (width.max(1), width + pad);
+        let row = Taps::FIELDS * field + pad;
         // Every row is written (NaN first), so the buffer is resized, never cleared first.
-        values.resize(Taps::FIELDS * row * (receivers.len() / w), f32::NAN);
+        values.resize(row * (receivers.len() / w), f32::NAN);
         if values.is_empty() {
-            return Taps { row, pad, values };
+            return Taps { row, field, pad, values };
         }
-        values.par_chunks_mut(Taps::FIELDS * row).zip(receivers.par_chunks(w)).for_each(|(out, pixels)| {
+        values.par_chunks_mut(row).zip(receivers.par_chunks(w)).for_each(|(out, pixels)| {
             out.fill(f32::NAN);
             for (x, pixel) in pixels.iter().enumerate() {
                 let Some(p) = pixel else { continue };
-                let value = match p.probe {
-                    Probe::Lit(_) => 1.0,
-                    Probe::Blocked(_) => 0.0,
+                let footprint = match p.probe {
+                    Probe::Lit(_) => p.footprint.abs(),
+                    Probe::Blocked(_) => -p.footprint.abs(),
                     Probe::Done(_) => continue,
                 };
-                let fields = [p.point.x, p.point.y, p.point.z, value, p.normal.x, p.normal.y, p.normal.z, p.footprint];
+                let fields = [p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z, footprint];
                 for (k, v) in fields.into_iter().enumerate() {
-                    out[k * row + pad + x] = v;
+                    out[k * field + pad + x] = v;
                 }
             }
         });
-        Taps { row, pad, values }
+        Taps { row, field, pad, values }
     }
 
-    /// Row `y`'s fields, each `row` entries with the pixel `x` at `pad + x`.
+    /// Row `y`'s fields, each `width + 2 pad` entries with the pixel `x` at `pad + x`.
     #[inline(always)]
     fn row(&self, y: i64) -> [&[f32]; Taps::FIELDS] {
-        let start = y as usize * Taps::FIELDS * self.row;
-        std::array::from_fn(|k| &self.values[start + k * self.row..start + (k + 1) * self.row])
+        let start = y as usize * self.row;
+        std::array::from_fn(|k| &self.values[start + k * self.field..start + (k + 1) * self.field + self.pad])
     }
 }
+
+/// One row's nearest edge pixels, as [`ConvolutionFrame::new`] finds them: per pixel the
+/// squared distance in pixels to the nearest edge pixel reaching it so far, and that edge
+/// pixel's blocker (NaN: none yet). Both are padded by a vector's lanes past the row, so
+/// that a span of the row is read and written in whole vectors.
+#[derive(Debug, Default)]
+struct Nearest {
+    distances: Vec<f32>,
+    blockers: Vec<f32>,
+}
+
+impl Nearest {
+    /// A row of `width` pixels with no edge pixel yet (the buffers kept).
+    fn clear(&mut self, width: usize) {
+        let padded = width + MAX_LANES;
+        self.distances.clear();
+        self.distances.resize(padded, f32::INFINITY);
+        self.blockers.clear();
+        self.blockers.resize(padded, f32::NAN);
+    }
+
+    /// Adds the edge pixels `edges` (column, row, reach in pixels, blocker) to row `y`: each
+    /// pixel of the row within an edge pixel's reach takes its blocker where it is the nearest
+    /// so far (the earlier one on a tie). Lane `l` of a span's `j`-th vector is its pixel
+    /// `j W + l`, and pixels past the span keep what they hold; the squared distances are
+    /// whole numbers below 2^24, exact in `f32`, so every width gives the same bits.
+    #[inline(always)]
+    fn add<'e, V: SimdF32>(&mut self, edges: impl Iterator<Item = &'e (usize, usize, f32, f32)>, y: usize) {
+        const { assert!(V::LANES <= MAX_LANES, "the rows are padded by MAX_LANES") };
+        let width = self.distances.len() - MAX_LANES;
+        let lane = V::strided(&LANE, 0, 1);
+        for &(ex, ey, reach, t) in edges {
+            let dy2 = (ey.abs_diff(y) as f32).powi(2);
+            let half = reach * reach - dy2;
+            if half < 0.0 {
+                continue;
+            }
+            let half = half.sqrt() as usize;
+            let (lo, hi) = (ex.saturating_sub(half), (ex + half + 1).min(width));
+            // The offsets count in `i32`, whose conversion to `f32` is one instruction (a
+            // `usize`'s is a dozen).
+            let dx0 = -((ex - lo) as i32);
+            let (blocker, dy2) = (V::splat(t), V::splat(dy2));
+            for start in (lo..hi).step_by(V::LANES) {
+                let dx = lane + V::splat((dx0 + (start - lo) as i32) as f32);
+                let d2 = dx * dx + dy2;
+                let near = V::strided(&self.distances, start, 1);
+                let closer = d2.cmplt(near) & lane.cmplt(V::splat((hi - start) as f32));
+                let slots = start..start + V::LANES;
+                self.distances[slots.clone()].copy_from_slice(V::select(closer, d2, near).to_array().as_ref());
+                let old = V::strided(&self.blockers, start, 1);
+                self.blockers[slots].copy_from_slice(V::select(closer, blocker, old).to_array().as_ref());
+            }
+        }
+    }
+}
+
+/// The most lanes a [`SimdF32`] of the kernels has (AVX-512's 16).
+const MAX_LANES: usize = 16;
 
 impl<'a> ConvolutionFrame<'a> {
     /// A `width` x `height` frame of `receivers` (row-major) under `light`, with the blockers
@@ -451,34 +514,17 @@ impl<'a> ConvolutionFrame<'a> {
         // Every row is written (NaN first), so the buffer is resized, never cleared first.
         blockers.resize(receivers.len(), f32::NAN);
         let reach = widest.ceil() as usize;
-        blockers.par_chunks_mut(w.max(1)).enumerate().for_each_init(Vec::new, |nearest, (y, row)| {
+        let lanes = Width::for_level(SimdLevel::active());
+        blockers.par_chunks_mut(w.max(1)).enumerate().for_each_init(Nearest::default, |nearest, (y, row)| {
             row.fill(f32::NAN);
             let first = reached.partition_point(|e| e.1 + reach < y);
             let near = reached[first..].iter().take_while(|e| e.1 <= y + reach);
             if near.clone().next().is_none() {
                 return;
             }
-            nearest.clear();
-            nearest.resize(row.len(), f32::INFINITY);
-            for &(ex, ey, reach, t) in near {
-                let dy2 = (ey.abs_diff(y) as f32).powi(2);
-                let half = reach * reach - dy2;
-                if half < 0.0 {
-                    continue;
-                }
-                let half = half.sqrt() as usize;
-                let (lo, hi) = (ex.saturating_sub(half), (ex + half + 1).min(w));
-                // Branch-free, so that it compiles to vector compares and blends; the offsets
-                // count in `i32`, whose conversion to `f32` is one vector instruction (a
-                // `usize`'s is a dozen).
-                let dx0 = -((ex - lo) as i32);
-                for (dx, (slot, near)) in (dx0..).zip(row[lo..hi].iter_mut().zip(&mut nearest[lo..hi])) {
-                    let d2 = (dx as f32).powi(2) + dy2;
-                    let closer = d2 < *near;
-                    *near = if closer { d2 } else { *near };
-                    *slot = if closer { t } else { *slot };
-                }
-            }
+            nearest.clear(row.len());
+            packets::at_width!(lanes, V => nearest.add::<V>(near, y));
+            row.copy_from_slice(&nearest.blockers[..row.len()]);
         });
         // Each edge pixel takes its own blocker (its reach is at least 0), so no edge within
         // the frame means no kernel.
@@ -492,7 +538,6 @@ impl<'a> ConvolutionFrame<'a> {
             let step = (widest.ceil() as usize).div_ceil(taps);
             Taps::new(w, receivers, (taps + 16) * step, taps_buffer)
         };
-        let lanes = Width::for_level(SimdLevel::active());
         ConvolutionFrame { width, height, receivers, light, params, widest, blockers, taps, lanes }
     }
 
@@ -655,12 +700,15 @@ impl<'a> ConvolutionFrame<'a> {
                     inside |= within.any();
                     let q = [read(Taps::NORMAL), read(Taps::NORMAL + 1), read(Taps::NORMAL + 2)];
                     let apart = across[j].max(dy_abs);
-                    let off = footprint.max(read(Taps::FOOTPRINT)) * (plane + bend * apart);
+                    let signed = read(Taps::FOOTPRINT);
+                    let off = footprint.max(signed.abs()) * (plane + bend * apart);
                     let on_surface = dot(normal, q).cmpge(cos_normal)
                         & dot(normal, d).abs().cmple(off)
                         & dot(q, d).abs().cmple(off)
                         & within;
-                    sums[j] = sums[j] + V::select(on_surface, wq * read(Taps::VALUE), V::ZERO);
+                    // The hard answer, 1 lit or 0 blocked, from the footprint's sign.
+                    let value = V::ONE.copysign(signed).max(V::ZERO);
+                    sums[j] = sums[j] + V::select(on_surface, wq * value, V::ZERO);
                     weights[j] = weights[j] + V::select(on_surface, wq, V::ZERO);
                 }
                 if !inside {
@@ -879,6 +927,66 @@ mod tests {
             }
         }
         assert!(convolved > 1000, "the kernels ran: {convolved} pixels differ from the hard answer");
+    }
+
+    /// A row's nearest edge pixels found in lanes of 1, 4, 8 and 16 (native where this CPU has
+    /// them, the portable twins where not) are the scalar loop's, bit for bit: edge pixels
+    /// with reaches of 0 to 20 pixels over 30 rows, spans cut by both ends of the row, and
+    /// ties between edge pixels at the same distance.
+    #[test]
+    fn the_nearest_edges_are_the_same_at_every_width() {
+        use packets::simd::PortableF32;
+        let (w, rows) = (61usize, 30usize);
+        let mut rng = Rng::new(11);
+        let mut random: Vec<(usize, usize, f32, f32)> = (0..120)
+            .map(|_| {
+                let x = (rng.next_f32() * w as f32) as usize % w;
+                let y = (rng.next_f32() * rows as f32) as usize % rows;
+                (x, y, rng.next_f32() * 20.0, rng.next_f32())
+            })
+            .collect();
+        random.sort_by_key(|e| (e.1, e.0));
+        // Two edge pixels mirrored about column 25: every pixel of that column is a tie.
+        let pair = vec![(20, 10, 9.0, 0.25), (30, 10, 9.0, 0.75)];
+        // The loop the lanes replace: one pixel at a time.
+        let scalar = |edges: &[(usize, usize, f32, f32)], y: usize| {
+            let (mut near, mut slots) = (vec![f32::INFINITY; w], vec![f32::NAN; w]);
+            for &(ex, ey, reach, t) in edges {
+                let dy2 = (ey.abs_diff(y) as f32).powi(2);
+                let half = reach * reach - dy2;
+                if half < 0.0 {
+                    continue;
+                }
+                let half = half.sqrt() as usize;
+                for x in ex.saturating_sub(half)..(ex + half + 1).min(w) {
+                    let d2 = (x as f32 - ex as f32).powi(2) + dy2;
+                    if d2 < near[x] {
+                        (near[x], slots[x]) = (d2, t);
+                    }
+                }
+            }
+            slots.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        };
+        let mut nearest = Nearest::default();
+        let mut lanes = |add: &dyn Fn(&mut Nearest)| {
+            nearest.clear(w);
+            add(&mut nearest);
+            nearest.blockers[..w].iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        };
+        let mut reached = 0;
+        for edges in [&random, &pair] {
+            for y in 0..rows {
+                let expected = scalar(edges, y);
+                reached += expected.iter().filter(|v| !f32::from_bits(**v).is_nan()).count();
+                assert_eq!(lanes(&|n| n.add::<PortableF32<1>>(edges.iter(), y)), expected, "row {y}, 1 lane");
+                for width in Width::ALL {
+                    let found = lanes(&|n| packets::at_width!(width, V => n.add::<V>(edges.iter(), y)));
+                    assert_eq!(found, expected, "row {y}, {width:?}");
+                }
+            }
+        }
+        assert!(reached > rows * w / 2, "most pixels are within reach: {reached}");
+        assert_eq!(scalar(&pair, 12)[25], 0.25f32.to_bits(), "a tie goes to the earlier edge pixel");
     }
 
     /// The closed form: a sphere over the floor under a spherical light. The convolution
