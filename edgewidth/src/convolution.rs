@@ -432,8 +432,9 @@ impl Nearest {
     /// Adds the edge pixels `edges` (column, row, reach in pixels, blocker) to row `y`: each
     /// pixel of the row within an edge pixel's reach takes its blocker where it is the nearest
     /// so far (the earlier one on a tie). Lane `l` of a span's `j`-th vector is its pixel
-    /// `j W + l`, and pixels past the span keep what they hold; the squared distances are
-    /// whole numbers below 2^24, exact in `f32`, so every width gives the same bits.
+    /// `j W + l`, and pixels past the span keep what they hold. Each lane does the scalar
+    /// loop's operations on its pixel (the offsets are whole numbers, exact in `f32`), so
+    /// every width gives the same bits.
     #[inline(always)]
     fn add<'e, V: SimdF32>(&mut self, edges: impl Iterator<Item = &'e (usize, usize, f32, f32)>, y: usize) {
         const { assert!(V::LANES <= MAX_LANES, "the rows are padded by MAX_LANES") };
