@@ -440,18 +440,12 @@ impl Nearest {
         const { assert!(V::LANES <= MAX_LANES, "the rows are padded by MAX_LANES") };
         let width = self.distances.len() - MAX_LANES;
         let lane = V::strided(&LANE, 0, 1);
-        for &(ex, ey, reach, t) in edges {
-            let dy2 = (ey.abs_diff(y) as f32).powi(2);
-            let half = reach * reach - dy2;
-            if half < 0.0 {
-                continue;
-            }
-            let half = half.sqrt() as usize;
-            let (lo, hi) = (ex.saturating_sub(half), (ex + half + 1).min(width));
+        for edge in edges {
+            let Some((lo, hi, dy2)) = span(edge, y, width) else { continue };
             // The offsets count in `i32`, whose conversion to `f32` is one instruction (a
             // `usize`'s is a dozen).
-            let dx0 = -((ex - lo) as i32);
-            let (blocker, dy2) = (V::splat(t), V::splat(dy2));
+            let dx0 = -((edge.0 - lo) as i32);
+            let (blocker, dy2) = (V::splat(edge.3), V::splat(dy2));
             for start in (lo..hi).step_by(V::LANES) {
                 let dx = lane + V::splat((dx0 + (start - lo) as i32) as f32);
                 let d2 = dx * dx + dy2;
@@ -466,15 +460,30 @@ impl Nearest {
     }
 }
 
-/// The most lanes a [`SimdF32`] of the kernels has (AVX-512's 16).
+/// The pixels of row `y` (of `width`) that the edge pixel `(column, row, reach, blocker)`
+/// reaches, `lo..hi`, and the squared rows between them; `None` when the reach's disc misses
+/// the row.
+#[inline(always)]
+fn span(&(ex, ey, reach, _): &(usize, usize, f32, f32), y: usize, width: usize) -> Option<(usize, usize, f32)> {
+    let dy2 = (ey.abs_diff(y) as f32).powi(2);
+    let half = reach * reach - dy2;
+    if half < 0.0 {
+        return None;
+    }
+    let half = half.sqrt() as usize;
+    Some((ex.saturating_sub(half), (ex + half + 1).min(width), dy2))
+}
+
+/// The most lanes a [`SimdF32`] of the kernels has (AVX-512's 16): how far the rows of
+/// [`Nearest`] and [`Taps`] are padded for whole vectors.
 const MAX_LANES: usize = 16;
 
 impl<'a> ConvolutionFrame<'a> {
     /// A `width` x `height` frame of `receivers` (row-major) under `light`, with the blockers
-    /// of its hard shadow's edge (`edges`: row-major index and [`blocker`], ascending by
-    /// index, as [`hard_edges`] lists them). Each pixel within an edge pixel's penumbra reach
-    /// (a disc of [`Params::max_reach`] of the height at most) takes the blocker of the nearest such
-    /// edge pixel; rows in parallel. A buffer of the wrong length gives a frame of hard
+    /// of its hard shadow's edge (`edges`: row-major index and the blocker [`probe`] found,
+    /// ascending by index, as [`hard_edges`] lists them). Each pixel within an edge pixel's
+    /// penumbra reach (a disc of [`Params::max_reach`] of the height at most) takes the
+    /// blocker of the nearest such edge pixel; rows in parallel. A buffer of the wrong length gives a frame of hard
     /// answers. Kernels are read at the widest lanes the SIMD level allows
     /// ([`ConvolutionFrame::with_lanes`]).
     pub fn new(
@@ -533,11 +542,11 @@ impl<'a> ConvolutionFrame<'a> {
             Taps::new(0, &[], 0, taps_buffer)
         } else {
             // A kernel's lanes reach `taps` steps left of the pixel and, rounded up to whole
-            // vectors of at most 16 lanes, `taps + 15` steps right; a step is at most the
-            // widest reach over `taps`, rounded up.
+            // vectors of at most `MAX_LANES`, `taps + MAX_LANES - 1` steps right; a step is
+            // at most the widest reach over `taps`, rounded up.
             let taps = params.grid_taps() as usize;
             let step = (widest.ceil() as usize).div_ceil(taps);
-            Taps::new(w, receivers, (taps + 16) * step, taps_buffer)
+            Taps::new(w, receivers, (taps + MAX_LANES) * step, taps_buffer)
         };
         ConvolutionFrame { width, height, receivers, light, params, widest, blockers, taps, lanes }
     }
@@ -668,7 +677,7 @@ impl<'a> ConvolutionFrame<'a> {
     /// [`ConvolutionFrame::gather`] with each row in at most `N` vectors.
     #[inline(always)]
     fn gather_in<V: SimdF32, const N: usize>(&self, r: &Pixel, grid: Grid, weight: impl Fn([V; 3]) -> V) -> (f32, f32) {
-        const { assert!(V::LANES <= 16, "the taps' padding covers 16 lanes") };
+        const { assert!(V::LANES <= MAX_LANES, "the taps are padded by MAX_LANES") };
         let h = i64::from(self.height);
         let Grid { x, y, step, taps } = grid;
         let columns = 2 * taps + 1;
@@ -949,20 +958,15 @@ mod tests {
         random.sort_by_key(|e| (e.1, e.0));
         // Two edge pixels mirrored about column 25: every pixel of that column is a tie.
         let pair = vec![(20, 10, 9.0, 0.25), (30, 10, 9.0, 0.75)];
-        // The loop the lanes replace: one pixel at a time.
+        // The loop the lanes replace: one pixel of each span at a time.
         let scalar = |edges: &[(usize, usize, f32, f32)], y: usize| {
             let (mut near, mut slots) = (vec![f32::INFINITY; w], vec![f32::NAN; w]);
-            for &(ex, ey, reach, t) in edges {
-                let dy2 = (ey.abs_diff(y) as f32).powi(2);
-                let half = reach * reach - dy2;
-                if half < 0.0 {
-                    continue;
-                }
-                let half = half.sqrt() as usize;
-                for x in ex.saturating_sub(half)..(ex + half + 1).min(w) {
-                    let d2 = (x as f32 - ex as f32).powi(2) + dy2;
+            for edge in edges {
+                let Some((lo, hi, dy2)) = span(edge, y, w) else { continue };
+                for x in lo..hi {
+                    let d2 = (x as f32 - edge.0 as f32).powi(2) + dy2;
                     if d2 < near[x] {
-                        (near[x], slots[x]) = (d2, t);
+                        (near[x], slots[x]) = (d2, edge.3);
                     }
                 }
             }

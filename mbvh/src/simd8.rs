@@ -3,10 +3,11 @@
 //! and 8"): [`crate::boxtest`]'s slab test, one 256-bit register per box coordinate of a
 //! [`Node8`]'s eight children, with the same arithmetic in the same order as its scalar
 //! twin [`crate::boxtest::FusedScalar8`]: planes picked by the direction's sign bit,
-//! `(p - o) * (1 / d)`, the candidate first in `max` / `min` so that a `0 * inf` NaN leaves the accumulator
-//! (`vmaxps` returns its second operand when either is NaN, like `maxps`), then the entry
-//! lowered and the exit raised by `WIDEN` and `TINY` with one fused multiply-add each
-//! (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and [`crate::boxtest::raised`]):
+//! `(p - o) * (1 / d)`, the candidate first in `max` / `min` so that a `0 * inf` NaN leaves
+//! the accumulator (`vmaxps` returns its second operand when either is NaN, like `maxps`),
+//! then the entry lowered and the exit raised by `WIDEN` and `TINY` with one fused
+//! multiply-add each (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and
+//! [`crate::boxtest::raised`]):
 //! every lane rounds as [`crate::boxtest::hit_scalar`] does, so the AVX2 test and its twin
 //! give the same mask and distances bit for bit (`tests/twins.rs`).
 //!
@@ -15,9 +16,10 @@
 //! traversal made with the token ([`crate::Traversal::with_test`]) runs its whole loop in a
 //! `#[target_feature(enable = "avx2,fma")]` function (so the node test inlines into it), and no
 //! check is made per ray. Without the token, or on another architecture, the 8-wide tree is
-//! traversed with [`crate::Scalar8`] (the unfused portable test). On this project's CPU (AMD Zen 1) every 256-bit operation is
-//! executed as two 128-bit halves, so one 8-wide node test costs about two 4-wide ones; what
-//! the wider node can save is node fetches and traversal steps, not arithmetic.
+//! traversed with [`crate::Scalar8`] (the unfused portable test). On a CPU that executes
+//! every 256-bit operation as two 128-bit halves, one 8-wide node test costs about two
+//! 4-wide ones; what the wider node can save there is node fetches and traversal steps, not
+//! arithmetic.
 //!
 //! The 16-wide AVX-512 test is this module's sibling, [`crate::simd16`]: the token
 //! [`crate::Avx512`] (AVX-512 F and VL, under the same SIMD cap), the test on
