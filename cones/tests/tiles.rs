@@ -230,18 +230,28 @@ fn wide_cones_match<V: SimdF32>(tree: &KdTree, camera: &Camera, size: u32) -> us
 /// and bottom edges), culling on and off, closest and any hit.
 #[test]
 fn wide_packets_under_cones_match_single_rays() {
-    let mut hits = 0;
-    for name in ["atrium", "arena", "touching-boxes"] {
-        let scene = scenes::load_scene(name).unwrap();
-        for intersector in [Intersector::Wald, Intersector::Watertight] {
-            let tree = build(&scene, intersector);
-            let camera = scene.default_view().camera(45, 37).unwrap();
-            for size in [8, 16, 32] {
-                hits += wide_cones_match::<PortableF32<8>>(&tree, &camera, size);
-                hits += wide_cones_match::<PortableF32<16>>(&tree, &camera, size);
-            }
-        }
-    }
+    let cases = ["atrium", "arena", "touching-boxes"]
+        .into_iter()
+        .flat_map(|name| [Intersector::Wald, Intersector::Watertight].map(|i| (name, i)));
+    // A thread per scene and intersector (the test's time, on CI's two cores).
+    let hits: usize = std::thread::scope(|s| {
+        let threads: Vec<_> = cases
+            .map(|(name, intersector)| {
+                s.spawn(move || {
+                    let scene = scenes::load_scene(name).unwrap();
+                    let tree = build(&scene, intersector);
+                    let camera = scene.default_view().camera(45, 37).unwrap();
+                    let mut hits = 0;
+                    for size in [8, 16, 32] {
+                        hits += wide_cones_match::<PortableF32<8>>(&tree, &camera, size);
+                        hits += wide_cones_match::<PortableF32<16>>(&tree, &camera, size);
+                    }
+                    hits
+                })
+            })
+            .collect();
+        threads.into_iter().map(|t| t.join().expect("a scene's thread panicked (its message is above)")).sum()
+    });
     assert!(hits > 10_000, "{hits} hits compared");
 }
 
