@@ -483,9 +483,9 @@ impl<'a> ConvolutionFrame<'a> {
     /// of its hard shadow's edge (`edges`: row-major index and the blocker [`probe`] found,
     /// ascending by index, as [`hard_edges`] lists them). Each pixel within an edge pixel's
     /// penumbra reach (a disc of [`Params::max_reach`] of the height at most) takes the
-    /// blocker of the nearest such edge pixel; rows in parallel. A buffer of the wrong length gives a frame of hard
-    /// answers. Kernels are read at the widest lanes the SIMD level allows
-    /// ([`ConvolutionFrame::with_lanes`]).
+    /// blocker of the nearest such edge pixel; rows in parallel. A buffer of the wrong length
+    /// gives a frame of hard answers. Kernels are read at the widest lanes the SIMD level
+    /// allows ([`ConvolutionFrame::with_lanes`]).
     pub fn new(
         width: u32,
         height: u32,

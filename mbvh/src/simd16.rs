@@ -5,9 +5,10 @@
 //! [`crate::boxtest::FusedScalar16`]: planes picked by the direction's sign bit,
 //! `(p - o) * (1 / d)`, the candidate first in `max` / `min` so that a `0 * inf` NaN leaves
 //! the accumulator (`vmaxps` / `vminps` on 512-bit registers return their second operand
-//! when either is NaN, as on 128 and 256 bits), then the entry lowered and the exit raised by `WIDEN` and `TINY`, and
-//! one ordered `<=` compare into a k-mask (`vcmpps k, _CMP_LE_OQ`), which is the hit mask
-//! itself (bit `i` for slot `i`). The widening is one fused multiply-add and one addition
+//! when either is NaN, as on 128 and 256 bits), then the entry lowered and the exit raised
+//! by `WIDEN` and `TINY`, and one ordered `<=` compare into a k-mask
+//! (`vcmpps k, _CMP_LE_OQ`), which is the hit mask itself (bit `i` for slot `i`). The
+//! widening is one fused multiply-add and one addition
 //! each (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and
 //! [`crate::boxtest::raised`]); every lane rounds as [`crate::boxtest::hit_scalar`] does, so
 //! the AVX-512 test and its twin give the same mask and distances bit for bit

@@ -14,6 +14,7 @@ use kdtree::{BruteForce, BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray}
 use packets::simd::{PortableF32, SimdF32};
 use packets::tile::TileTracer;
 use proptest::prelude::*;
+use rayon::prelude::*;
 use scenes::{Camera, tiles};
 
 /// A tile kernel's entry point.
@@ -390,31 +391,28 @@ fn wide_tiles_match_8_16(tree: &KdTree, camera: &Camera, tile_size: u32) -> Resu
 /// any hit; MFT does no more work than the single frustum.
 #[test]
 fn wide_packets_match_single_rays_on_the_builtin_scenes() {
-    let scenes = ["atrium", "arena", "atrium-rotated", "touching-boxes", "axis-plane-triangle"];
-    let cases = scenes.into_iter().flat_map(|name| [Intersector::Wald, Intersector::Watertight].map(|i| (name, i)));
-    // A thread per scene and intersector (the test's time, on CI's two cores).
-    let hits: usize = std::thread::scope(|s| {
-        let threads: Vec<_> = cases
-            .map(|(name, intersector)| {
-                s.spawn(move || {
-                    let scene = scenes::load_scene(name).unwrap();
-                    let tree = build(&scene, intersector);
-                    let mut hits = 0;
-                    for (v, view) in scene.views.iter().enumerate() {
-                        let camera = view.camera(45, 37).unwrap();
-                        // Every size on the first view, the middle one on the others (time).
-                        for size in if v == 0 { &[8, 16, 32][..] } else { &[16] } {
-                            let size = *size;
-                            hits += wide_tiles_match_8_16(&tree, &camera, size)
-                                .unwrap_or_else(|e| panic!("{name} {intersector:?} {} size {size}: {e}", view.name));
-                        }
-                    }
-                    hits
-                })
-            })
-            .collect();
-        threads.into_iter().map(|t| t.join().expect("a scene's thread panicked (its message is above)")).sum()
-    });
+    let names = ["atrium", "arena", "atrium-rotated", "touching-boxes", "axis-plane-triangle"];
+    let cases: Vec<_> =
+        names.into_iter().flat_map(|name| [Intersector::Wald, Intersector::Watertight].map(|i| (name, i))).collect();
+    // The scenes and intersectors in parallel (the test's time, on CI's two cores).
+    let hits: usize = cases
+        .into_par_iter()
+        .map(|(name, intersector)| {
+            let scene = scenes::load_scene(name).unwrap();
+            let tree = build(&scene, intersector);
+            let mut hits = 0;
+            for (v, view) in scene.views.iter().enumerate() {
+                let camera = view.camera(45, 37).unwrap();
+                // Every size on the first view, the middle one on the others (time).
+                for size in if v == 0 { &[8, 16, 32][..] } else { &[16] } {
+                    let size = *size;
+                    hits += wide_tiles_match_8_16(&tree, &camera, size)
+                        .unwrap_or_else(|e| panic!("{name} {intersector:?} {} size {size}: {e}", view.name));
+                }
+            }
+            hits
+        })
+        .sum();
     assert!(hits > 50_000, "{hits} hits compared");
 }
 
