@@ -24,8 +24,9 @@
 //!
 //! ## A frame
 //! 1. Every hit pixel traces its hard shadow ray, nearest hit ([`probe`]).
-//! 2. The blocked pixels with a lit 8-neighbour are the hard shadow's edge ([`hard_edges`]);
-//!    their probes found their nearest blockers.
+//! 2. The blocked pixels with a lit 8-neighbour are the hard shadow's edge ([`hard_edges`],
+//!    read off a byte a pixel that the probes write); their probes found their nearest
+//!    blockers.
 //! 3. [`ConvolutionFrame::new`] finds the pixels a penumbra can reach: around each edge
 //!    pixel, as far as its blocker's penumbra reaches in pixels (at most
 //!    [`Params::max_reach`] of the frame's height). Each takes the blocker of the nearest
@@ -73,19 +74,47 @@ pub fn probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, footprint: f32)
 /// blocked pixels with a lit 8-neighbour, as ascending row-major indices (found in parallel).
 /// Empty for a buffer of the wrong length.
 pub fn hard_edges(width: u32, height: u32, receivers: &[Option<Pixel>]) -> Vec<usize> {
+    let sides: Vec<Side> = receivers.par_iter().map(|r| Side::of(r.as_ref())).collect();
+    edges_of(width, height, &sides)
+}
+
+/// A pixel's hard answer as the edge test reads it, in a byte: a frame's worth is a 64th of
+/// its pixels' bytes, so the test's nine reads a pixel stay in cache.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Side {
+    /// No hit, or a final probe (its answer is not an occluder's).
+    #[default]
+    Neither,
+    /// The light's centre is visible.
+    Lit,
+    /// The light's centre is blocked.
+    Blocked,
+}
+
+impl Side {
+    fn of(pixel: Option<&Pixel>) -> Side {
+        match pixel.map(|p| p.probe) {
+            Some(Probe::Lit(_)) => Side::Lit,
+            Some(Probe::Blocked(_)) => Side::Blocked,
+            _ => Side::Neither,
+        }
+    }
+}
+
+/// [`hard_edges`] of the frame's sides (row-major), rows in parallel.
+fn edges_of(width: u32, height: u32, sides: &[Side]) -> Vec<usize> {
     let (w, h) = (width as usize, height as usize);
-    if receivers.len() != w * h {
+    if sides.len() != w * h {
         return Vec::new();
     }
-    let probe = |x: usize, y: usize| receivers[y * w + x].as_ref().map(|r| r.probe);
-    (0..w * h)
+    (0..h)
         .into_par_iter()
-        .filter(|&i| {
-            let (x, y) = (i % w, i / w);
-            matches!(probe(x, y), Some(Probe::Blocked(_)))
-                && (y.saturating_sub(1)..(y + 2).min(h)).any(|ny| {
-                    (x.saturating_sub(1)..(x + 2).min(w)).any(|nx| matches!(probe(nx, ny), Some(Probe::Lit(_))))
-                })
+        .flat_map_iter(|y| {
+            let rows = y.saturating_sub(1)..(y + 2).min(h);
+            let lit_near = move |x: usize| {
+                rows.clone().any(|ny| sides[ny * w + x.saturating_sub(1)..ny * w + (x + 2).min(w)].contains(&Side::Lit))
+            };
+            (0..w).filter(move |&x| sides[y * w + x] == Side::Blocked && lit_near(x)).map(move |x| y * w + x)
         })
         .collect()
 }
@@ -108,36 +137,38 @@ pub fn convolved_frame(
     let w = width.max(1) as usize;
     let n = width as usize * height as usize;
     let xy = |i: usize| ((i % w) as u32, (i / w) as u32);
-    let ConvolutionBuffers { pixels, near, blockers, taps, known } = buffers;
+    let ConvolutionBuffers { pixels, near, sides, blockers, taps, known } = buffers;
     // The probes in bands of `TILE` rows, each band tile by tile: neighbouring rays, one after
     // the other, visit the same nodes (5% to 15% faster than row by row). Every slot is
     // written, so the buffers are only resized, never cleared first (a frame's worth of
     // memory written by one thread).
     pixels.resize(n, None);
     near.resize(n, f32::NAN);
+    sides.resize(n, Side::Neither);
     let mut probed = 0;
     if n > 0 {
         let tiles = scenes::tiles(width, height, TILE);
         let band = w * TILE as usize;
-        let bands = pixels.par_chunks_mut(band).zip(near.par_chunks_mut(band));
+        let bands = pixels.par_chunks_mut(band).zip(near.par_chunks_mut(band)).zip(sides.par_chunks_mut(band));
         probed = bands
             .zip(tiles.par_chunks(width.div_ceil(TILE) as usize))
-            .map(|((out, near), band)| {
+            .map(|(((out, near), sides), band)| {
                 let mut rays = 0;
                 for (x, y) in band.iter().flat_map(scenes::Tile::pixels) {
                     let at = (y - band[0].y0) as usize * w + x as usize;
                     let probed = point(x, y).map(|(p, footprint)| probe(tree, light, &p, footprint));
                     rays += probed.map_or(0, |(pixel, _)| u64::from(rays_of(pixel.probe)));
                     (out[at], near[at]) = probed.map_or((None, f32::NAN), |(p, t)| (Some(p), t.unwrap_or(f32::NAN)));
+                    sides[at] = Side::of(out[at].as_ref());
                 }
                 rays
             })
             .sum();
     }
-    let (pixels, near) = (&pixels[..], &near[..]);
+    let (pixels, near, sides) = (&pixels[..], &near[..], &sides[..]);
     // The edge's blockers, from its probes (in `(0, 1)`: a blocker at either end has no
     // kernel).
-    let edges: Vec<(usize, f32)> = hard_edges(width, height, pixels)
+    let edges: Vec<(usize, f32)> = edges_of(width, height, sides)
         .into_iter()
         .filter_map(|i| (near[i] > 0.0 && near[i] < 1.0).then_some((i, near[i])))
         .collect();
@@ -185,6 +216,7 @@ const TILE: u32 = 16;
 pub struct ConvolutionBuffers {
     pixels: Vec<Option<Pixel>>,
     near: Vec<f32>,
+    sides: Vec<Side>,
     blockers: Vec<f32>,
     taps: Vec<f32>,
     known: Vec<Answer>,
@@ -850,6 +882,8 @@ mod tests {
             let half = convolved_frame(tree, light, (n / 2, n / 3), WIDE, TOLERANCES, &mut buffers, point).0;
             assert_eq!(half.len(), (n / 2 * (n / 3)) as usize);
             assert!(convolved_frame(tree, light, (n, n), WIDE, TOLERANCES, &mut buffers, point).0 == v);
+            // The frame's edge test read the sides its probes wrote: the records' edge.
+            assert_eq!(edges_of(n, n, &buffers.sides), hard_edges(n, n, &buffers.pixels));
             // A probe per pixel (a final one may trace none), which finds the edge's blockers.
             assert!(rays <= u64::from(n * n) && rays >= self.edges.len() as u64);
             v
@@ -1138,6 +1172,39 @@ mod tests {
         let flat = rect_light(Vec3::new(0.0, 6.0, 0.0), 1.0);
         assert_eq!(Kernel::new(&flat, Vec3::new(10.0, 6.0, 0.0), 0.5), None);
         assert_eq!(Kernel::new(&sphere, Vec3::new(1.0, 5.2, 0.5), 0.5), None);
+    }
+
+    /// The edge is the blocked pixels with a lit 8-neighbour, diagonals and the frame's border
+    /// included; a final probe or a pixel without a hit is neither side.
+    #[test]
+    fn the_edge_is_the_blocked_pixels_beside_lit_ones() {
+        let lit = Pixel { point: Vec3::ZERO, normal: Vec3::Y, footprint: 0.1, probe: Probe::Lit(1.0) };
+        let blocked = Pixel { probe: Probe::Blocked(3.0), ..lit };
+        let done =
+            Pixel { probe: Probe::Done(crate::silhouette::SilhouetteVisibility { fraction: 1.0, rays: 1 }), ..lit };
+        // 5 x 4, row by row: L lit, B blocked, D a final probe, - no hit.
+        let frame = ["BBBDB", "BBB-B", "BBBBB", "LBBBB"];
+        let pixels: Vec<Option<Pixel>> = frame
+            .iter()
+            .flat_map(|row| row.chars())
+            .map(|c| match c {
+                'L' => Some(lit),
+                'B' => Some(blocked),
+                'D' => Some(done),
+                _ => None,
+            })
+            .collect();
+        // Only the lit corner's neighbours: (0, 2), (1, 2) and (1, 3).
+        assert_eq!(hard_edges(5, 4, &pixels), vec![10, 11, 16]);
+        let sides: Vec<Side> = pixels.iter().map(|p| Side::of(p.as_ref())).collect();
+        assert_eq!(edges_of(5, 4, &sides), vec![10, 11, 16]);
+        assert_eq!(edges_of(4, 4, &sides), Vec::<usize>::new());
+        // A lit pixel in the middle: all eight neighbours, none of the final or missing ones.
+        let mut pixels = vec![Some(blocked); 9];
+        pixels[4] = Some(lit);
+        pixels[0] = Some(done);
+        pixels[8] = None;
+        assert_eq!(hard_edges(3, 3, &pixels), vec![1, 2, 3, 5, 6, 7]);
     }
 
     /// Damaged input answers, never panics: buffers of the wrong length, non-finite points,
