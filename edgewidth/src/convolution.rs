@@ -78,8 +78,8 @@ pub fn hard_edges(width: u32, height: u32, receivers: &[Option<Pixel>]) -> Vec<u
     edges_of(width, height, &sides)
 }
 
-/// A pixel's hard answer as the edge test reads it, in a byte: a frame's worth is a 64th of
-/// its pixels' bytes, so the test's nine reads a pixel stay in cache.
+/// A pixel's hard answer as the edge test reads it, in a byte: a fortieth of its record's
+/// bytes, so the test's nine reads a pixel stay in cache.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 enum Side {
     /// No hit, or a final probe (its answer is not an occluder's).
@@ -92,6 +92,7 @@ enum Side {
 }
 
 impl Side {
+    /// The side of `pixel`'s probe (`Neither` for no pixel).
     fn of(pixel: Option<&Pixel>) -> Side {
         match pixel.map(|p| p.probe) {
             Some(Probe::Lit(_)) => Side::Lit,
