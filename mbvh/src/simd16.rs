@@ -8,11 +8,10 @@
 //! when either is NaN, as on 128 and 256 bits), then the entry lowered and the exit raised
 //! by `WIDEN` and `TINY`, and one ordered `<=` compare into a k-mask
 //! (`vcmpps k, _CMP_LE_OQ`), which is the hit mask itself (bit `i` for slot `i`). The
-//! widening is one fused multiply-add and one addition
-//! each (`vfnmadd` / `vfmadd`, as [`crate::boxtest::lowered`] and
-//! [`crate::boxtest::raised`]); every lane rounds as [`crate::boxtest::hit_scalar`] does, so
-//! the AVX-512 test and its twin give the same mask and distances bit for bit
-//! (`tests/twins.rs`).
+//! widening is one fused multiply-add and one addition each (`vfnmadd` / `vfmadd`, as
+//! [`crate::boxtest::lowered`] and [`crate::boxtest::raised`]); every lane rounds as
+//! [`crate::boxtest::hit_scalar`] does, so the AVX-512 test and its twin give the same mask
+//! and distances bit for bit (`tests/twins.rs`).
 //!
 //! **AVX-512 is chosen at run time**, as AVX2 is in [`crate::simd8`]: [`Avx512::detect`]
 //! asks the CPU once (AVX-512 F and VL, with the AVX2, FMA, BMI1/2, POPCNT and LZCNT the
