@@ -21,7 +21,8 @@
 //! - [`sparse`]: the silhouette search on a coarse lattice inside the penumbra mask, the
 //!   pixels between blended from their corners where the surfaces and answers agree.
 //! - [`convolution`]: convolved edge widths: the frame's hard shadow blurred on the receiver
-//!   by the light's image through the nearest blocker (one shadow ray per pixel, no search).
+//!   by the light's image through the nearest blocker (at most one shadow ray per pixel, no
+//!   search).
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their

@@ -70,7 +70,7 @@
 //! gets one ray towards the part above it.
 
 use glam::Vec3;
-use kdtree::KdTree;
+use kdtree::{KdTree, Ray};
 use std::collections::HashMap;
 
 use crate::sampling::{AreaLight, ShadingPoint};
@@ -388,6 +388,34 @@ pub fn silhouette_search(
     visibility(tree, silhouettes, light, p, scratch, Some(blocked))
 }
 
+/// The visible fraction of `p` whose light's centre is below its horizon (the line `e . h =
+/// m_h` on the light's plane, [`horizon_line`]) but not all of the light: one ray towards the
+/// middle of the part above it, answered by `occluded` (called at most once), whose answer
+/// counts for that whole part. No ray (and no light) where no part of the light is above.
+#[inline(always)]
+fn above_horizon(
+    light: &AreaLight,
+    p: &ShadingPoint,
+    profile: Profile,
+    (h, m_h): (Vec3, f32),
+    occluded: impl FnOnce(&Ray) -> bool,
+) -> SilhouetteVisibility {
+    let none = SilhouetteVisibility { fraction: 0.0, rays: 0 };
+    if h == Vec3::ZERO {
+        return none;
+    }
+    let up = -h;
+    let above = profile.tail(up, -m_h);
+    if above.is_nan() || above <= 0.0 {
+        return none;
+    }
+    let target = on_light(light, p.point, light.center() + up * 0.5 * (-m_h + profile.support(up)));
+    match p.shadow_ray(target) {
+        Some(ray) => SilhouetteVisibility { fraction: if occluded(&ray) { 0.0 } else { above }, rays: 1 },
+        None => none,
+    }
+}
+
 /// [`silhouette_visibility`], its centre ray's answer given (`known`) or traced here.
 fn visibility(
     tree: &KdTree,
@@ -420,20 +448,7 @@ fn visibility(
     // `e . h = m_h` with `h` the normal's part across the ray, pointing down.
     let (h, m_h) = horizon_line(normal, to, dir);
     let Some(ray) = p.shadow_ray(center) else {
-        // The centre is below the horizon: one ray towards the middle of the part above it.
-        if h == Vec3::ZERO {
-            return none;
-        }
-        let up = -h;
-        let above = profile.tail(up, -m_h);
-        if above.is_nan() || above <= 0.0 {
-            return none;
-        }
-        let target = on_light(light, p.point, center + up * 0.5 * (-m_h + profile.support(up)));
-        return match p.shadow_ray(target) {
-            Some(ray) => SilhouetteVisibility { fraction: if tree.occluded(&ray) { 0.0 } else { above }, rays: 1 },
-            None => none,
-        };
+        return above_horizon(light, p, profile, (h, m_h), |ray| tree.occluded(ray));
     };
     let horizon = if h == Vec3::ZERO { 1.0 } else { 1.0 - profile.tail(h, m_h) };
     let blocked = known.unwrap_or_else(|| tree.occluded(&ray));
@@ -543,6 +558,25 @@ pub fn hard_probe(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32
 /// made it (a stalled load on every probe, `perf annotate` of the convolved edge widths).
 #[inline(always)]
 pub fn hard_probe_and_blocker(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, pixel: f32) -> (Probe, Option<f32>) {
+    hard_probe_with(tree, light, p, pixel, |ray| tree.intersect(ray).map(|hit| hit.t))
+}
+
+/// [`hard_probe_and_blocker`] with its one ray answered by `blocker`: the nearest blocker's
+/// distance along the ray (the fraction of the way to its end), or `None` where nothing
+/// blocks it. The ray is the light centre's, or, for a final probe whose light's centre is
+/// below the horizon, the one towards the part of the light above it. `blocker` is called at
+/// most once, and only where the answer takes a ray; a point inside a spherical light traces
+/// its own in `tree`. With a `blocker` that traces nothing, the probe of a point whose ray is
+/// known from its neighbours (the sparse probes of [`crate::convolution`]): a NaN distance
+/// then stands for a blocker not measured.
+#[inline(always)]
+pub fn hard_probe_with(
+    tree: &KdTree,
+    light: &AreaLight,
+    p: &ShadingPoint,
+    pixel: f32,
+    blocker: impl FnOnce(&Ray) -> Option<f32>,
+) -> (Probe, Option<f32>) {
     let probe = |probe: Probe| (probe, None);
     let center = light.center();
     let Some(profile) = Profile::of(light, p.point) else {
@@ -556,17 +590,18 @@ pub fn hard_probe_and_blocker(tree: &KdTree, light: &AreaLight, p: &ShadingPoint
     };
     let to = center - p.point;
     let Some(ray) = p.shadow_ray(center) else {
+        // What `silhouette_visibility` answers there, without its set-up, its one ray
+        // answered by `blocker`.
+        let none = Probe::Done(SilhouetteVisibility { fraction: 0.0, rays: 0 });
         if profile.below(p.normal, to) {
-            // What `silhouette_visibility` answers there, without its set-up.
-            return probe(Probe::Done(SilhouetteVisibility { fraction: 0.0, rays: 0 }));
+            return probe(none);
         }
-        return probe(Probe::Done(silhouette_visibility(
-            tree,
-            &Silhouettes::EMPTY,
-            light,
-            p,
-            &mut SilhouetteScratch::default(),
-        )));
+        let (normal, dir) = (p.normal.normalize_or_zero(), to.normalize_or_zero());
+        if !(to.is_finite() && normal.is_finite()) || dir == Vec3::ZERO || normal == Vec3::ZERO {
+            return probe(none);
+        }
+        let horizon = horizon_line(normal, to, dir);
+        return probe(Probe::Done(above_horizon(light, p, profile, horizon, |ray| blocker(ray).is_some())));
     };
     // A vector that normalises to zero (its squared length 0 or past f32) has no direction.
     let usable = |v: Vec3| {
@@ -576,7 +611,7 @@ pub fn hard_probe_and_blocker(tree: &KdTree, light: &AreaLight, p: &ShadingPoint
     if !(to.is_finite() && p.normal.is_finite() && usable(to) && usable(p.normal)) {
         return probe(Probe::Done(SilhouetteVisibility { fraction: 0.0, rays: 0 }));
     }
-    let blocker = tree.intersect(&ray).map(|hit| hit.t);
+    let blocker = blocker(&ray);
     let unit = || (p.normal.normalize_or_zero(), to.normalize_or_zero());
     match blocker {
         None if profile.above(p.normal, to) => probe(Probe::Lit(1.0)),

@@ -144,6 +144,17 @@ impl Tolerances {
     /// `docs/results/soft-shadows-quality.md` a spread of 0.2 searched up to 10% more of the
     /// masked pixels for at most 0.0013 less RMSE.
     pub const DEFAULT: Tolerances = Tolerances { spread: 0.3, cos_normal: 0.906, plane: 1.0, across_edges: true };
+
+    /// Whether `a` and `b`, `apart` pixels from each other, lie on one smooth surface: normals
+    /// within [`Tolerances::cos_normal`], and each point within [`Tolerances::plane`] of the
+    /// other's tangent plane. Non-finite input is not.
+    #[inline]
+    pub fn on_one_surface(&self, a: &Pixel, b: &Pixel, apart: f32) -> bool {
+        let (na, nb) = (a.normal, b.normal);
+        let d = b.point - a.point;
+        let reach = self.plane * a.footprint.max(b.footprint) * apart;
+        na.dot(nb) >= self.cos_normal && na.dot(d).abs() <= reach && nb.dot(d).abs() <= reach
+    }
 }
 
 impl Default for Tolerances {
@@ -253,7 +264,7 @@ impl<'a> SparseFrame<'a> {
                     _ => return None,
                 }
                 let apart = ((cx.abs_diff(x).pow(2) + cy.abs_diff(y).pow(2)) as f32).sqrt();
-                if !self.continuous(pixel, corner, apart) {
+                if !self.tolerances.on_one_surface(pixel, corner, apart) {
                     return None;
                 }
                 blend += wx * wy * v;
@@ -270,16 +281,6 @@ impl<'a> SparseFrame<'a> {
             Probe::Lit(horizon) => blend.max(0.5).min(horizon),
             _ => blend.min(0.5),
         })
-    }
-
-    /// Whether `a` and `b`, `apart` pixels from each other, lie on one smooth surface: normals
-    /// close, and each point near the other's tangent plane. Non-finite input is not.
-    fn continuous(&self, a: &Pixel, b: &Pixel, apart: f32) -> bool {
-        let t = &self.tolerances;
-        let (na, nb) = (a.normal, b.normal);
-        let d = b.point - a.point;
-        let reach = t.plane * a.footprint.max(b.footprint) * apart;
-        na.dot(nb) >= t.cos_normal && na.dot(d).abs() <= reach && nb.dot(d).abs() <= reach
     }
 }
 

@@ -205,8 +205,9 @@ pub enum ShadowMethod {
     /// Convolved edge widths (`edgewidth::convolution`): each pixel's hard shadow ray, then,
     /// within a penumbra's reach of the hard shadow's edge, the hard answers of the pixels on
     /// its surface averaged over the light's image through the edge's nearest blocker, on
-    /// the sparse passes' lattice. No search: one shadow ray per pixel, whose nearest hit
-    /// is the blocker at the hard shadow's edge.
+    /// the sparse passes' lattice. No search: at most one shadow ray per pixel (on the
+    /// 2-lattice, and between it where the lattice's answers disagree), whose nearest hit is
+    /// the blocker at the hard shadow's edge.
     Convolution,
     /// `N` stratified samples of the light.
     Sampled(u32),
