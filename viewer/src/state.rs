@@ -73,8 +73,9 @@ pub enum ShadowMode {
     /// halves of the penumbra and does not leak; one shadow ray per hit to the centre of the
     /// same spherical light, the silhouette edges in its cone, a check ray per claimed exit.
     Silhouette,
-    /// Convolved edge widths (`edgewidth::convolution`): one shadow ray per hit to the centre
-    /// of the same spherical light, and the hard shadow averaged over the light's image
+    /// Convolved edge widths (`edgewidth::convolution`): at most one shadow ray per hit to the
+    /// centre of the same spherical light (every other pixel of every other row, and between
+    /// them where those disagree), and the hard shadow averaged over the light's image
     /// through the nearest blocker near its edges; no search.
     Convolution,
     /// 16 rays per hit to a spherical light (the method's soft-shadow pass), refined with 16
