@@ -127,9 +127,9 @@ fn edges_of(width: u32, height: u32, sides: &[Side]) -> Vec<usize> {
 /// One frame's convolved visible fractions, row-major, and the shadow rays traced: every
 /// step of the module's text, each pass over the rows (the probes' over bands of tiles) in
 /// parallel. `point(x, y)` gives pixel `(x, y)`'s shading point and footprint (world units
-/// across), `None` where nothing was hit (visibility 0). Inside the penumbrae's reach the convolution runs on the sparse passes'
-/// lattice ([`crate::sparse`], with `tolerances`): on every fourth pixel, then on the
-/// others only where blending their corners is not safe.
+/// across), `None` where nothing was hit (visibility 0). Inside the penumbrae's reach the
+/// convolution runs on the sparse passes' lattice ([`crate::sparse`], with `tolerances`): on
+/// every fourth pixel, then on the others only where blending their corners is not safe.
 pub fn convolved_frame(
     tree: &KdTree,
     light: &AreaLight,
@@ -156,49 +156,31 @@ pub fn convolved_frame(
         let lattice = if params.sparse_probes {
             let (lw, lh) = (width.div_ceil(2), height.div_ceil(2));
             lattice.resize(lw as usize * lh as usize, (None, f32::NAN));
-            let tiles = scenes::tiles(lw, lh, TILE / 2);
-            let band = lw as usize * (TILE / 2) as usize;
-            probed += lattice
-                .par_chunks_mut(band)
-                .zip(tiles.par_chunks(lw.div_ceil(TILE / 2) as usize))
-                .map(|(out, band)| {
-                    let mut rays = 0;
-                    for (x, y) in band.iter().flat_map(scenes::Tile::pixels) {
-                        let at = (y - band[0].y0) as usize * lw as usize + x as usize;
-                        let probed = point(2 * x, 2 * y).map(|(p, footprint)| probe(tree, light, &p, footprint));
-                        rays += probed.map_or(0, |(pixel, _)| u64::from(rays_of(pixel.probe)));
-                        out[at] = probed.map_or((None, f32::NAN), |(p, t)| (Some(p), t.unwrap_or(f32::NAN)));
-                    }
-                    rays
-                })
-                .sum::<u64>();
+            let chunks = lattice.par_chunks_mut(lw as usize * (TILE / 2) as usize);
+            probed += in_bands((lw, lh), TILE / 2, chunks, |out, at, x, y| {
+                let mut rays = 0;
+                out[at] = point(2 * x, 2 * y).map_or((None, f32::NAN), |(p, footprint)| {
+                    let (pixel, t) = traced(tree, light, &p, footprint, &mut rays);
+                    (Some(pixel), t)
+                });
+                rays
+            });
             Some(Lattice { width: lw, height: lh, probes: &lattice[..] })
         } else {
             None
         };
-        let tiles = scenes::tiles(width, height, TILE);
         let band = w * TILE as usize;
         let bands = pixels.par_chunks_mut(band).zip(near.par_chunks_mut(band)).zip(sides.par_chunks_mut(band));
-        probed += bands
-            .zip(tiles.par_chunks(width.div_ceil(TILE) as usize))
-            .map(|(((out, near), sides), band)| {
-                let mut rays = 0;
-                for (x, y) in band.iter().flat_map(scenes::Tile::pixels) {
-                    let at = (y - band[0].y0) as usize * w + x as usize;
-                    let probed = match &lattice {
-                        Some(lattice) => lattice.probe(tree, light, (x, y), &point, &mut rays),
-                        None => point(x, y).map(|(p, footprint)| {
-                            let (pixel, t) = probe(tree, light, &p, footprint);
-                            rays += u64::from(rays_of(pixel.probe));
-                            (pixel, t.unwrap_or(f32::NAN))
-                        }),
-                    };
-                    (out[at], near[at]) = probed.map_or((None, f32::NAN), |(p, t)| (Some(p), t));
-                    sides[at] = Side::of(out[at].as_ref());
-                }
-                rays
-            })
-            .sum::<u64>();
+        probed += in_bands((width, height), TILE, bands, |((out, near), sides), at, x, y| {
+            let mut rays = 0;
+            let probed = match &lattice {
+                Some(lattice) => lattice.probe(tree, light, (x, y), &point, &mut rays),
+                None => point(x, y).map(|(p, footprint)| traced(tree, light, &p, footprint, &mut rays)),
+            };
+            (out[at], near[at]) = probed.map_or((None, f32::NAN), |(p, t)| (Some(p), t));
+            sides[at] = Side::of(out[at].as_ref());
+            rays
+        });
     }
     let (pixels, near, sides) = (&pixels[..], &near[..], &sides[..]);
     // The edge's blockers, from its probes (in `(0, 1)`: a blocker at either end has no
@@ -243,6 +225,34 @@ pub fn convolved_frame(
 /// The side of the square tiles [`convolved_frame`] traces its probes in (even: a tile of
 /// the 2-lattice is half as wide).
 const TILE: u32 = 16;
+
+/// Runs `f` on every pixel of a `width` x `height` frame in bands of `tile` rows, each band
+/// tile by tile (neighbouring rays one after the other), the bands in parallel. `bands` gives
+/// each band's output, row-major (`width * tile` entries); `f(out, at, x, y)` writes pixel
+/// `(x, y)` at `at` of its band's `out` and returns the rays it traced. Returns their sum.
+fn in_bands<B: Send>(
+    (width, height): (u32, u32),
+    tile: u32,
+    bands: impl IndexedParallelIterator<Item = B>,
+    f: impl Fn(&mut B, usize, u32, u32) -> u64 + Sync,
+) -> u64 {
+    let tiles = scenes::tiles(width, height, tile);
+    bands
+        .zip(tiles.par_chunks(width.div_ceil(tile) as usize))
+        .map(|(mut out, band)| {
+            let pixels = band.iter().flat_map(scenes::Tile::pixels);
+            pixels.map(|(x, y)| f(&mut out, (y - band[0].y0) as usize * width as usize + x as usize, x, y)).sum::<u64>()
+        })
+        .sum()
+}
+
+/// [`probe`] of `p`, its rays added to `rays`: the pixel and its blocker (NaN: none).
+#[inline(always)]
+fn traced(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, footprint: f32, rays: &mut u64) -> (Pixel, f32) {
+    let (pixel, t) = probe(tree, light, p, footprint);
+    *rays += u64::from(rays_of(pixel.probe));
+    (pixel, t.unwrap_or(f32::NAN))
+}
 
 /// The probes of a frame's 2-lattice (the pixels of even `x` and `y`), row-major, each with
 /// its blocker (NaN: none), as [`convolved_frame`] traces them before the other pixels.
@@ -303,27 +313,18 @@ impl Lattice<'_> {
             let same = *seen.get_or_insert(blocked) == blocked;
             same && TOLERANCES.on_one_surface(&own, corner, apart)
         });
-        let (probe, t) = match seen.filter(|_| agree) {
-            Some(blocked) => {
-                let mut inferred = false;
-                let (probe, _) = hard_probe_with(tree, light, &p, footprint, |_| {
-                    inferred = true;
-                    blocked.then_some(f32::NAN)
-                });
-                // A final probe whose ray was not inferred traced its own, if any.
-                *rays += u64::from(match probe {
-                    Probe::Done(v) if !inferred => v.rays,
-                    _ => 0,
-                });
-                (probe, f32::NAN)
-            }
-            None => {
-                let (pixel, t) = probe(tree, light, &p, footprint);
-                *rays += u64::from(rays_of(pixel.probe));
-                (pixel.probe, t.unwrap_or(f32::NAN))
-            }
-        };
-        Some((Pixel::new(&p, footprint, probe), t))
+        let Some(blocked) = seen.filter(|_| agree) else { return Some(traced(tree, light, &p, footprint, rays)) };
+        let mut inferred = false;
+        let (probe, _) = hard_probe_with(tree, light, &p, footprint, |_| {
+            inferred = true;
+            blocked.then_some(f32::NAN)
+        });
+        // A final probe whose ray was not inferred traced its own, if any.
+        *rays += u64::from(match probe {
+            Probe::Done(v) if !inferred => v.rays,
+            _ => 0,
+        });
+        Some((Pixel { probe, ..own }, f32::NAN))
     }
 }
 
@@ -1013,7 +1014,8 @@ mod tests {
             assert!(convolved_frame(tree, light, (n, n), WIDE, TOLERANCES, &mut buffers, point).0 == v);
             // The frame's edge test read the sides its probes wrote: the records' edge.
             assert_eq!(edges_of(n, n, &buffers.sides), hard_edges(n, n, &buffers.pixels));
-            // A probe per pixel (a final one may trace none), which finds the edge's blockers.
+            // At most a probe per pixel (a final one may trace none, a sparse one is inferred),
+            // and at least the edge's, which find its blockers.
             assert!(rays <= u64::from(n * n) && rays >= self.edges.len() as u64);
             v
         }

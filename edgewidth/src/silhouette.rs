@@ -388,6 +388,15 @@ pub fn silhouette_search(
     visibility(tree, silhouettes, light, p, scratch, Some(blocked))
 }
 
+/// The unit `normal` and the unit direction of `to` (the light's centre from the point), or
+/// `None` where either is zero after normalising or not finite: no horizon to measure.
+#[inline(always)]
+fn unit_frame(normal: Vec3, to: Vec3) -> Option<(Vec3, Vec3)> {
+    let (normal, dir) = (normal.normalize_or_zero(), to.normalize_or_zero());
+    let usable = to.is_finite() && normal.is_finite() && dir != Vec3::ZERO && normal != Vec3::ZERO;
+    usable.then_some((normal, dir))
+}
+
 /// The visible fraction of `p` whose light's centre is below its horizon (the line `e . h =
 /// m_h` on the light's plane, [`horizon_line`]) but not all of the light: one ray towards the
 /// middle of the part above it, answered by `occluded` (called at most once), whose answer
@@ -439,11 +448,7 @@ fn visibility(
         // The receiver hides the whole light.
         return none;
     }
-    let normal = p.normal.normalize_or_zero();
-    let dir = to.normalize_or_zero();
-    if !(to.is_finite() && normal.is_finite()) || dir == Vec3::ZERO || normal == Vec3::ZERO {
-        return none;
-    }
+    let Some((normal, dir)) = unit_frame(p.normal, to) else { return none };
     // The horizon: the receiver's tangent plane seen on the light plane is the line
     // `e . h = m_h` with `h` the normal's part across the ray, pointing down.
     let (h, m_h) = horizon_line(normal, to, dir);
@@ -596,10 +601,7 @@ pub fn hard_probe_with(
         if profile.below(p.normal, to) {
             return probe(none);
         }
-        let (normal, dir) = (p.normal.normalize_or_zero(), to.normalize_or_zero());
-        if !(to.is_finite() && normal.is_finite()) || dir == Vec3::ZERO || normal == Vec3::ZERO {
-            return probe(none);
-        }
+        let Some((normal, dir)) = unit_frame(p.normal, to) else { return probe(none) };
         let horizon = horizon_line(normal, to, dir);
         return probe(Probe::Done(above_horizon(light, p, profile, horizon, |ray| blocker(ray).is_some())));
     };
