@@ -212,18 +212,24 @@ impl<P: Packet> Method for EmbreeBlocks<'_, P> {
         out: &mut [bool],
         _: &mut C,
     ) -> (u64, u64) {
-        let (tile, hits) = (job.tile, job.hits);
+        let tile = job.tile;
         let shape = block_shape(P::WIDTH);
         let (mut rays, mut blocked) = (0u64, 0u64);
+        // One row of a block's segments (a block has at most 16 pixels).
+        let mut row = [None; 16];
         for (bx, by) in blocks(tile, shape) {
             packet.clear();
             let mut any = false;
-            block_pixels(tile, bx, by, shape, |lane, x, y, i| {
-                if let Some(ray) = job.ray(x, y, &hits[i]) {
-                    packet.set(lane, &ray);
-                    any = true;
+            let cols = shape.0.min(tile.width() - bx) as usize;
+            for j in 0..shape.1.min(tile.height() - by) {
+                job.row_segments(bx, by + j, &mut row[..cols]);
+                for (i, segment) in row[..cols].iter().enumerate() {
+                    if let Some((start, end)) = *segment {
+                        packet.set((j * shape.0) as usize + i, &Ray::segment(start, end));
+                        any = true;
+                    }
                 }
-            });
+            }
             if any {
                 self.scene.occluded_packet(packet, self.coherence);
             }

@@ -1,6 +1,24 @@
 //! The pinhole camera and the one ray convention of the workspace.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
+
+/// Pixels per call of [`Camera::row_directions`] that fill its SIMD lanes (two groups of 4):
+/// callers that cut rows into pieces cut them this long.
+pub const ROW_LANES: usize = 8;
+
+/// The lanes' square roots (correctly rounded, as `f32::sqrt`).
+#[inline(always)]
+fn sqrt4(v: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE is part of every x86-64 CPU (the target's baseline features).
+        Vec4::from(unsafe { std::arch::x86_64::_mm_sqrt_ps(v.into()) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec4::from_array(v.to_array().map(f32::sqrt))
+    }
+}
 
 /// A pinhole camera with a look-at frame.
 ///
@@ -66,6 +84,35 @@ impl Camera {
         (self.eye, self.direction(x as f32 + 0.5, y as f32 + 0.5))
     }
 
+    /// The directions of the primary rays of pixels `x0..x0 + out.len()` of row `y`, into
+    /// `out`: [`Camera::pixel_ray`]'s, bit for bit. They are made 4 at a time in `Vec4`
+    /// lanes, each operation the one `direction` does in its order (every lane operation,
+    /// square root included, is rounded as the scalar one is), so the divisions and square
+    /// roots share SIMD instructions: per pixel they are the longest chain of the shadow rays'
+    /// setup (`trace::method::ShadowJob::row_segments`).
+    pub fn row_directions(&self, x0: u32, y: u32, out: &mut [Vec3]) {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let aspect = w / h;
+        let sy = (1.0 - 2.0 * (y as f32 + 0.5) / h) * self.tan_half_fovy;
+        let (f, r, u) = (self.forward, self.right, self.up);
+        let (two, one) = (Vec4::splat(2.0), Vec4::ONE);
+        for (c, chunk) in out.chunks_mut(4).enumerate() {
+            let first = x0.wrapping_add(4 * c as u32);
+            let px = Vec4::from_array(std::array::from_fn(|l| first.wrapping_add(l as u32) as f32 + 0.5));
+            let sx = (two * px / Vec4::splat(w) - one) * self.tan_half_fovy * aspect;
+            // `forward + sx * right + sy * up`, component by component.
+            let vx = Vec4::splat(f.x) + sx * r.x + Vec4::splat(sy * u.x);
+            let vy = Vec4::splat(f.y) + sx * r.y + Vec4::splat(sy * u.y);
+            let vz = Vec4::splat(f.z) + sx * r.z + Vec4::splat(sy * u.z);
+            // `normalize`: times `1 / sqrt(v . v)`, the dot product summed from `x`.
+            let inv = one / sqrt4(vx * vx + vy * vy + vz * vz);
+            let (dx, dy, dz) = ((vx * inv).to_array(), (vy * inv).to_array(), (vz * inv).to_array());
+            for (l, d) in chunk.iter_mut().enumerate() {
+                *d = Vec3::new(dx[l], dy[l], dz[l]);
+            }
+        }
+    }
+
     /// How many world units a pixel covers across at `point`'s distance from the eye (the
     /// image plane's height at that distance over the pixel rows): the screen-space
     /// techniques' unit (the edge widths' penumbra reach, `edgewidth::sparse`). NaN for a
@@ -89,6 +136,30 @@ mod tests {
         assert_relative_eq!(c.footprint(Vec3::new(6.0, 0.0, 8.0)), 0.2, epsilon = 1e-6);
         assert_eq!(c.footprint(c.eye), 0.0);
         assert!(c.footprint(Vec3::NAN).is_nan());
+    }
+
+    /// The batched directions are `pixel_ray`'s bit for bit: odd and even sizes, rows cut at
+    /// any start and length (chunks and their remainders), wide and narrow fields of view.
+    #[test]
+    fn row_directions_are_pixel_rays_bit_for_bit() {
+        let cams = [
+            (Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 2.5, -1.0), 60.0, 37, 23),
+            (Vec3::new(-1e5, 3e4, 2e5), Vec3::new(-1e5 + 3.0, 3e4 - 1.0, 2e5 + 0.5), 1.0, 1024, 768),
+            (Vec3::ZERO, Vec3::new(0.3, -0.2, -1.0), 170.0, 16, 16),
+        ];
+        for (eye, target, fov, w, h) in cams {
+            let cam = Camera::look_at(eye, target, fov, w, h).unwrap();
+            for y in [0, h / 2, h - 1] {
+                for (x0, n) in [(0, w as usize), (3, 1), (5, 8), (w - 9, 9), (1, 17)] {
+                    let mut out = vec![Vec3::NAN; n];
+                    cam.row_directions(x0, y, &mut out);
+                    for (k, d) in out.iter().enumerate() {
+                        let want = cam.pixel_ray(x0 + k as u32, y).1;
+                        assert_eq!(d.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{x0}+{k},{y}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -22,6 +22,7 @@ use cones::shadows::{SAMPLES, light_samples, shadow_rays};
 use glam::Vec3;
 use kdtree::surface::Surfaces;
 use kdtree::{Counters, Hit, KdTree, NoCounters, Ray};
+use scenes::camera::ROW_LANES;
 use scenes::{Camera, Scene, SphereLight, Tile};
 
 use crate::{shade, soft};
@@ -191,12 +192,20 @@ impl<T: Tracer> Method for SingleRays<T> {
         counters: &mut C,
     ) -> (u64, u64) {
         let (mut rays, mut blocked) = (0, 0);
-        for ((x, y, hit), slot) in job.pixels().zip(out) {
-            *slot = false;
-            let Some(ray) = job.ray(x, y, hit) else { continue };
-            rays += 1;
-            *slot = self.0.occluded_counted(&ray, counters);
-            blocked += u64::from(*slot);
+        let mut segments = [None; ROW_LANES];
+        let w = job.tile.width();
+        for (ly, row) in out.chunks_mut(w.max(1) as usize).enumerate() {
+            for (c, slots) in row.chunks_mut(ROW_LANES).enumerate() {
+                let segments = &mut segments[..slots.len()];
+                job.row_segments((c * ROW_LANES) as u32, ly as u32, segments);
+                for (slot, segment) in slots.iter_mut().zip(&*segments) {
+                    *slot = false;
+                    let Some((start, end)) = *segment else { continue };
+                    rays += 1;
+                    *slot = self.0.occluded_counted(&Ray::segment(start, end), counters);
+                    blocked += u64::from(*slot);
+                }
+            }
         }
         (rays, blocked)
     }
@@ -254,6 +263,37 @@ impl ShadowJob<'_> {
     #[inline]
     pub fn segment(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<(Vec3, Vec3)> {
         hard_shadow_segment(self.scene, self.surfaces, self.camera, x, y, hit)
+    }
+
+    /// The segments ([`ShadowJob::segment`]'s, bit for bit) of the tile's pixels
+    /// `lx..lx + out.len()` of tile row `ly` (tile coordinates, inside the tile) into `out`.
+    /// The primary directions the segments need (which side of the surface is lit) are made
+    /// a row at a time by [`Camera::row_directions`], whose SIMD lanes take the divisions and
+    /// square roots that are otherwise the longest chain of each pixel's setup. Every shadow
+    /// kernel, ours and Embree's, starts from these.
+    pub fn row_segments(&self, lx: u32, ly: u32, out: &mut [Option<(Vec3, Vec3)>]) {
+        let mut dirs = [Vec3::ZERO; ROW_LANES];
+        let row = ly as usize * self.tile.width() as usize + lx as usize;
+        let light = &self.scene.point_light;
+        for (c, chunk) in out.chunks_mut(ROW_LANES).enumerate() {
+            let x = lx + (c * ROW_LANES) as u32;
+            self.camera.row_directions(self.tile.x0 + x, self.tile.y0 + ly, &mut dirs[..chunk.len()]);
+            let hits = &self.hits[row + c * ROW_LANES..][..chunk.len()];
+            for ((slot, hit), &dir) in chunk.iter_mut().zip(hits).zip(&dirs) {
+                *slot = hit.as_ref().and_then(|hit| shade::shadow_segment(self.surfaces, light, dir, hit));
+            }
+        }
+    }
+
+    /// Every pixel's segment ([`ShadowJob::row_segments`]), row-major inside the tile, into
+    /// `out` (resized to the tile).
+    pub fn segments(&self, out: &mut Vec<Option<(Vec3, Vec3)>>) {
+        let w = self.tile.width() as usize;
+        out.clear();
+        out.resize(w * self.tile.height() as usize, None);
+        for (ly, row) in out.chunks_mut(w.max(1)).enumerate() {
+            self.row_segments(0, ly as u32, row);
+        }
     }
 }
 
@@ -360,7 +400,7 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
 /// light. `None` for misses and surfaces facing away from the light. Every method traces
 /// exactly these rays; the packet kernels build their packets from the ends
 /// (`packets::RayPacket::segments`).
-#[inline]
+#[inline(always)]
 pub fn hard_shadow_segment(
     scene: &Scene,
     surfaces: &Surfaces,
@@ -371,4 +411,36 @@ pub fn hard_shadow_segment(
 ) -> Option<(Vec3, Vec3)> {
     let hit = hit.as_ref()?;
     shade::shadow_segment(surfaces, &scene.point_light, camera.pixel_ray(x, y).1, hit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::setup::load_and_build;
+
+    /// The batched segments are the per-pixel ones bit for bit, on a tile inside the image
+    /// (not at its origin) whose rows are longer than the lanes and not a multiple of them,
+    /// with misses, lit and unlit hits; and the row calls at any start give the same.
+    #[test]
+    fn row_segments_are_the_pixels_segments_bit_for_bit() {
+        let (scene, tree, _) = load_and_build("atrium", &Default::default()).unwrap();
+        let camera = scene.default_view().camera(61, 40).unwrap();
+        let tile = Tile { x0: 7, y0: 3, x1: 7 + 19, y1: 3 + 37 };
+        let hits: Vec<_> = tile.pixels().map(|(x, y)| tree.intersect(&primary_ray(&camera, x, y))).collect();
+        let surfaces = shade::surfaces(&scene.mesh);
+        let job = ShadowJob { scene: &scene, surfaces: &surfaces, camera: &camera, tile: &tile, hits: &hits };
+        let want: Vec<_> = job.pixels().map(|(x, y, hit)| job.segment(x, y, hit)).collect();
+        assert!(want.iter().any(Option::is_some) && want.iter().any(Option::is_none));
+        let bits = |s: &Option<(Vec3, Vec3)>| s.map(|(a, b)| [a.to_array(), b.to_array()].map(|v| v.map(f32::to_bits)));
+        let mut got = Vec::new();
+        job.segments(&mut got);
+        assert_eq!(got.iter().map(bits).collect::<Vec<_>>(), want.iter().map(bits).collect::<Vec<_>>());
+        let w = tile.width() as usize;
+        for (lx, n) in [(0, 3), (5, 9), (10, 9), (18, 1)] {
+            let mut part = vec![None; n];
+            job.row_segments(lx as u32, 11, &mut part);
+            let row = &want[11 * w + lx..][..n];
+            assert_eq!(part.iter().map(bits).collect::<Vec<_>>(), row.iter().map(bits).collect::<Vec<_>>());
+        }
+    }
 }

@@ -46,7 +46,7 @@ pub fn shadow_ray(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit)
 /// The ends of [`shadow_ray`]: its origin and the light (the ray is
 /// `Ray::segment(start, end)`), for kernels that build their packets from the
 /// ends (`packets::RayPacket::segments`).
-#[inline]
+#[inline(always)]
 pub fn shadow_segment(surfaces: &Surfaces, light: &PointLight, dir: Vec3, hit: &Hit) -> Option<(Vec3, Vec3)> {
     let s: &Surface = surfaces.get(hit.prim);
     let n = s.facing_normal(dir);

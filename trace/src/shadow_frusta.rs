@@ -159,8 +159,7 @@ pub fn hard<I: PacketTreeTest, G: Grouping, C: TileCounters>(
     out: &mut [bool],
     counters: &mut C,
 ) -> (u64, u64) {
-    scratch.hard.clear();
-    scratch.hard.extend(job.pixels().map(|(x, y, hit)| job.segment(x, y, hit)));
+    job.segments(&mut scratch.hard);
     scratch.morton_order(job.tile);
     scratch.clear();
     let ShadowScratch { hard, order, starts, ends, slots, .. } = &mut *scratch;

@@ -89,8 +89,9 @@ pub fn bench_shadow_methods(c: &mut criterion::Criterion, group: &str, methods: 
 }
 
 /// The shadow rays of every lit hit of `hits` (tile order of `view.layout`), made in
-/// parallel over tiles as the frame driver does (`ShadowJob::ray` for hard shadows,
-/// `SoftJob::point` for soft ones) and not traced: how many there are.
+/// parallel over tiles as the frame driver does (`ShadowJob::segments`, a row's directions in
+/// SIMD lanes, for hard shadows, `SoftJob::point` for soft ones) and not traced: how many
+/// there are.
 #[allow(dead_code)] // Each bench compiles this module; not every bench calls this.
 pub fn make_rays(
     view: &trace::frame::View<'_>,
@@ -108,7 +109,10 @@ pub fn make_rays(
         .map(|(tile, hits)| {
             let job = ShadowJob { scene: view.scene, surfaces: view.surfaces, camera: view.camera, tile, hits };
             if hard {
-                job.pixels().filter_map(|(x, y, hit)| job.ray(x, y, hit)).map(std::hint::black_box).count() as u64
+                let mut segments = Vec::new();
+                job.segments(&mut segments);
+                let rays = segments.iter().flatten().map(|&(start, end)| kdtree::Ray::segment(start, end));
+                rays.map(std::hint::black_box).count() as u64
             } else {
                 let soft = SoftJob { hits: job, light };
                 (0..hits.len()).filter_map(|i| soft.point(i)).map(std::hint::black_box).count() as u64 * 16
