@@ -253,13 +253,9 @@ impl ShadowJob<'_> {
         self.tile.pixels().zip(self.hits).map(|((x, y), h)| (x, y, h))
     }
 
-    /// The hard shadow ray of pixel `(x, y)` with primary hit `hit`: [`hard_shadow_segment`]'s.
-    #[inline]
-    pub fn ray(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<Ray> {
-        self.segment(x, y, hit).map(|(start, end)| Ray::segment(start, end))
-    }
-
-    /// The ends of [`ShadowJob::ray`]: [`hard_shadow_segment`].
+    /// The hard shadow ray of pixel `(x, y)` with primary hit `hit`, as its ends (the ray is
+    /// `Ray::segment(start, end)`): [`hard_shadow_segment`]'s, one pixel at a time. The
+    /// kernels take a row's at once ([`ShadowJob::row_segments`]).
     #[inline]
     pub fn segment(&self, x: u32, y: u32, hit: &Option<Hit>) -> Option<(Vec3, Vec3)> {
         hard_shadow_segment(self.scene, self.surfaces, self.camera, x, y, hit)
@@ -400,7 +396,7 @@ pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
 /// light. `None` for misses and surfaces facing away from the light. Every method traces
 /// exactly these rays; the packet kernels build their packets from the ends
 /// (`packets::RayPacket::segments`).
-#[inline(always)]
+#[inline]
 pub fn hard_shadow_segment(
     scene: &Scene,
     surfaces: &Surfaces,
