@@ -27,7 +27,9 @@
 //!    2-lattice (every other pixel of every other row), then, for each pixel between, taken
 //!    from its lattice corners where they agree and lie on its surface, else traced
 //!    ([`Params::sparse_probes`]). On the scenes of `docs/results/soft-shadows-quality.md`
-//!    that traces 29% to 46% of the rays of a probe per pixel.
+//!    that traces 29% to 46% of the rays of a probe per pixel. A tile's rays go together,
+//!    in Morton order, as packets of the SIMD level's width ([`crate::probe_packets`]; the
+//!    single rays' probes bit for bit).
 //! 2. The blocked pixels with a lit 8-neighbour are the hard shadow's edge ([`hard_edges`],
 //!    read off a byte a pixel that the probes write); their probes found their nearest
 //!    blockers.
@@ -59,6 +61,7 @@ use kdtree::isa::SimdLevel;
 use packets::Width;
 use packets::simd::{SimdF32, SimdMask, array_fn};
 
+use crate::probe_packets::ProbePackets;
 use crate::sampling::{AreaLight, ShadingPoint};
 use crate::silhouette::{Probe, Profile, hard_probe_and_blocker, hard_probe_with};
 use crate::sparse::{self, Answer, Pixel, SparseFrame, Tolerances};
@@ -151,19 +154,21 @@ pub fn convolved_frame(
     pixels.resize(n, None);
     near.resize(n, f32::NAN);
     sides.resize(n, Side::Neither);
+    let lanes = Width::for_level(SimdLevel::active());
     let mut probed = 0;
     if n > 0 {
         let lattice = if params.sparse_probes {
             let (lw, lh) = (width.div_ceil(2), height.div_ceil(2));
             lattice.resize(lw as usize * lh as usize, (None, f32::NAN));
             let chunks = lattice.par_chunks_mut(lw as usize * (TILE / 2) as usize);
-            probed += in_bands((lw, lh), TILE / 2, chunks, |out, at, x, y| {
-                let mut rays = 0;
-                out[at] = point(2 * x, 2 * y).map_or((None, f32::NAN), |(p, footprint)| {
-                    let (pixel, t) = traced(tree, light, &p, footprint, &mut rays);
-                    (Some(pixel), t)
-                });
-                rays
+            probed += in_bands((lw, lh), TILE / 2, chunks, |out, batch, tile| {
+                for &(at, x, y) in tile {
+                    match point(2 * x, 2 * y) {
+                        Some((p, footprint)) => batch.push(at, p, footprint),
+                        None => out[at] = (None, f32::NAN),
+                    }
+                }
+                batch.trace(tree, light, lanes, |at, pixel, t| out[at] = (Some(pixel), t))
             });
             Some(Lattice { width: lw, height: lh, probes: &lattice[..] })
         } else {
@@ -171,15 +176,27 @@ pub fn convolved_frame(
         };
         let band = w * TILE as usize;
         let bands = pixels.par_chunks_mut(band).zip(near.par_chunks_mut(band)).zip(sides.par_chunks_mut(band));
-        probed += in_bands((width, height), TILE, bands, |((out, near), sides), at, x, y| {
+        probed += in_bands((width, height), TILE, bands, |((out, near), sides), batch, tile| {
             let mut rays = 0;
-            let probed = match &lattice {
-                Some(lattice) => lattice.probe(tree, light, (x, y), &point, &mut rays),
-                None => point(x, y).map(|(p, footprint)| traced(tree, light, &p, footprint, &mut rays)),
-            };
-            (out[at], near[at]) = probed.map_or((None, f32::NAN), |(p, t)| (Some(p), t));
-            sides[at] = Side::of(out[at].as_ref());
-            rays
+            for &(at, x, y) in tile {
+                let known = match &lattice {
+                    Some(lattice) => lattice.probe(tree, light, (x, y), &point, &mut rays),
+                    None => point(x, y).map_or(Lookup::Known(None), |(p, footprint)| Lookup::Trace(p, footprint)),
+                };
+                let known = match known {
+                    Lookup::Known(known) => known,
+                    Lookup::Trace(p, footprint) => {
+                        batch.push(at, p, footprint);
+                        continue;
+                    }
+                };
+                (out[at], near[at]) = known.map_or((None, f32::NAN), |(p, t)| (Some(p), t));
+                sides[at] = Side::of(out[at].as_ref());
+            }
+            rays + batch.trace(tree, light, lanes, |at, pixel, t| {
+                (out[at], near[at]) = (Some(pixel), t);
+                sides[at] = Side::of(out[at].as_ref());
+            })
         });
     }
     let (pixels, near, sides) = (&pixels[..], &near[..], &sides[..]);
@@ -226,32 +243,50 @@ pub fn convolved_frame(
 /// the 2-lattice is half as wide).
 const TILE: u32 = 16;
 
-/// Runs `f` on every pixel of a `width` x `height` frame in bands of `tile` rows, each band
-/// tile by tile (neighbouring rays one after the other), the bands in parallel. `bands` gives
-/// each band's output, row-major (`width * tile` entries); `f(out, at, x, y)` writes pixel
-/// `(x, y)` at `at` of its band's `out` and returns the rays it traced. Returns their sum.
+/// Runs `f` on every tile of a `width` x `height` frame, in bands of `tile` rows, the bands
+/// in parallel, each band tile by tile. `bands` gives each band's output, row-major (`width *
+/// tile` entries); `f(out, batch, pixels)` gets the tile's pixels as `(at, x, y)`, pixel `(x,
+/// y)` at `at` of its band's `out`, in Morton order (neighbouring rays one after the other, so
+/// that the probes it queues in `batch`, one per thread, share packets), and returns the rays
+/// it traced. Returns their sum.
 fn in_bands<B: Send>(
     (width, height): (u32, u32),
     tile: u32,
     bands: impl IndexedParallelIterator<Item = B>,
-    f: impl Fn(&mut B, usize, u32, u32) -> u64 + Sync,
+    f: impl Fn(&mut B, &mut ProbePackets, &[(usize, u32, u32)]) -> u64 + Sync,
 ) -> u64 {
     let tiles = scenes::tiles(width, height, tile);
+    let order = scenes::morton_order(tile, tile);
     bands
         .zip(tiles.par_chunks(width.div_ceil(tile) as usize))
-        .map(|(mut out, band)| {
-            let pixels = band.iter().flat_map(scenes::Tile::pixels);
-            pixels.map(|(x, y)| f(&mut out, (y - band[0].y0) as usize * width as usize + x as usize, x, y)).sum::<u64>()
-        })
+        .map_init(
+            || (ProbePackets::default(), Vec::new()),
+            |(batch, pixels), (mut out, band)| {
+                let mut rays = 0;
+                for t in band {
+                    pixels.clear();
+                    // The full tile's order, less the pixels a clipped tile lacks.
+                    let inside = order.iter().map(|&i| (t.x0 + i % tile, t.y0 + i / tile));
+                    pixels.extend(
+                        inside
+                            .filter(|&(x, y)| x < t.x1 && y < t.y1)
+                            .map(|(x, y)| ((y - band[0].y0) as usize * width as usize + x as usize, x, y)),
+                    );
+                    rays += f(&mut out, batch, pixels);
+                }
+                rays
+            },
+        )
         .sum()
 }
 
-/// [`probe`] of `p`, its rays added to `rays`: the pixel and its blocker (NaN: none).
-#[inline(always)]
-fn traced(tree: &KdTree, light: &AreaLight, p: &ShadingPoint, footprint: f32, rays: &mut u64) -> (Pixel, f32) {
-    let (pixel, t) = probe(tree, light, p, footprint);
-    *rays += u64::from(rays_of(pixel.probe));
-    (pixel, t.unwrap_or(f32::NAN))
+/// A pixel's probe as [`Lattice::probe`] finds it.
+enum Lookup {
+    /// Known without a ray of its own: the lattice's, or inferred from its corners (`None`:
+    /// nothing hit).
+    Known(Option<(Pixel, f32)>),
+    /// To be traced: the pixel's shading point and footprint.
+    Trace(ShadingPoint, f32),
 }
 
 /// The probes of a frame's 2-lattice (the pixels of even `x` and `y`), row-major, each with
@@ -263,7 +298,8 @@ struct Lattice<'a> {
 }
 
 impl Lattice<'_> {
-    /// Pixel `(x, y)`'s probe and blocker (NaN: none), `None` where nothing was hit.
+    /// Pixel `(x, y)`'s probe and blocker (NaN: none), `Known(None)` where nothing was hit,
+    /// or, where it must be traced, its shading point.
     ///
     /// A lattice pixel has its own. Another one takes the answer of its nearest lattice
     /// pixels (its corners: two on a lattice line, else four) where each was hit, traced a
@@ -271,10 +307,11 @@ impl Lattice<'_> {
     /// to the part of the light above its horizon) and lies on its surface
     /// ([`Tolerances::on_one_surface`] with [`TOLERANCES`]): its own ray, whichever it needs,
     /// is taken to answer as theirs, and is not traced. Elsewhere (a corner past the frame,
-    /// without a hit or a ray, on another surface, or the corners apart) it traces its probe.
-    /// What an inferred pixel misses is a hard shadow, or a gap of light, thinner than the
-    /// two pixels between its corners; it measures no blocker (NaN), so the hard shadow's
-    /// edge takes its blockers from the traced pixels. Adds the rays traced to `rays`.
+    /// without a hit or a ray, on another surface, or the corners apart) it is to trace its
+    /// probe ([`Lookup::Trace`]). What an inferred pixel misses is a hard shadow, or a gap of
+    /// light, thinner than the two pixels between its corners; it measures no blocker (NaN),
+    /// so the hard shadow's edge takes its blockers from the traced pixels. Adds the rays an
+    /// inferred pixel traced (a final probe's own) to `rays`.
     #[inline(always)]
     fn probe(
         &self,
@@ -283,17 +320,16 @@ impl Lattice<'_> {
         (x, y): (u32, u32),
         point: impl Fn(u32, u32) -> Option<(ShadingPoint, f32)>,
         rays: &mut u64,
-    ) -> Option<(Pixel, f32)> {
+    ) -> Lookup {
         let entry = |cx: u32, cy: u32| {
             let (lx, ly) = (cx / 2, cy / 2);
             let inside = lx < self.width && ly < self.height;
             inside.then(|| self.probes.get(ly as usize * self.width as usize + lx as usize)).flatten()
         };
         if x.is_multiple_of(2) && y.is_multiple_of(2) {
-            let &(pixel, t) = entry(x, y)?;
-            return pixel.map(|p| (p, t));
+            return Lookup::Known(entry(x, y).and_then(|&(pixel, t)| pixel.map(|p| (p, t))));
         }
-        let (p, footprint) = point(x, y)?;
+        let Some((p, footprint)) = point(x, y) else { return Lookup::Known(None) };
         let own = Pixel::new(&p, footprint, Probe::Lit(1.0));
         // The corners' columns and rows: one on a lattice line, else the two either side.
         let near = |c: u32| if c.is_multiple_of(2) { (c, None) } else { (c - 1, Some(c + 1)) };
@@ -313,7 +349,7 @@ impl Lattice<'_> {
             let same = *seen.get_or_insert(blocked) == blocked;
             same && TOLERANCES.on_one_surface(&own, corner, apart)
         });
-        let Some(blocked) = seen.filter(|_| agree) else { return Some(traced(tree, light, &p, footprint, rays)) };
+        let Some(blocked) = seen.filter(|_| agree) else { return Lookup::Trace(p, footprint) };
         let mut inferred = false;
         let (probe, _) = hard_probe_with(tree, light, &p, footprint, |_| {
             inferred = true;
@@ -324,7 +360,7 @@ impl Lattice<'_> {
             Probe::Done(v) if !inferred => v.rays,
             _ => 0,
         });
-        Some((Pixel { probe, ..own }, f32::NAN))
+        Lookup::Known(Some((Pixel { probe, ..own }, f32::NAN)))
     }
 }
 
@@ -341,15 +377,6 @@ pub struct ConvolutionBuffers {
     blockers: Vec<f32>,
     taps: Vec<f32>,
     known: Vec<Answer>,
-}
-
-/// The rays a hard probe traced: one, or a final probe's own count (none, or one towards the
-/// part of the light above the horizon).
-fn rays_of(probe: Probe) -> u32 {
-    match probe {
-        Probe::Done(v) => v.rays,
-        Probe::Lit(_) | Probe::Blocked(_) => 1,
-    }
 }
 
 /// When the sparse passes ([`crate::sparse`]) blend a pixel's lattice corners instead of

@@ -23,6 +23,8 @@
 //! - [`convolution`]: convolved edge widths: the frame's hard shadow blurred on the receiver
 //!   by the light's image through the nearest blocker (at most one shadow ray per pixel, no
 //!   search).
+//! - [`probe_packets`]: the convolution's hard probes traced as nearest-hit packets of the
+//!   SIMD register's width, the single rays' probes bit for bit.
 //! - [`analytic`]: the closed-form visible fraction of a spherical light behind a sphere.
 //!
 //! Like `kdtree`, this crate reads and writes no files; its kernels never allocate once their
@@ -36,6 +38,7 @@ pub mod filter;
 pub mod occlusion;
 pub mod packet;
 pub mod pairing;
+pub mod probe_packets;
 pub mod sampling;
 pub mod silhouette;
 pub mod sparse;

@@ -4,6 +4,9 @@
 //!
 //! Methods (each one frame: primary rays, visibility, shading, timed together):
 //! - `hard`: one shadow ray to the light's centre;
+//! - `hard-packets`: the same rays (the same image), each tile's in Morton order of their
+//!   pixels as any-hit same-sign packets of the SIMD level's width (16 rays, 4x4 pixels, on
+//!   AVX-512; `packets::samesign`), the way `edge-width-convolution` traces its probes;
 //! - `edge-width` / `edge-width-packet`: one edge-width ray to the centre (single rays, or
 //!   4-wide packets; identical images), occlusion from Eq. 5.1 with `R` from the light's size;
 //! - `edge-width-silhouette`: one hard shadow ray to the centre, then the silhouette edges in
@@ -19,6 +22,8 @@
 //!   image through that blocker (`edgewidth::convolution`; no search), on the sparse passes'
 //!   lattice;
 //! - `sampled-N`: `N` stratified samples of the area light (4, 8, 16, 32, 256);
+//! - `sampled-N-packets` (4, 16): the same rays (the same image), each tile's rays to one
+//!   stratum as packets of neighbouring pixels' rays, as `hard-packets`;
 //! - `adaptive-16`: the 4 corner samples of `sampled-16`'s strata per pixel, and its other
 //!   12 only where the probes of the pixel or of a neighbour disagree
 //!   (`edgewidth::adaptive`); refined pixels get `sampled-16`'s answer bit for bit;
@@ -62,17 +67,19 @@ use edgewidth::{
     width_from_light,
 };
 use glam::{Vec2, Vec3};
+use kdtree::isa::SimdLevel;
 use kdtree::surface::Surfaces;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
-use packets::{LaneFrusta, LaneWidth, RayPacket, samesign};
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
+use packets::simd::SimdF32;
+use packets::{LaneFrusta, LaneWidth, RayPacket, Width, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
+use scenes::morton_order;
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
 use trace::frame::{for_tiles, primary_pass};
 use trace::method::{SingleRays, primary_ray};
 use trace::progress::Progress;
-use trace::shadow_frusta::morton_order;
 use trace::{TileLayout, shade};
 
 use crate::Error;
@@ -193,6 +200,9 @@ pub enum LightKind {
 pub enum ShadowMethod {
     /// One shadow ray to the light's centre.
     Hard,
+    /// The same rays (the same image), each tile's in Morton order of their pixels as
+    /// any-hit same-sign packets of the SIMD level's width ([`count_visible_by_sample`]).
+    HardPackets,
     /// One edge-width ray to the centre (thesis chapter 5).
     EdgeWidth,
     /// Edge widths traced four rays at a time.
@@ -211,9 +221,9 @@ pub enum ShadowMethod {
     Convolution,
     /// `N` stratified samples of the light.
     Sampled(u32),
-    /// The same `N` samples (the same rays, so the same image), traced per stratum as 2x2
-    /// packets of neighbouring pixels' rays (`trace::shadow_frusta`'s grouping, Benthin &
-    /// Wald 2009).
+    /// The same `N` samples (the same rays, so the same image), traced per stratum as
+    /// packets of neighbouring pixels' rays at the SIMD level's width (`trace::shadow_frusta`'s
+    /// grouping, Benthin & Wald 2009; [`count_visible_by_sample`]).
     SampledPackets(u32),
     /// The same `N` samples (at most 16), each pixel's rays as one frustum, several pixels'
     /// in SIMD lanes (`packets::lane_frusta`, Benthin & Wald 2009's multi-frusta).
@@ -231,13 +241,15 @@ pub enum ShadowMethod {
 }
 
 /// Every method `rttest shadows` reports.
-pub const METHODS: [ShadowMethod; 16] = [
+pub const METHODS: [ShadowMethod; 18] = [
     ShadowMethod::Hard,
+    ShadowMethod::HardPackets,
     ShadowMethod::EdgeWidth,
     ShadowMethod::EdgeWidthPacket,
     ShadowMethod::Silhouette,
     ShadowMethod::Convolution,
     ShadowMethod::Sampled(4),
+    ShadowMethod::SampledPackets(4),
     ShadowMethod::Sampled(8),
     ShadowMethod::Sampled(16),
     ShadowMethod::SampledPackets(16),
@@ -255,6 +267,7 @@ impl ShadowMethod {
     pub fn name(self) -> String {
         match self {
             ShadowMethod::Hard => "hard".into(),
+            ShadowMethod::HardPackets => "hard-packets".into(),
             ShadowMethod::EdgeWidth => "edge-width".into(),
             ShadowMethod::EdgeWidthPacket => "edge-width-packet".into(),
             ShadowMethod::Silhouette => "edge-width-silhouette".into(),
@@ -439,6 +452,7 @@ impl<'a> ShadowSetup<'a> {
                     }
                 }
             }
+            ShadowMethod::HardPackets => rays = self.hard_packets(tile, hits, out),
             ShadowMethod::SampledPackets(n) => rays = self.sampled_packets(n, tile, hits, out),
             ShadowMethod::SampledLanes(n) => rays = self.lanes(n, tile, hits, out, |x, y| pixel_samples(x, y, n)),
             ShadowMethod::InterleavedLanes => {
@@ -473,6 +487,7 @@ impl<'a> ShadowSetup<'a> {
                             sets.visible_fraction(tree, &self.light, &p, x, y)
                         }
                         ShadowMethod::EdgeWidthPacket
+                        | ShadowMethod::HardPackets
                         | ShadowMethod::SampledPackets(_)
                         | ShadowMethod::SampledLanes(_)
                         | ShadowMethod::InterleavedLanes
@@ -492,7 +507,7 @@ impl<'a> ShadowSetup<'a> {
     /// passes over the tiles: every hit's four probes, then the other 12 samples of the
     /// pixels whose probes, or a neighbour's, disagree (`edgewidth::adaptive`). A pixel's
     /// samples are `sampled-16`'s (same generator and seed); each pass traces a tile's rays
-    /// sample by sample as 2x2 packets ([`count_visible_by_sample`]). Returns the rays
+    /// sample by sample as packets ([`count_visible_by_sample`]). Returns the rays
     /// traced: 4 per hit and 12 per refined pixel.
     fn adaptive(&self, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         const NO_HIT: u8 = u8::MAX;
@@ -658,10 +673,32 @@ impl<'a> ShadowSetup<'a> {
         )
     }
 
+    /// [`ShadowMethod::HardPackets`] on one tile: each pixel's shadow ray to the light's
+    /// centre as `visible_fraction` makes it, the tile's in Morton order of their pixels as
+    /// packets ([`count_visible_by_sample`]). Returns the rays traced (one per hit, as
+    /// [`ShadowMethod::Hard`] counts them).
+    fn hard_packets(&self, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
+        let (w, center) = (tile.width(), self.light.center());
+        let segments: Vec<Option<(Vec3, Vec3)>> = hits
+            .iter()
+            .enumerate()
+            .map(|(i, hit)| {
+                let (x, y) = (tile.x0 + i as u32 % w, tile.y0 + i as u32 / w);
+                hit.as_ref().and_then(|hit| self.shading_point(x, y, hit).shadow_segment(center))
+            })
+            .collect();
+        let mut visible = vec![0u32; hits.len()];
+        count_visible_by_sample(self.tree, &morton_order(w, tile.height()), &[0], |i, _| segments[i], &mut visible);
+        for ((slot, hit), v) in out.iter_mut().zip(hits).zip(visible) {
+            *slot = if hit.is_some() { v as f32 } else { 0.0 };
+        }
+        hits.iter().filter(|h| h.is_some()).count() as u64
+    }
+
     /// [`ShadowMethod::SampledPackets`] on one tile: each pixel's `n` rays exactly as
     /// `visible_fraction` makes them (same seed), then, sample by sample, the tile's rays
-    /// in Morton order of their pixels as 2x2 same-sign any-hit packets
-    /// ([`count_visible_by_sample`]). Returns the rays traced (`n` per hit, as
+    /// in Morton order of their pixels as same-sign any-hit packets at the SIMD level's
+    /// width ([`count_visible_by_sample`]). Returns the rays traced (`n` per hit, as
     /// [`ShadowMethod::Sampled`] counts them).
     fn sampled_packets(&self, n: u32, tile: &scenes::Tile, hits: &[Option<Hit>], out: &mut [f32]) -> u64 {
         let w = tile.width();
@@ -800,8 +837,10 @@ fn pixel_samples(x: u32, y: u32, n: u32) -> impl Iterator<Item = Vec2> {
 /// (`k` in `samples`) being `ray(i, k)`'s segment (`ShadingPoint::shadow_segment`); a `None`
 /// ray counts as blocked. The rays go sample by sample, each sample's in the pixel order
 /// `order` (Morton order of a tile: neighbours' rays to the same light stratum side by side)
-/// as 2x2 same-sign any-hit packets made from the segments (`samesign::occluded_segments`),
-/// as `trace::shadow_frusta` groups a render's soft shadows (Benthin & Wald 2009).
+/// as same-sign any-hit packets made from the segments, as many rays a packet as the SIMD
+/// level has lanes (`packets::Width::for_level`: 16, 4x4 pixels, on AVX-512; 8 on AVX2; the
+/// thesis's 2x2 otherwise; `samesign::occluded_segments_with`), as `trace::shadow_frusta`
+/// groups a render's shadows (Benthin & Wald 2009).
 fn count_visible_by_sample(
     tree: &KdTree,
     order: &[u32],
@@ -810,6 +849,7 @@ fn count_visible_by_sample(
     visible: &mut [u32],
 ) {
     let (mut starts, mut ends, mut slots, mut blocked) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let lanes = Width::for_level(SimdLevel::active());
     for &k in samples {
         starts.clear();
         ends.clear();
@@ -821,9 +861,22 @@ fn count_visible_by_sample(
                 slots.push(i as usize);
             }
         }
-        samesign::occluded_segments(tree, &starts, &ends, &mut blocked, &mut NoCounters);
+        packets::at_width!(lanes, V => occluded_segments::<V>(tree, &starts, &ends, &mut blocked));
         for (&i, &b) in slots.iter().zip(&blocked) {
             visible[i] += u32::from(!b);
+        }
+    }
+}
+
+/// `samesign::occluded_segments_with` at the lanes `V`, with the tree's triangle test.
+#[inline(always)]
+fn occluded_segments<V: SimdF32>(tree: &KdTree, starts: &[Vec3], ends: &[Vec3], blocked: &mut Vec<bool>) {
+    match tree.intersector() {
+        Intersector::Wald => {
+            samesign::occluded_segments_with::<WaldTest, V, _>(tree, starts, ends, blocked, &mut NoCounters)
+        }
+        Intersector::Watertight => {
+            samesign::occluded_segments_with::<WatertightTest, V, _>(tree, starts, ends, blocked, &mut NoCounters)
         }
     }
 }
@@ -1388,6 +1441,14 @@ mod tests {
     #[test]
     fn sampled_packets_and_lanes_give_the_sampled_frame() {
         on_touching_boxes(|setup| {
+            let hard = setup.frame(ShadowMethod::Hard);
+            let packets = setup.frame(ShadowMethod::HardPackets);
+            assert_eq!(hard.visibility, packets.visibility);
+            assert_eq!(hard.shadow_rays, packets.shadow_rays);
+            assert!(hard.visibility.contains(&0.0) && hard.visibility.contains(&1.0));
+            let single = setup.frame(ShadowMethod::Sampled(4));
+            let packets = setup.frame(ShadowMethod::SampledPackets(4));
+            assert_eq!(single.visibility, packets.visibility);
             let single = setup.frame(ShadowMethod::Sampled(16));
             let packets = setup.frame(ShadowMethod::SampledPackets(16));
             assert_eq!(single.visibility, packets.visibility);

@@ -1,6 +1,6 @@
 //! Table 5.1 of the thesis (chapter 5, "Performance"): frame rates of single-sample hard
 //! shadows, edge widths (the thesis's, and our silhouette and convolved widths), 4 and 32
-//! samples (and 32 samples as 2x2 shadow packets), on Sponza (when the shared scenes are
+//! samples (and 32 samples as shadow packets), on Sponza (when the shared scenes are
 //! present) and on `atrium`, beside the thesis's Sponza figures (15.0, 12.0, 4.26, 1.42 fps).
 //!
 //! A frame is primary rays, visibility and shading ([`crate::shadows::ShadowSetup::frame`]),
@@ -19,9 +19,9 @@ use crate::shadows::{ShadowMethod, ShadowSetup, median};
 /// The rows of Table 5.1 with the thesis's Sponza frame rates: its four, our two variants of
 /// the edge widths after the thesis's (silhouette widths, `edgewidth::silhouette`, and
 /// convolved widths, `edgewidth::convolution`: both halves of the penumbra, no leaks), and
-/// the 32 samples traced per stratum as 2x2 packets of neighbouring pixels' rays (the same
-/// image; the thesis's own 32-sample row used cone frusta); the thesis has no figure for our
-/// three.
+/// the 32 samples traced per stratum as packets of neighbouring pixels' rays at the SIMD
+/// level's width (16 rays on AVX-512; the same image; the thesis's own 32-sample row used cone
+/// frusta); the thesis has no figure for our three.
 pub const ROWS: [(ShadowMethod, &str, Option<f64>); 7] = [
     (ShadowMethod::Hard, "Single Sample", Some(15.0)),
     (ShadowMethod::EdgeWidth, "Edge Width", Some(12.0)),
@@ -29,7 +29,7 @@ pub const ROWS: [(ShadowMethod, &str, Option<f64>); 7] = [
     (ShadowMethod::Convolution, "Edge Width, convolved (ours)", None),
     (ShadowMethod::Sampled(4), "4 Sample", Some(4.26)),
     (ShadowMethod::Sampled(32), "32 Sample", Some(1.42)),
-    (ShadowMethod::SampledPackets(32), "32 Sample, 2x2 packets", None),
+    (ShadowMethod::SampledPackets(32), "32 Sample, packets", None),
 ];
 
 /// Measures Table 5.1 on `atrium` and Sponza (if present) at `size`, `frames` frames per row

@@ -37,4 +37,4 @@ pub use material::{Material, Shader};
 pub use mesh::Mesh;
 pub use obj::{LoadReport, load_obj};
 pub use scene::{Scene, View, shared_scene_files, shared_scenes_dir};
-pub use tile::{Tile, tiles};
+pub use tile::{Tile, morton_order, tiles};

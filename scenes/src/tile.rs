@@ -51,6 +51,26 @@ pub fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     out
 }
 
+/// The pixels of a `w` x `h` tile (row-major indices) in Morton (Z) order: each run of 4,
+/// 16, 64 of them is a 2x2, 4x4, 8x8 block.
+pub fn morton_order(w: u32, h: u32) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..w * h).collect();
+    order.sort_by_key(|&i| morton(i % w, i / w));
+    order
+}
+
+/// The Morton (Z-order) code of `(x, y)` (16 bits each).
+fn morton(x: u32, y: u32) -> u64 {
+    let spread = |v: u32| {
+        let mut v = u64::from(v & 0xffff);
+        v = (v | v << 8) & 0x00ff_00ff;
+        v = (v | v << 4) & 0x0f0f_0f0f;
+        v = (v | v << 2) & 0x3333_3333;
+        (v | v << 1) & 0x5555_5555
+    };
+    spread(x) | spread(y) << 1
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -67,6 +87,18 @@ mod tests {
             }
         }
         assert!(count.iter().all(|&c| c == 1), "{width}x{height} size {size}");
+    }
+
+    #[test]
+    fn morton_order_visits_blocks_together() {
+        let order = morton_order(4, 4);
+        // The first 2x2 block, then the one to its right, then the two below them.
+        assert_eq!(order[..8], [0, 1, 4, 5, 2, 3, 6, 7]);
+        assert_eq!(order[8..], [8, 9, 12, 13, 10, 11, 14, 15]);
+        // A clipped tile: each index once.
+        let mut sorted = morton_order(5, 3);
+        sorted.sort();
+        assert_eq!(sorted, (0..15).collect::<Vec<_>>());
     }
 
     #[test]

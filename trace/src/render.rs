@@ -381,7 +381,7 @@ impl<'a> Renderer<'a> {
             let mut order = Vec::with_capacity(pixels.len());
             let mut base = 0u32;
             for t in self.layout.tiles() {
-                order.extend(crate::shadow_frusta::morton_order(t.width(), t.height()).into_iter().map(|i| base + i));
+                order.extend(scenes::morton_order(t.width(), t.height()).into_iter().map(|i| base + i));
                 base += t.pixel_count() as u32;
             }
             (pixels, order)

@@ -29,7 +29,7 @@ use cones::shadows::SAMPLES;
 use glam::Vec3;
 use kdtree::KdTree;
 use packets::{LaneFrusta, LaneWidth, PacketTreeTest};
-use scenes::Tile;
+use scenes::{Tile, morton_order};
 
 use crate::method::{ShadowJob, SoftJob, SoftStats, TileCounters};
 
@@ -126,26 +126,6 @@ impl<S> ShadowScratch<S> {
         }
         stats
     }
-}
-
-/// The pixels of a `w` x `h` tile (row-major indices) in Morton (Z) order: each run of 4,
-/// 16, 64 of them is a 2x2, 4x4, 8x8 block.
-pub fn morton_order(w: u32, h: u32) -> Vec<u32> {
-    let mut order: Vec<u32> = (0..w * h).collect();
-    order.sort_by_key(|&i| morton(i % w, i / w));
-    order
-}
-
-/// The Morton (Z-order) code of `(x, y)` (16 bits each).
-fn morton(x: u32, y: u32) -> u64 {
-    let spread = |v: u32| {
-        let mut v = u64::from(v & 0xffff);
-        v = (v | v << 8) & 0x00ff_00ff;
-        v = (v | v << 4) & 0x0f0f_0f0f;
-        v = (v | v << 2) & 0x3333_3333;
-        (v | v << 1) & 0x5555_5555
-    };
-    spread(x) | spread(y) << 1
 }
 
 /// The hard shadow rays of `job`, in Morton order, traced by `grouping`, into `out`; returns
