@@ -8,7 +8,7 @@
 //! `kd-packets`, 1.1 to 1.2 times Embree's 16-ray packets in `docs/results/targets.md`). The
 //! packet walk gives each lane the single ray's hit bit for bit (`packets`' conformance
 //! tests), so a probe here is the single-ray [`crate::convolution::probe`]'s, bit for bit, at
-//! every width ([`tests`]). What stays single: a final probe's ray (the light's centre below
+//! every width (tested). What stays single: a final probe's ray (the light's centre below
 //! the horizon, the ray towards the part of the light above it), which only
 //! [`crate::silhouette::hard_probe_with`] knows how to make.
 
