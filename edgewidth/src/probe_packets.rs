@@ -13,10 +13,8 @@
 //! [`crate::silhouette::hard_probe_with`] knows how to make.
 
 use glam::Vec3;
-use kdtree::triangle::Intersector;
-use kdtree::{KdTree, NoCounters, WaldTest, WatertightTest};
-use packets::simd::SimdF32;
-use packets::{PacketTreeTest, RayPacket, Width, samesign};
+use kdtree::{Hit, KdTree, NoCounters};
+use packets::{Width, samesign};
 
 use crate::sampling::{AreaLight, ShadingPoint};
 use crate::silhouette::{Probe, hard_probe_with};
@@ -33,9 +31,9 @@ pub struct ProbePackets {
     starts: Vec<Vec3>,
     ends: Vec<Vec3>,
     traced: Vec<u32>,
-    /// Per segment: its nearest hit's distance, as the fraction of the way to the light's
+    /// Per segment: its nearest hit, its distance the fraction of the way to the light's
     /// centre (`None`: nothing blocks it).
-    nearest: Vec<Option<f32>>,
+    nearest: Vec<Option<Hit>>,
     /// Per pending point: its centre ray's answer, `None` where it casts none.
     answers: Vec<Option<Option<f32>>>,
 }
@@ -73,11 +71,11 @@ impl ProbePackets {
             }
         }
         nearest.clear();
-        packets::at_width!(lanes, V => nearest_hits::<V>(tree, starts, ends, nearest));
+        packets::at_width!(lanes, V => samesign::intersect_segments::<V, _>(tree, starts, ends, nearest, &mut NoCounters));
         answers.clear();
         answers.resize(pending.len(), None);
-        for (&k, &t) in traced.iter().zip(nearest.iter()) {
-            answers[k as usize] = Some(t);
+        for (&k, hit) in traced.iter().zip(nearest.iter()) {
+            answers[k as usize] = Some(hit.map(|h| h.t));
         }
         let mut rays = 0;
         for (&(slot, p, footprint), &answer) in pending.iter().zip(answers.iter()) {
@@ -103,41 +101,12 @@ pub(crate) fn rays_of(probe: Probe) -> u32 {
     }
 }
 
-/// The nearest hit of each segment `starts[i]` to `ends[i]` (the ray `Ray::segment`), as its
-/// distance (`None`: no hit), appended to `out`: `V::LANES` consecutive segments per packet,
-/// with the tree's triangle test.
-#[inline(always)]
-fn nearest_hits<V: SimdF32>(tree: &KdTree, starts: &[Vec3], ends: &[Vec3], out: &mut Vec<Option<f32>>) {
-    match tree.intersector() {
-        Intersector::Wald => nearest_hits_with::<WaldTest, V>(tree, starts, ends, out),
-        Intersector::Watertight => nearest_hits_with::<WatertightTest, V>(tree, starts, ends, out),
-    }
-}
-
-/// [`nearest_hits`] with the triangle test `I`.
-#[inline(always)]
-fn nearest_hits_with<I: PacketTreeTest, V: SimdF32>(
-    tree: &KdTree,
-    starts: &[Vec3],
-    ends: &[Vec3],
-    out: &mut Vec<Option<f32>>,
-) where
-    I::Record: packets::triangle4::PacketTest<V>,
-{
-    for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
-        let packet = RayPacket::<V>::from_segments(starts, ends);
-        let hit = samesign::intersect_with::<I, V, NoCounters>(tree, &packet, &mut NoCounters);
-        out.extend((0..starts.len()).map(|lane| hit.get(lane).map(|h| h.t)));
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::convolution::probe;
     use crate::test_scenes::{floor, rect_light, trees};
     use glam::Vec3;
-    use kdtree::Hit;
     use scenes::SphereLight;
     use scenes::builtin::shapes::Part;
 

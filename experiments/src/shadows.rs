@@ -69,8 +69,7 @@ use edgewidth::{
 use glam::{Vec2, Vec3};
 use kdtree::isa::SimdLevel;
 use kdtree::surface::Surfaces;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
-use packets::simd::SimdF32;
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
 use packets::{LaneFrusta, LaneWidth, RayPacket, Width, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
@@ -839,7 +838,7 @@ fn pixel_samples(x: u32, y: u32, n: u32) -> impl Iterator<Item = Vec2> {
 /// `order` (Morton order of a tile: neighbours' rays to the same light stratum side by side)
 /// as same-sign any-hit packets made from the segments, as many rays a packet as the SIMD
 /// level has lanes (`packets::Width::for_level`: 16, 4x4 pixels, on AVX-512; 8 on AVX2; the
-/// thesis's 2x2 otherwise; `samesign::occluded_segments_with`), as `trace::shadow_frusta`
+/// thesis's 2x2 otherwise; `samesign::occluded_segments`), as `trace::shadow_frusta`
 /// groups a render's shadows (Benthin & Wald 2009).
 fn count_visible_by_sample(
     tree: &KdTree,
@@ -861,22 +860,9 @@ fn count_visible_by_sample(
                 slots.push(i as usize);
             }
         }
-        packets::at_width!(lanes, V => occluded_segments::<V>(tree, &starts, &ends, &mut blocked));
+        packets::at_width!(lanes, V => samesign::occluded_segments::<V, _>(tree, &starts, &ends, &mut blocked, &mut NoCounters));
         for (&i, &b) in slots.iter().zip(&blocked) {
             visible[i] += u32::from(!b);
-        }
-    }
-}
-
-/// `samesign::occluded_segments_with` at the lanes `V`, with the tree's triangle test.
-#[inline(always)]
-fn occluded_segments<V: SimdF32>(tree: &KdTree, starts: &[Vec3], ends: &[Vec3], blocked: &mut Vec<bool>) {
-    match tree.intersector() {
-        Intersector::Wald => {
-            samesign::occluded_segments_with::<WaldTest, V, _>(tree, starts, ends, blocked, &mut NoCounters)
-        }
-        Intersector::Watertight => {
-            samesign::occluded_segments_with::<WatertightTest, V, _>(tree, starts, ends, blocked, &mut NoCounters)
         }
     }
 }

@@ -17,7 +17,7 @@
 //! rays may start behind their origin, `t_min < 0`), and a lane lying in the split plane
 //! (`d` NaN) visits both children over its whole interval.
 
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 use kdtree::triangle::{Intersector, TriangleTest};
 use kdtree::{Counters, KdNode, KdTree, TreeTest, WaldTest, WatertightTest};
 
@@ -70,11 +70,11 @@ pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters
 }
 
 /// Whether each segment `starts[i]` to `ends[i]` (the ray `Ray::new(start, end - start, 0,
-/// 1)`, a shadow ray) is blocked, four consecutive ones at a time as one packet
-/// ([`RayPacket::segments`], [`occluded`]): the answers, in order, appended to `blocked`
+/// 1)`, a shadow ray) is blocked, `V::LANES` consecutive ones at a time as one packet
+/// ([`RayPacket::from_segments`], [`occluded`]): the answers, in order, appended to `blocked`
 /// after clearing it. Segments of neighbouring pixels (a tile's shadow rays in Morton order)
 /// make coherent packets.
-pub fn occluded_segments<C: Counters>(
+pub fn occluded_segments<V: SimdF32, C: Counters>(
     tree: &KdTree,
     starts: &[Vec3],
     ends: &[Vec3],
@@ -82,10 +82,41 @@ pub fn occluded_segments<C: Counters>(
     counters: &mut C,
 ) {
     match tree.intersector() {
-        Intersector::Wald => occluded_segments_with::<WaldTest, Vec4, C>(tree, starts, ends, blocked, counters),
+        Intersector::Wald => occluded_segments_with::<WaldTest, V, C>(tree, starts, ends, blocked, counters),
         Intersector::Watertight => {
-            occluded_segments_with::<WatertightTest, Vec4, C>(tree, starts, ends, blocked, counters)
+            occluded_segments_with::<WatertightTest, V, C>(tree, starts, ends, blocked, counters)
         }
+    }
+}
+
+/// The nearest hit of each segment `starts[i]` to `ends[i]` (as [`occluded_segments`], its
+/// distance the fraction of the way), `V::LANES` consecutive ones at a time as one packet
+/// ([`intersect`]): the hits, in order, appended to `hits` after clearing it. Each is the
+/// single ray's (`KdTree::intersect` of `Ray::segment`) bit for bit, as every packet walk's.
+pub fn intersect_segments<V: SimdF32, C: Counters>(
+    tree: &KdTree,
+    starts: &[Vec3],
+    ends: &[Vec3],
+    hits: &mut Vec<Option<kdtree::Hit>>,
+    counters: &mut C,
+) {
+    fn run<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
+        tree: &KdTree,
+        starts: &[Vec3],
+        ends: &[Vec3],
+        hits: &mut Vec<Option<kdtree::Hit>>,
+        counters: &mut C,
+    ) {
+        hits.clear();
+        for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
+            let packet = RayPacket::<V>::from_segments(starts, ends);
+            let hit = intersect_with::<I, V, C>(tree, &packet, counters);
+            hits.extend((0..starts.len().min(ends.len())).map(|lane| hit.get(lane)));
+        }
+    }
+    match tree.intersector() {
+        Intersector::Wald => run::<WaldTest, V, C>(tree, starts, ends, hits, counters),
+        Intersector::Watertight => run::<WatertightTest, V, C>(tree, starts, ends, hits, counters),
     }
 }
 
