@@ -4,8 +4,8 @@
 //! register's width), each probe then made from its lane's answer as the single ray's is.
 //!
 //! A probe is one nearest-hit ray to the light's centre; neighbouring pixels' rays to one
-//! point of the light are the most coherent rays a frame has (the hard shadow rays of
-//! `kd-packets`, 1.1 to 1.2 times Embree's 16-ray packets in `docs/results/targets.md`). The
+//! point of the light are the most coherent rays a frame has (the hard shadow rays that
+//! `kd-packets-w16` traces the same way, `docs/results/targets.md`). The
 //! packet walk gives each lane the single ray's hit bit for bit (`packets`' conformance
 //! tests), so a probe here is the single-ray [`crate::convolution::probe`]'s, bit for bit, at
 //! every width (tested). What stays single: a final probe's ray (the light's centre below
