@@ -85,15 +85,19 @@ fn is_empty(b: &FrustumBound) -> bool {
     b.near.is_nan() || b.far.is_nan() || b.near > b.far
 }
 
-/// The valid lanes' directions of `packets`.
+/// Calls `f` with the valid lanes' directions of `packets`, in order. A plain loop, not an
+/// iterator adapter: the optimiser may leave an adapter's fold out of line, where the lanes'
+/// reads would compile without the kernel's instruction set.
 #[inline(always)]
-fn directions<V: SimdF32>(packets: &[OmniPacket<V>]) -> impl Iterator<Item = Vec3> + '_ {
-    packets.iter().flat_map(|p| {
+fn for_directions<V: SimdF32>(packets: &[OmniPacket<V>], mut f: impl FnMut(Vec3)) {
+    for p in packets {
         let mask = p.rays.valid.bitmask();
-        (0..V::LANES)
-            .filter(move |l| mask >> l & 1 != 0)
-            .map(move |l| Vec3::new(p.rays.d[0][l], p.rays.d[1][l], p.rays.d[2][l]))
-    })
+        for l in 0..V::LANES {
+            if mask >> l & 1 != 0 {
+                f(Vec3::new(p.rays.d[0][l], p.rays.d[1][l], p.rays.d[2][l]));
+            }
+        }
+    }
 }
 
 /// The cone of loaded packets (mean axis, widest ray) and their direction lengths.
@@ -101,18 +105,19 @@ fn directions<V: SimdF32>(packets: &[OmniPacket<V>]) -> impl Iterator<Item = Vec
 fn loaded_cone<V: SimdF32>(origin: Vec3, packets: &[OmniPacket<V>]) -> Result<(Cone, (f64, f64)), ConeError> {
     let mut sum = DVec3::ZERO;
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-    for d in directions(packets) {
+    for_directions(packets, |d| {
         let d = d.as_dvec3();
         let l = d.length();
         lo = lo.min(l);
         hi = hi.max(l);
         sum += d / l;
-    }
+    });
     if lo.is_nan() || lo <= 0.0 || !sum.is_finite() || sum.length() == 0.0 {
         return Err(ConeError::ZeroAxis);
     }
     let axis = sum.normalize();
-    let alpha = directions(packets).map(|d| angle_between(axis, d.as_dvec3())).fold(0.0, f64::max);
+    let mut alpha = 0.0f64;
+    for_directions(packets, |d| alpha = alpha.max(angle_between(axis, d.as_dvec3())));
     // The angle is computed in f64 from the rays' own directions; the margin covers its
     // rounding.
     let alpha = alpha * (1.0 + 1e-12) + 1e-12;

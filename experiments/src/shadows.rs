@@ -34,9 +34,10 @@
 //!   error the filter adds even to exact visibilities (penumbrae narrower than the filter are
 //!   blurred), which no choice of samples removes.
 //!
-//! Every frame runs on the frame driver of `rttest render`: its primary pass
-//! (`trace::frame::primary_pass` with single rays, `mono`) and its tile loop
-//! (`trace::frame::for_tiles`) for the visibility passes. The methods are named experiment
+//! Every frame runs on the tile loop of `rttest render`'s frame driver
+//! (`trace::frame::for_tiles`): its primary pass is MFT in packets of the SIMD level's width
+//! (the kernel of `rttest render --method mft-16`), the same for every method and for the
+//! reference, then its visibility pass. The methods are named experiment
 //! variants over the kernels the registry composes: single rays (`KdTree::occluded`, the
 //! `kd-single` kernel), the same-sign segment packets of `kd-packets` /
 //! `kd-stratum-packets` (`packets::samesign::occluded_segments`), the lane frusta of
@@ -69,15 +70,16 @@ use edgewidth::{
 use glam::{Vec2, Vec3};
 use kdtree::isa::SimdLevel;
 use kdtree::surface::Surfaces;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
-use packets::{LaneFrusta, LaneWidth, RayPacket, Width, samesign};
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
+use packets::{LaneFrusta, LaneWidth, PacketTreeTest, RayPacket, Width, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::morton_order;
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
-use trace::frame::{for_tiles, primary_pass};
-use trace::method::{SingleRays, primary_ray};
+use trace::frame::for_tiles;
+use trace::kernel::Primary;
+use trace::kernel::primary::Mft;
 use trace::progress::Progress;
 use trace::{TileLayout, shade};
 
@@ -117,6 +119,9 @@ pub struct ShadowsConfig {
     pub frames: u32,
     /// The ray-triangle test the trees are built for (default Wald's).
     pub intersector: Intersector,
+    /// The rows to measure, by [`ShadowMethod::name`] (empty: every one of [`METHODS`]).
+    /// Every frame is timed against a hard-shadow frame of its own either way.
+    pub methods: Vec<String>,
 }
 
 impl Default for ShadowsConfig {
@@ -135,6 +140,7 @@ impl Default for ShadowsConfig {
             out_dir: PathBuf::from("shadows-out"),
             frames: 3,
             intersector: Intersector::Wald,
+            methods: Vec::new(),
         }
     }
 }
@@ -159,7 +165,18 @@ impl ShadowsConfig {
         if self.ref_samples == 0 {
             return Err(Error::Usage("--ref-samples must be at least 1".into()));
         }
+        self.method_list()?;
         Ok(())
+    }
+
+    /// The methods measured, in [`METHODS`] order: those `methods` names, or every one when
+    /// it is empty. An unknown name is a usage error listing the known ones.
+    pub fn method_list(&self) -> Result<Vec<ShadowMethod>, Error> {
+        if let Some(bad) = self.methods.iter().find(|n| !METHODS.iter().any(|m| m.name() == **n)) {
+            let known: Vec<String> = METHODS.iter().map(|m| m.name()).collect();
+            return Err(Error::Usage(format!("--methods: no method '{bad}' (known: {})", known.join(", "))));
+        }
+        Ok(METHODS.into_iter().filter(|m| self.methods.is_empty() || self.methods.contains(&m.name())).collect())
     }
 
     /// The scenes measured, in order: `scenes`, or when empty the experiments' default scenes
@@ -298,6 +315,8 @@ pub struct ShadowSetup<'a> {
     silhouettes: OnceLock<Silhouettes>,
     /// [`ShadowMethod::Convolution`]'s buffers, kept from frame to frame.
     convolution: Mutex<convolution::ConvolutionBuffers>,
+    /// Every frame's primary pass: MFT at the SIMD level's width ([`ShadowSetup::primary_pass`]).
+    primary: Mft,
 }
 
 /// One rendered frame.
@@ -339,6 +358,11 @@ impl<'a> ShadowSetup<'a> {
             surfaces,
             silhouettes: OnceLock::new(),
             convolution: Mutex::default(),
+            primary: Mft {
+                tile: trace::registry::TILE_SIZE,
+                culling: true,
+                width: Width::for_level(SimdLevel::active()),
+            },
         }
     }
 
@@ -384,8 +408,7 @@ impl<'a> ShadowSetup<'a> {
         let start = Instant::now();
         let n = self.layout.pixel_count();
         let mut hits = vec![None; n];
-        // The frame driver's primary pass with single rays, as `rttest render --method mono`.
-        primary_pass::<_, NoCounters>(&SingleRays(self.tree), &self.layout, &self.camera, &mut hits);
+        self.primary_pass(&mut hits);
         if method == ShadowMethod::Convolution {
             let hits = self.layout.to_row_major(&hits);
             let (visibility, shadow_rays) = self.convolution(&hits);
@@ -414,6 +437,31 @@ impl<'a> ShadowSetup<'a> {
         }
         let image = self.shade(&hits, &visibility);
         ShadowFrame { visibility, hits, shadow_rays, secs: start.elapsed().as_secs_f64(), image }
+    }
+
+    /// Every pixel's primary hit (tile order), as the thesis's renderer traces them: MFT
+    /// (thesis 4.1.5) over 16x16 tiles, in packets of the SIMD level's width (`rttest render
+    /// --method mft-16`, `kd-mft-16-w16` on AVX-512), the fastest primary kernel of ours, so
+    /// that the frames' times are what the shadows add to a fast renderer's frame. Every
+    /// method's frame and the reference start from the same hits: the single rays' but on
+    /// faces that coincide, where the packets may name the other triangle
+    /// (`docs/results/targets.md`).
+    fn primary_pass(&self, hits: &mut [Option<Hit>]) {
+        match self.tree.intersector() {
+            Intersector::Wald => self.primary_pass_with::<WaldTest>(hits),
+            Intersector::Watertight => self.primary_pass_with::<WatertightTest>(hits),
+        }
+    }
+
+    /// [`ShadowSetup::primary_pass`] with the tree's triangle test `I`.
+    fn primary_pass_with<I: PacketTreeTest>(&self, hits: &mut [Option<Hit>]) {
+        let (tree, camera, mft) = (self.tree, &self.camera, &self.primary);
+        for_tiles(
+            &self.layout,
+            self.layout.chunks_mut(hits),
+            || mft.scratch(),
+            |scratch, tile, out| mft.primary_tile::<I, NoCounters>(tree, scratch, camera, tile, out, &mut NoCounters),
+        );
     }
 
     /// The visible fractions of one tile's pixels (tile order). Returns the rays traced.
@@ -805,15 +853,19 @@ impl<'a> ShadowSetup<'a> {
         Image { width: w, height: self.camera.height, pixels }
     }
 
-    /// The reference visibility, `samples` stratified samples per pixel (row-major).
+    /// The reference visibility, `samples` stratified samples per pixel (row-major), from the
+    /// frames' primary hits ([`ShadowSetup::primary_pass`]).
     pub fn reference(&self, samples: u32) -> Vec<f32> {
         let w = self.camera.width;
         let n = self.layout.pixel_count();
+        let mut hits = vec![None; n];
+        self.primary_pass(&mut hits);
+        let hits = self.layout.to_row_major(&hits);
         let mut vis = vec![0.0f32; n];
         vis.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
             for (x, v) in row.iter_mut().enumerate() {
                 let (x, y) = (x as u32, y as u32);
-                if let Some(hit) = self.tree.intersect(&primary_ray(&self.camera, x, y)) {
+                if let Some(hit) = hits[y as usize * w as usize + x as usize] {
                     let p = self.shading_point(x, y, &hit);
                     let mut rng = Rng::new(pixel_seed(x, y, 0xC0FF_EE00 ^ u64::from(samples)));
                     *v = visible_fraction(self.tree, &self.light, &p, samples, &mut rng);
@@ -952,7 +1004,9 @@ fn fnv(bytes: impl IntoIterator<Item = u8>, mut h: u64) -> u64 {
 
 /// The cache file of a reference: keyed by the scene (name and a hash of its geometry), the
 /// camera, the image size, the light, the sample count and the intersector; a `.key` file
-/// beside it holds the full key, checked on load, so any change recomputes it.
+/// beside it holds the full key, checked on load, so any change recomputes it. The key's
+/// version names the reference's own inputs: `v2` from the frames' MFT primary hits
+/// ([`ShadowSetup::primary_pass`]; `v1`, single rays', differed on coincident faces).
 pub fn reference_cache_path(
     dir: &Path,
     scene: &Scene,
@@ -965,7 +1019,7 @@ pub fn reference_cache_path(
         fnv(scene.mesh.positions.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes), 0xcbf2_9ce4_8422_2325);
     let geometry = fnv(scene.mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()), geometry);
     let key = format!(
-        "v1 scene={} geometry={geometry:016x} camera={:?} size={}x{} light={light:?} samples={samples} intersector={}",
+        "v2 scene={} geometry={geometry:016x} camera={:?} size={}x{} light={light:?} samples={samples} intersector={}",
         scene.name,
         (camera.pixel_ray(0, 0), camera.pixel_ray(camera.width - 1, camera.height - 1)),
         camera.width,
@@ -1124,12 +1178,14 @@ pub fn run(config: &ShadowsConfig, progress: &dyn Progress) -> Result<ShadowsRep
 }
 
 /// One scene of the comparison (`spec`: a built-in name, `analytic` or an OBJ path): builds
-/// its tree, takes the reference from the cache or computes it, times [`METHODS`] over
+/// its tree, takes the reference from the cache or computes it, times the chosen methods
+/// ([`ShadowsConfig::method_list`]) over
 /// `config.frames` interleaved frames (the median of each), measures their errors against
 /// the reference, marks the Pareto front and writes the images, error images, strip, CSV
 /// and plot into `out_dir/<scene name>`. Does not call [`ShadowsConfig::validate`]: `run`
 /// does, once, before the first scene.
 pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) -> Result<SceneShadows, Error> {
+    let methods = config.method_list()?;
     let cache_dir = config.cache_dir();
     let (scene, light, analytic) = if spec == "analytic" {
         let (scene, light, sphere, floor) = analytic_scene();
@@ -1158,12 +1214,12 @@ pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) ->
     // against hard shadows': two frames a few milliseconds apart share the machine's state,
     // where the medians of two methods a round apart move with its noise.
     let task =
-        progress.task(&format!("shadows: {}", scene.name), Some(u64::from(config.frames) * METHODS.len() as u64));
-    let mut times: Vec<Vec<f64>> = vec![Vec::new(); METHODS.len()];
-    let mut per_hard: Vec<Vec<f64>> = vec![Vec::new(); METHODS.len()];
-    let mut frames: Vec<Option<ShadowFrame>> = METHODS.iter().map(|_| None).collect();
+        progress.task(&format!("shadows: {}", scene.name), Some(u64::from(config.frames) * methods.len() as u64));
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); methods.len()];
+    let mut per_hard: Vec<Vec<f64>> = vec![Vec::new(); methods.len()];
+    let mut frames: Vec<Option<ShadowFrame>> = methods.iter().map(|_| None).collect();
     for _ in 0..config.frames {
-        for (i, &m) in METHODS.iter().enumerate() {
+        for (i, &m) in methods.iter().enumerate() {
             let hard = (m != ShadowMethod::Hard).then(|| setup.frame(ShadowMethod::Hard).secs);
             let f = setup.frame(m);
             times[i].push(f.secs);
@@ -1189,7 +1245,7 @@ pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) ->
     }
     let filtered_reference = setup.filtered(hits, &reference);
     let filter_bias = masked_errors(&filtered_reference, &reference, &mask).0;
-    let mut rows: Vec<ShadowReport> = METHODS
+    let mut rows: Vec<ShadowReport> = methods
         .iter()
         .zip(&frames)
         .zip(times.iter().zip(&per_hard))
@@ -1365,19 +1421,24 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A 24x16 run of `frames` frames against a 4-sample reference, its files under `dir`.
+    fn small_run(dir: &Path, frames: u32) -> ShadowsConfig {
+        ShadowsConfig {
+            size: (24, 16),
+            ref_samples: 4,
+            frames,
+            cache_dir: Some(dir.join("cache")),
+            out_dir: dir.join("out"),
+            ..ShadowsConfig::default()
+        }
+    }
+
     /// A whole scene's run: every method's row, hard shadows' time against its own 1, the
     /// others' against the hard frames traced beside theirs, and the CSV with that column.
     #[test]
     fn a_scene_reports_each_method_against_hard_shadows() {
         let dir = std::env::temp_dir().join(format!("rttest-shadows-run-{}", std::process::id()));
-        let config = ShadowsConfig {
-            size: (24, 16),
-            ref_samples: 4,
-            frames: 3,
-            cache_dir: Some(dir.join("cache")),
-            out_dir: dir.join("out"),
-            ..ShadowsConfig::default()
-        };
+        let config = small_run(&dir, 3);
         let run = run_scene(&config, "touching-boxes", &trace::progress::Quiet).unwrap();
         assert_eq!(run.rows.len(), METHODS.len());
         for row in &run.rows {
@@ -1400,6 +1461,25 @@ mod tests {
             let camera = scene.default_view().camera(40, 30).unwrap();
             test(&ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0)));
         }
+    }
+
+    /// The frames' primary pass (MFT packets) names each pixel's single-ray hit, with both
+    /// triangle tests, and the frame reports it row-major.
+    #[test]
+    fn the_primary_pass_gives_the_single_rays_hits() {
+        on_touching_boxes(|setup| {
+            let frame = setup.frame(ShadowMethod::Hard);
+            let (w, h) = (setup.camera.width, setup.camera.height);
+            let mut hits = 0;
+            for y in 0..h {
+                for x in 0..w {
+                    let single = setup.tree.intersect(&trace::method::primary_ray(&setup.camera, x, y));
+                    assert_eq!(frame.hits[(y * w + x) as usize], single, "pixel ({x}, {y})");
+                    hits += usize::from(single.is_some());
+                }
+            }
+            assert!(hits > (w * h / 2) as usize, "{hits} hits");
+        });
     }
 
     #[test]
@@ -1510,6 +1590,26 @@ mod tests {
         }
         let bad = ShadowsConfig { thickness: vec!["cube=nan".into()], ..ShadowsConfig::default() };
         assert!(bad.validate().unwrap_err().to_string().contains("cube=nan"));
+        let bad = ShadowsConfig { methods: vec!["hard".into(), "sampled-5".into()], ..ShadowsConfig::default() };
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.starts_with("--methods") && e.contains("'sampled-5'") && e.contains("sampled-4-packets"), "{e}");
+    }
+
+    /// `methods` picks rows, reported in [`METHODS`] order whatever order they are named in.
+    #[test]
+    fn the_chosen_methods_are_the_rows() {
+        let all = ShadowsConfig::default().method_list().unwrap();
+        assert_eq!(all, METHODS);
+        let names = vec!["sampled-4".into(), "hard".into()];
+        let some = ShadowsConfig { methods: names, ..ShadowsConfig::default() }.method_list().unwrap();
+        assert_eq!(some, [ShadowMethod::Hard, ShadowMethod::Sampled(4)]);
+        let dir = std::env::temp_dir().join(format!("rttest-shadows-methods-{}", std::process::id()));
+        let config = ShadowsConfig { methods: vec!["edge-width-convolution".into()], ..small_run(&dir, 1) };
+        let run = run_scene(&config, "touching-boxes", &trace::progress::Quiet).unwrap();
+        let rows: Vec<&str> = run.rows.iter().map(|r| r.method.as_str()).collect();
+        assert_eq!(rows, ["edge-width-convolution"]);
+        assert!(run.rows[0].per_hard.is_finite() && run.rows[0].per_hard > 0.0);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -73,7 +73,9 @@ pub fn occluded_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters
 /// 1)`, a shadow ray) is blocked, `V::LANES` consecutive ones at a time as one packet
 /// ([`RayPacket::from_segments`], [`occluded`]): the answers, in order, appended to `blocked`
 /// after clearing it. Segments of neighbouring pixels (a tile's shadow rays in Morton order)
-/// make coherent packets.
+/// make coherent packets. Inlined, so that under [`crate::at_width!`] the wide lanes compile
+/// to their instruction set.
+#[inline(always)]
 pub fn occluded_segments<V: SimdF32, C: Counters>(
     tree: &KdTree,
     starts: &[Vec3],
@@ -93,6 +95,8 @@ pub fn occluded_segments<V: SimdF32, C: Counters>(
 /// distance the fraction of the way), `V::LANES` consecutive ones at a time as one packet
 /// ([`intersect`]): the hits, in order, appended to `hits` after clearing it. Each is the
 /// single ray's (`KdTree::intersect` of `Ray::segment`) bit for bit, as every packet walk's.
+/// Inlined, as [`occluded_segments`].
+#[inline(always)]
 pub fn intersect_segments<V: SimdF32, C: Counters>(
     tree: &KdTree,
     starts: &[Vec3],
@@ -100,6 +104,7 @@ pub fn intersect_segments<V: SimdF32, C: Counters>(
     hits: &mut Vec<Option<kdtree::Hit>>,
     counters: &mut C,
 ) {
+    #[inline(always)]
     fn run<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters>(
         tree: &KdTree,
         starts: &[Vec3],
@@ -111,7 +116,11 @@ pub fn intersect_segments<V: SimdF32, C: Counters>(
         for (starts, ends) in starts.chunks(V::LANES).zip(ends.chunks(V::LANES)) {
             let packet = RayPacket::<V>::from_segments(starts, ends);
             let hit = intersect_with::<I, V, C>(tree, &packet, counters);
-            hits.extend((0..starts.len().min(ends.len())).map(|lane| hit.get(lane)));
+            // A plain loop: `extend` over an adapter may be left out of line, where reading
+            // the lanes would compile without the kernel's instruction set.
+            for lane in 0..starts.len().min(ends.len()) {
+                hits.push(hit.get(lane));
+            }
         }
     }
     match tree.intersector() {
@@ -216,21 +225,29 @@ fn one_sign_group<V: SimdF32>(packet: &RayPacket<V>) -> bool {
 }
 
 /// The valid lanes grouped by direction sign pattern (sign bits of x, y, z): one mask per
-/// distinct pattern, at most eight (four in a 2x2 packet).
+/// distinct pattern, at most eight (four in a 2x2 packet). The groups are found here, in the
+/// caller's instruction set, and the iterator's steps only turn lane bits into masks (an
+/// iterator adapter that read the lanes would compile out of line, without AVX2's
+/// instructions).
 #[inline(always)]
 pub fn sign_groups<V: SimdF32>(packet: &RayPacket<V>) -> impl Iterator<Item = V::Mask> + use<V> {
     let signs =
         V::array_from_fn(|lane| (0..3).fold(0u32, |s, a| s | u32::from(packet.d[a][lane].is_sign_negative()) << a));
     let valid = packet.valid.bitmask();
-    let mut seen = 0u32;
-    (0..V::LANES).filter_map(move |lane| {
+    let (mut groups, mut n, mut seen) = ([0u32; 8], 0, 0u32);
+    for lane in 0..V::LANES {
         if valid >> lane & 1 == 0 || seen >> lane & 1 != 0 {
-            return None;
+            continue;
         }
-        let group = V::Mask::from_fn(|l| valid >> l & 1 != 0 && signs[l] == signs[lane]);
-        seen |= group.bitmask();
-        Some(group)
-    })
+        let mut bits = 0u32;
+        for (l, &s) in signs.as_ref().iter().enumerate() {
+            bits |= u32::from(valid >> l & 1 != 0 && s == signs[lane]) << l;
+        }
+        seen |= bits;
+        groups[n] = bits;
+        n += 1;
+    }
+    groups.into_iter().take(n).map(|bits| V::Mask::from_fn(|l| bits >> l & 1 != 0))
 }
 
 /// Listing 2.4's child order (corrected) for a packet whose valid lanes share direction

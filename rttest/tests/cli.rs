@@ -322,6 +322,7 @@ fn non_finite_numbers_are_errors_naming_the_option() {
         (&["shadows", "--scene", "cube", "--light-size", "inf"], "--light-size"),
         (&["shadows", "--scene", "atrium", "--thickness", "floor=nan"], "--thickness 'floor=nan'"),
         (&["shadows", "--scene", "atrium", "--thickness", "floor=inf"], "--thickness 'floor=inf'"),
+        (&["shadows", "--scene", "cube", "--methods", "hard,nan"], "--methods: no method 'nan'"),
         (&["compare", "--light-radius", "nan"], "--light-radius"),
         (&["compare", "--light-radius=-inf"], "--light-radius"),
         (&["render", "--scene", "cube", "--shadows", "soft16", "--light-radius", "nan"], "--light-radius"),

@@ -54,6 +54,10 @@ pub struct ShadowsArgs {
     /// The ray-triangle test.
     #[arg(long, value_enum, default_value_t = IntersectorArg::Wald)]
     pub intersector: IntersectorArg,
+    /// Only these rows, by name, comma-separated (e.g. `hard,edge-width-convolution`; default:
+    /// every method). Each frame is still timed against a hard-shadow frame of its own.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub methods: Vec<String>,
 }
 
 /// `--light` values.
@@ -90,6 +94,7 @@ impl From<&ShadowsArgs> for ShadowsConfig {
             out_dir: args.out_dir.clone(),
             frames: args.frames,
             intersector: args.intersector.into(),
+            methods: args.methods.clone(),
         }
     }
 }
