@@ -837,7 +837,8 @@ impl<'a> ShadowSetup<'a> {
         out
     }
 
-    /// The shaded image: the light's centre as a point light, times the visible fraction.
+    /// The shaded image: the light's centre as a point light, times the visible fraction
+    /// (`trace::shade::shade` with it: the ambient term alone where it is 0).
     pub fn shade(&self, hits: &[Option<Hit>], vis: &[f32]) -> Image {
         let light = scenes::PointLight { position: self.light.center(), intensity: self.light.intensity() };
         let w = self.camera.width;
@@ -845,9 +846,7 @@ impl<'a> ShadowSetup<'a> {
         pixels.par_iter_mut().enumerate().for_each(|(i, px)| {
             if let Some(hit) = &hits[i] {
                 let (o, d) = self.camera.pixel_ray(i as u32 % w, i as u32 / w);
-                let dark = shade::shade(&self.scene.mesh, &light, o, d, hit, 0.0);
-                let lit = shade::shade(&self.scene.mesh, &light, o, d, hit, 1.0);
-                *px = dark + (lit - dark) * vis[i];
+                *px = shade::shade(&self.scene.mesh, &light, o, d, hit, vis[i]);
             }
         });
         Image { width: w, height: self.camera.height, pixels }
