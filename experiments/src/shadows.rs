@@ -70,18 +70,18 @@ use edgewidth::{
 use glam::{Vec2, Vec3};
 use kdtree::isa::SimdLevel;
 use kdtree::surface::Surfaces;
-use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray, WaldTest, WatertightTest};
-use packets::{LaneFrusta, LaneWidth, PacketTreeTest, RayPacket, Width, samesign};
+use kdtree::{BuildConfig, Hit, Intersector, KdTree, NoCounters, Ray};
+use packets::{LaneFrusta, LaneWidth, RayPacket, Width, samesign};
 use rayon::prelude::*;
 use scenes::builtin::shapes::{MeshBuilder, Part};
 use scenes::morton_order;
 use scenes::{Camera, Image, Scene, SphereLight, View};
 use serde::Serialize;
 use trace::frame::for_tiles;
-use trace::kernel::Primary;
 use trace::kernel::primary::Mft;
+use trace::kernel::{self, shadow, soft, stream};
 use trace::progress::Progress;
-use trace::{TileLayout, shade};
+use trace::{FrameTracer, Options, TileLayout, shade};
 
 use crate::Error;
 
@@ -315,8 +315,9 @@ pub struct ShadowSetup<'a> {
     silhouettes: OnceLock<Silhouettes>,
     /// [`ShadowMethod::Convolution`]'s buffers, kept from frame to frame.
     convolution: Mutex<convolution::ConvolutionBuffers>,
-    /// Every frame's primary pass: MFT at the SIMD level's width ([`ShadowSetup::primary_pass`]).
-    primary: Mft,
+    /// Every frame's primary pass ([`ShadowSetup::primary_pass`]): MFT at the SIMD level's
+    /// width, bound as `rttest render --method mft-16` binds its primary kernel.
+    primary: Box<dyn FrameTracer + 'a>,
 }
 
 /// One rendered frame.
@@ -342,11 +343,14 @@ fn pixel_seed(x: u32, y: u32, salt: u64) -> u64 {
 }
 
 impl<'a> ShadowSetup<'a> {
-    /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`.
-    pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Self {
-        let layout = TileLayout::new(camera.width, camera.height, trace::registry::TILE_SIZE);
+    /// The setup of `scene` (with its tree) seen by `camera`, lit by `light`. An error if its
+    /// primary kernel does not bind (the tree's triangle test, or the registry's options).
+    pub fn new(scene: &'a Scene, tree: &'a KdTree, camera: Camera, light: AreaLight) -> Result<Self, Error> {
+        let options = Options::default();
+        let layout = TileLayout::new(camera.width, camera.height, options.tile);
         let surfaces = trace::shade::surfaces(&scene.mesh);
-        ShadowSetup {
+        let primary = kernel::bind_tree::<Mft, shadow::Single, soft::Single, stream::Single>(tree, &options)?.tracer;
+        Ok(ShadowSetup {
             scene,
             tree,
             camera,
@@ -358,12 +362,8 @@ impl<'a> ShadowSetup<'a> {
             surfaces,
             silhouettes: OnceLock::new(),
             convolution: Mutex::default(),
-            primary: Mft {
-                tile: trace::registry::TILE_SIZE,
-                culling: true,
-                width: Width::for_level(SimdLevel::active()),
-            },
-        }
+            primary,
+        })
     }
 
     /// With the edge-width options: `R` scale, shared-vertex rule, per-triangle thickness.
@@ -440,28 +440,14 @@ impl<'a> ShadowSetup<'a> {
     }
 
     /// Every pixel's primary hit (tile order), as the thesis's renderer traces them: MFT
-    /// (thesis 4.1.5) over 16x16 tiles, in packets of the SIMD level's width (`rttest render
-    /// --method mft-16`, `kd-mft-16-w16` on AVX-512), the fastest primary kernel of ours, so
-    /// that the frames' times are what the shadows add to a fast renderer's frame. Every
-    /// method's frame and the reference start from the same hits: the single rays' but on
-    /// faces that coincide, where the packets may name the other triangle
-    /// (`docs/results/targets.md`).
+    /// (thesis 4.1.5) over 16x16 tiles, in packets of the SIMD level's width (the frame
+    /// driver's primary pass of `rttest render --method mft-16`, `kd-mft-16-w16` on AVX-512),
+    /// the fastest primary kernel of ours, so that the frames' times are what the shadows add
+    /// to a fast renderer's frame. Every method's frame and the reference start from the same
+    /// hits: the single rays' but on faces that coincide, where the packets may name the
+    /// other triangle (`docs/results/targets.md`).
     fn primary_pass(&self, hits: &mut [Option<Hit>]) {
-        match self.tree.intersector() {
-            Intersector::Wald => self.primary_pass_with::<WaldTest>(hits),
-            Intersector::Watertight => self.primary_pass_with::<WatertightTest>(hits),
-        }
-    }
-
-    /// [`ShadowSetup::primary_pass`] with the tree's triangle test `I`.
-    fn primary_pass_with<I: PacketTreeTest>(&self, hits: &mut [Option<Hit>]) {
-        let (tree, camera, mft) = (self.tree, &self.camera, &self.primary);
-        for_tiles(
-            &self.layout,
-            self.layout.chunks_mut(hits),
-            || mft.scratch(),
-            |scratch, tile, out| mft.primary_tile::<I, NoCounters>(tree, scratch, camera, tile, out, &mut NoCounters),
-        );
+        self.primary.primary(&self.layout, &self.camera, hits, None);
     }
 
     /// The visible fractions of one tile's pixels (tile order). Returns the rays traced.
@@ -1199,7 +1185,7 @@ pub fn run_scene(config: &ShadowsConfig, spec: &str, progress: &dyn Progress) ->
     let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &build)?;
     let (camera, _) = trace::setup::view_camera(&scene, config.view.as_deref(), config.size.0, config.size.1)?;
     let thickness = thickness_scales(&scene, &config.thickness)?;
-    let setup = ShadowSetup::new(&scene, &tree, camera, light).with_edge_options(
+    let setup = ShadowSetup::new(&scene, &tree, camera, light)?.with_edge_options(
         config.edge_scale,
         config.shared_vertex,
         thickness,
@@ -1403,7 +1389,7 @@ mod tests {
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(40, 30).unwrap();
         let light = AreaLight::Rect(scene.area_light).scaled(2.0);
-        let setup = ShadowSetup::new(&scene, &tree, camera, light);
+        let setup = ShadowSetup::new(&scene, &tree, camera, light).unwrap();
         let single = setup.frame(ShadowMethod::EdgeWidth);
         let packet = setup.frame(ShadowMethod::EdgeWidthPacket);
         assert_eq!(single.visibility, packet.visibility);
@@ -1414,7 +1400,7 @@ mod tests {
         let (b, cached, same) = cached_reference(&setup, &dir, 4).unwrap();
         assert!(cached && a == b && same == path);
         // A different light or sample count is a different entry.
-        let other = ShadowSetup::new(&scene, &tree, camera, light.scaled(0.5));
+        let other = ShadowSetup::new(&scene, &tree, camera, light.scaled(0.5)).unwrap();
         assert!(!cached_reference(&other, &dir, 4).unwrap().1);
         assert!(!cached_reference(&setup, &dir, 8).unwrap().1);
         std::fs::remove_dir_all(&dir).unwrap();
@@ -1458,7 +1444,7 @@ mod tests {
             let config = BuildConfig { intersector, ..BuildConfig::default() };
             let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &config).unwrap();
             let camera = scene.default_view().camera(40, 30).unwrap();
-            test(&ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0)));
+            test(&ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0)).unwrap());
         }
     }
 
@@ -1554,7 +1540,7 @@ mod tests {
         let scene = scenes::load_scene("touching-boxes").unwrap();
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).unwrap();
         let camera = scene.default_view().camera(40, 30).unwrap();
-        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0));
+        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light).scaled(2.0)).unwrap();
         let raw = setup.frame(ShadowMethod::InterleavedRaw);
         let filtered = setup.frame(ShadowMethod::Interleaved);
         assert_eq!(raw.shadow_rays, filtered.shadow_rays);

@@ -61,7 +61,7 @@ pub fn table51(size: (u32, u32), frames: u32, config: &BuildConfig, csv: bool) -
             .default_view()
             .camera(size.0, size.1)
             .ok_or_else(|| Error::Usage(format!("{}: degenerate default view", scene.name)))?;
-        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light));
+        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light))?;
         let mut times = vec![Vec::new(); ROWS.len()];
         for _ in 0..frames {
             for (i, (m, _, _)) in ROWS.iter().enumerate() {

@@ -19,7 +19,7 @@ fn frames(c: &mut Criterion) {
         let scene = scenes::load_scene(&spec).expect("scene loads");
         let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &BuildConfig::default()).expect("tree");
         let camera = scene.default_view().camera(256, 256).expect("camera");
-        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light));
+        let setup = ShadowSetup::new(&scene, &tree, camera, AreaLight::Rect(scene.area_light)).expect("setup");
         let mut group = c.benchmark_group(format!("edgewidth/{}", scene.name));
         group.sample_size(10);
         for method in [

@@ -347,7 +347,18 @@ where
     S: SoftShadow + 'static,
     R: Stream + 'static,
 {
-    let tree = structures.kdtree();
+    bind_tree::<P, H, S, R>(structures.kdtree(), options)
+}
+
+/// [`bind`] on `tree` itself, the binding borrowing only the tree: for a caller that keeps a
+/// composition beside the tree (`experiments::shadows` traces its frames' primary rays so).
+pub fn bind_tree<'t, P, H, S, R>(tree: &'t KdTree, options: &Options) -> Result<Binding<'t>, Error>
+where
+    P: Primary + 'static,
+    H: HardShadow + 'static,
+    S: SoftShadow + 'static,
+    R: Stream + 'static,
+{
     match tree.intersector() {
         Intersector::Wald => bind_with::<WaldTest, P, H, S, R>(tree, options),
         Intersector::Watertight => bind_with::<WatertightTest, P, H, S, R>(tree, options),
