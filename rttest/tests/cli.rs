@@ -228,8 +228,8 @@ fn dynamic_reports_every_frame_with_identical_shadows() {
 }
 
 /// Every run names its machine: text results start with the one machine line
-/// (`cpu: ..., simd: ..., N threads`), printed once, and every JSON object has `cpu`, `simd`
-/// and `threads` (the pool's where the report had none).
+/// (`cpu: ..., simd: ..., N threads`, the run's threads), printed once, and every JSON object
+/// has `cpu`, `simd` and `threads` (the pool's where the report had none).
 #[test]
 fn every_result_names_the_machine() {
     let dir = scratch("machine");
@@ -252,6 +252,10 @@ fn every_result_names_the_machine() {
         assert!(is_machine_line(first), "{args:?}: first line {first:?}");
         assert_eq!(stdout.lines().filter(|l| l.starts_with("cpu: ")).count(), 1, "{args:?}: {stdout}");
     }
+    // The line's threads are the run's (`--threads`), not the machine's CPUs.
+    let out = rttest(&dir, &["build", "--scene", "cube", "--threads", "1"]);
+    let first = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or_default().to_string();
+    assert!(first.ends_with(", 1 thread"), "--threads 1: first line {first:?}");
     // JSON: the machine's fields, the same as the text line says.
     let out = rttest(&dir, &["build", "--scene", "cube"]);
     let line = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or_default().to_string();

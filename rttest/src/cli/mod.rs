@@ -689,14 +689,21 @@ pub fn print_json<R: Serialize>(report: &R) -> Result<(), Error> {
 }
 
 /// The first line of every command's text results: the machine the run measured on,
-/// `cpu: NAME (family F model M), simd: LEVEL, N threads` ([`trace::Machine`]), written to
-/// `out` once per process (later calls write nothing).
+/// `cpu: NAME (family F model M), simd: LEVEL, N threads` ([`trace::Machine`]), `N` the
+/// threads of the pool the run is in (`--threads`), written to `out` once per process
+/// (later calls write nothing).
 pub fn header(out: &mut dyn Write) -> std::io::Result<()> {
     static PRINTED: AtomicBool = AtomicBool::new(false);
     if !PRINTED.swap(true, Ordering::Relaxed) {
-        writeln!(out, "{}", Machine::detect())?;
+        writeln!(out, "{}", run_machine())?;
     }
     Ok(())
+}
+
+/// The machine as this run uses it: [`Machine::detect`] with its threads the current rayon
+/// pool's.
+fn run_machine() -> Machine {
+    Machine { threads: rayon::current_num_threads(), ..Machine::detect() }
 }
 
 /// `report` as one line of JSON, with the machine added after its own fields: `cpu` (the
