@@ -217,17 +217,16 @@ pub fn convolved_frame(
         .par_iter()
         .map(|p| p.as_ref().map_or(Answer::Pending, |p| Answer::Hard(p.probe.fraction())))
         .collect_into_vec(known);
-    let mut passes: [Vec<usize>; sparse::PASSES as usize] = Default::default();
-    for i in (0..n).into_par_iter().filter(|&i| mask[i]).collect::<Vec<_>>() {
-        let (x, y) = xy(i);
-        passes[sparse::pass_of(x, y, true) as usize].push(i);
-    }
-    for (pass, masked) in passes.iter().enumerate() {
-        let answers: Vec<(usize, Answer)> = masked
-            .par_iter()
-            .filter_map(|&i| {
+    for pass in 0..sparse::PASSES {
+        // The masked pixels of the pass, found by the pass itself (`resolve` answers only its
+        // own): one parallel region a pass, no list made between them.
+        let answers: Vec<(usize, Answer)> = (0..n)
+            .into_par_iter()
+            .with_min_len(w)
+            .filter(|&i| mask[i])
+            .filter_map(|i| {
                 let (x, y) = xy(i);
-                Some((i, sparse.resolve(known, x, y, pass as u32, |_| convolved.visibility(x, y))?))
+                Some((i, sparse.resolve(known, x, y, pass, |_| convolved.visibility(x, y))?))
             })
             .collect();
         for (i, answer) in answers {
@@ -702,7 +701,7 @@ impl<'a> ConvolutionFrame<'a> {
         // wrong length.
         let fits = receivers.len() == w * height as usize && w > 0;
         let reached: Vec<(usize, usize, f32, f32)> = edges
-            .iter()
+            .par_iter()
             .filter(|_| fits)
             .filter_map(|&(i, t)| {
                 let r = receivers.get(i)?.as_ref()?;
