@@ -287,11 +287,12 @@ impl<V: SimdF32> PacketHit<V> {
         self.u = V::select(mask, u, self.u);
         self.v = V::select(mask, v, self.v);
         self.found |= mask;
+        // A blend without branches (one vector blend under a kernel's instruction set): a
+        // branch per lane mispredicts on the lanes a triangle covers.
         let bits = mask.bitmask();
         for lane in 0..V::LANES {
-            if bits >> lane & 1 != 0 {
-                self.prim[lane] = prim;
-            }
+            let take = (bits >> lane & 1).wrapping_neg();
+            self.prim[lane] = (self.prim[lane] & !take) | (prim & take);
         }
     }
 

@@ -433,8 +433,18 @@ impl<V: SimdF32> TileTracer<V> {
     #[inline(always)]
     pub fn write_hits(&self, out: &mut [Option<Hit>]) {
         let (t, w) = (self.tile, self.tile.width() as usize);
-        let pw = Self::PACKET_SHAPE.0;
+        let (pw, ph) = Self::PACKET_SHAPE;
         for (&(x, y), hit) in self.corners.iter().zip(&self.hits) {
+            if x + pw <= t.x1 && y + ph <= t.y1 {
+                // A whole packet inside the tile: its rows, each a run of `pw` pixels.
+                let start = (y - t.y0) as usize * w + (x - t.x0) as usize;
+                for (r, row) in out[start..].chunks_mut(w).take(ph as usize).enumerate() {
+                    for (c, slot) in row[..pw as usize].iter_mut().enumerate() {
+                        *slot = hit.get(r * pw as usize + c);
+                    }
+                }
+                continue;
+            }
             for lane in 0..V::LANES as u32 {
                 let (px, py) = (x + lane % pw, y + lane / pw);
                 if px < t.x1 && py < t.y1 {
