@@ -287,8 +287,8 @@ impl<V: SimdF32> PacketHit<V> {
         self.u = V::select(mask, u, self.u);
         self.v = V::select(mask, v, self.v);
         self.found |= mask;
-        // A blend without branches (one vector blend under a kernel's instruction set): a
-        // branch per lane mispredicts on the lanes a triangle covers.
+        // A blend without branches (vectorised under a kernel's instruction set): a branch
+        // per lane mispredicts on the lanes a triangle covers.
         let bits = mask.bitmask();
         for lane in 0..V::LANES {
             let take = (bits >> lane & 1).wrapping_neg();

@@ -435,20 +435,17 @@ impl<V: SimdF32> TileTracer<V> {
         let (t, w) = (self.tile, self.tile.width() as usize);
         let (pw, ph) = Self::PACKET_SHAPE;
         for (&(x, y), hit) in self.corners.iter().zip(&self.hits) {
-            if x + pw <= t.x1 && y + ph <= t.y1 {
-                // A whole packet inside the tile: its rows, each a run of `pw` pixels.
-                let start = (y - t.y0) as usize * w + (x - t.x0) as usize;
-                for (r, row) in out[start..].chunks_mut(w).take(ph as usize).enumerate() {
-                    for (c, slot) in row[..pw as usize].iter_mut().enumerate() {
-                        *slot = hit.get(r * pw as usize + c);
-                    }
-                }
+            // The packet's pixels inside the tile, written as rows: its first `cols` columns of
+            // its first `rows` rows (all `pw x ph` but at the tile's right and bottom edges).
+            let cols = t.x1.saturating_sub(x).min(pw) as usize;
+            let rows = t.y1.saturating_sub(y).min(ph) as usize;
+            if cols == 0 || rows == 0 {
                 continue;
             }
-            for lane in 0..V::LANES as u32 {
-                let (px, py) = (x + lane % pw, y + lane / pw);
-                if px < t.x1 && py < t.y1 {
-                    out[(py - t.y0) as usize * w + (px - t.x0) as usize] = hit.get(lane as usize);
+            let start = (y - t.y0) as usize * w + (x - t.x0) as usize;
+            for (r, row) in out[start..].chunks_mut(w).take(rows).enumerate() {
+                for (c, slot) in row[..cols].iter_mut().enumerate() {
+                    *slot = hit.get(r * pw as usize + c);
                 }
             }
         }
