@@ -287,13 +287,9 @@ impl<V: SimdF32> PacketHit<V> {
         self.u = V::select(mask, u, self.u);
         self.v = V::select(mask, v, self.v);
         self.found |= mask;
-        // A blend without branches (vectorised under a kernel's instruction set): a branch
-        // per lane mispredicts on the lanes a triangle covers.
-        let bits = mask.bitmask();
-        for lane in 0..V::LANES {
-            let take = (bits >> lane & 1).wrapping_neg();
-            self.prim[lane] = (self.prim[lane] & !take) | (prim & take);
-        }
+        // A blend without branches: a branch per lane mispredicts on the lanes a triangle
+        // covers, and the 16 lanes' scalar blends cost more than the rest of this record.
+        V::blend_u32(mask, prim, &mut self.prim);
     }
 
     /// The hit of `lane`, as single-ray traversal reports it.

@@ -101,6 +101,18 @@ pub trait SimdF32:
     fn is_negative_bitmask(self) -> u32;
     /// Per lane, `if_true` where `mask` is set, else `if_false`.
     fn select(mask: Self::Mask, if_true: Self, if_false: Self) -> Self;
+    /// `lanes[l] = value` in the lanes set in `mask`, the others unchanged: a packet's
+    /// triangle indices taking a hit ([`crate::packet::PacketHit::record`]). This default,
+    /// one branch-free blend per lane, is the scalar twin; the x86 lane types blend the whole
+    /// array in one instruction.
+    #[inline(always)]
+    fn blend_u32(mask: Self::Mask, value: u32, lanes: &mut Self::Array<u32>) {
+        let bits = mask.bitmask();
+        for (lane, slot) in lanes.as_mut().iter_mut().enumerate() {
+            let take = (bits >> lane & 1).wrapping_neg();
+            *slot = (*slot & !take) | (value & take);
+        }
+    }
 }
 
 /// The lane mask of a [`SimdF32`]: one flag per lane.

@@ -376,6 +376,17 @@ impl SimdF32 for F32x8 {
         // SAFETY: the type's contract (AVX2).
         F32x8(unsafe { _mm256_blendv_ps(if_false.0, if_true.0, mask.0) })
     }
+    #[inline(always)]
+    fn blend_u32(mask: Mask8, value: u32, lanes: &mut [u32; 8]) {
+        let p = lanes.as_mut_ptr().cast::<__m256i>();
+        // SAFETY: the type's contract (AVX2); `p` points to the 32 bytes of `lanes`
+        // (unaligned loads and stores). The blend moves bits: any `u32` survives it.
+        unsafe {
+            let old = _mm256_castsi256_ps(_mm256_loadu_si256(p));
+            let new = _mm256_castsi256_ps(_mm256_set1_epi32(value as i32));
+            _mm256_storeu_si256(p, _mm256_castps_si256(_mm256_blendv_ps(old, new, mask.0)));
+        }
+    }
 }
 
 impl Mask8 {
@@ -740,6 +751,17 @@ impl SimdF32 for F32x16 {
         // SAFETY: the type's contract (AVX-512F).
         F32x16(unsafe { _mm512_mask_blend_ps(mask.0, if_false.0, if_true.0) })
     }
+    #[inline(always)]
+    fn blend_u32(mask: Mask16, value: u32, lanes: &mut [u32; 16]) {
+        let p = lanes.as_mut_ptr().cast::<__m512i>();
+        // SAFETY: the type's contract (AVX-512F); `p` points to the 64 bytes of `lanes`
+        // (unaligned loads and stores). A whole store, not a masked one, so that the next
+        // load of the lanes is forwarded from it.
+        unsafe {
+            let old = _mm512_loadu_si512(p);
+            _mm512_storeu_si512(p, _mm512_mask_mov_epi32(old, mask.0, _mm512_set1_epi32(value as i32)));
+        }
+    }
 }
 
 impl F32x16 {
@@ -985,6 +1007,11 @@ mod tests {
             );
         }
         assert_eq!(va.is_negative_bitmask(), pa.is_negative_bitmask(), "{}", what("sign bits"));
+        // `blend_u32` on the lanes' bits (every pattern, NaNs' included, an integer here).
+        let (mut vi, mut pi) = (V::array_from_fn(|l| a[l].to_bits()), a.map(f32::to_bits));
+        V::blend_u32(vm, b[0].to_bits(), &mut vi);
+        PortableF32::<W>::blend_u32(pm, b[0].to_bits(), &mut pi);
+        assert_eq!(vi.as_ref(), &pi[..], "{}", what("blend_u32"));
         assert_eq!(va == vb, pa == pb, "{}", what("=="));
         let (va2, pa2) = (V::from_fn(|l| a[l]), PortableF32(a));
         assert_eq!(va == va2, pa == pa2, "{}", what("== a copy (false with a NaN lane)"));
