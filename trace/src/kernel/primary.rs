@@ -155,6 +155,7 @@ fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C
         tracer
     });
     // The frame driver's tiles fit the tracer (same size, inside the image).
+    packets::tile::prefetch_for_write(out);
     counters.generation_start();
     tracer.load_primary(camera, tile).expect("tile fits the tracer");
     counters.generation_end();
