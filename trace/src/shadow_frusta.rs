@@ -65,8 +65,12 @@ pub struct ShadowScratch<S> {
     blocked: Vec<bool>,
     /// Per pixel: its hard shadow ray's ends, `None` where none is cast.
     hard: Vec<Option<(Vec3, Vec3)>>,
-    /// Per pixel: its soft shadow rays' origin and light samples.
-    soft: Vec<Option<(Vec3, [Vec3; SAMPLES])>>,
+    /// The soft shadow rays' light samples, stratum by stratum: sample `k` of point `j` (the
+    /// point whose origin is `starts[j]`) at `k * stride + j`, so that each stratum's ends are
+    /// one slice beside `starts`.
+    strata: Vec<Vec3>,
+    /// Per pixel: whether it casts soft shadow rays.
+    lit: Vec<bool>,
     masks: Vec<u16>,
     /// The tile's pixels (row-major indices) in Morton order, for tiles of `order_size`.
     order: Vec<u32>,
@@ -108,21 +112,37 @@ impl<S> ShadowScratch<S> {
         grouping.occluded::<I, C>(tree, &mut self.group, &self.starts, &self.ends, &mut self.blocked, counters);
     }
 
-    /// Each point of `job` (per pixel, row-major) as its rays' origin and light samples, and
-    /// the masks cleared, for a tile of `n` pixels.
+    /// The points of `job` (a tile of `n` pixels) that cast rays, in Morton order: each
+    /// one's origin into `starts`, its pixel into `slots` and its light samples into
+    /// `strata` (stride `n`); which pixels cast rays into `lit`, and the masks cleared.
+    /// Laid out once per tile, so that each stratum's rays are two slices and no copy.
     fn gather_soft(&mut self, job: &SoftJob<'_>, n: usize) {
-        self.soft.clear();
-        self.soft.extend((0..n).map(|i| job.samples(i).map(|(start, samples, _)| (start, samples))));
+        self.morton_order(job.hits.tile);
+        self.clear();
+        self.strata.resize(SAMPLES * n, Vec3::ZERO);
+        self.lit.clear();
+        self.lit.resize(n, false);
         self.masks.clear();
         self.masks.resize(n, 0);
-        self.morton_order(job.hits.tile);
+        let ShadowScratch { order, starts, slots, strata, lit, .. } = self;
+        for &i in order.iter() {
+            if let Some((start, samples, _)) = job.samples(i as usize) {
+                let j = starts.len();
+                for (k, &sample) in samples.iter().enumerate() {
+                    strata[k * n + j] = sample;
+                }
+                starts.push(start);
+                slots.push(i);
+                lit[i as usize] = true;
+            }
+        }
     }
 
     /// The visible fraction per pixel from the masks, and what was traced.
     fn finish_soft(&self, visible: &mut [f32]) -> SoftStats {
         let mut stats = SoftStats::default();
-        for ((slot, rays), &mask) in visible.iter_mut().zip(&self.soft).zip(&self.masks) {
-            *slot = if rays.is_some() { stats.add_point(mask) } else { 0.0 };
+        for ((slot, &lit), &mask) in visible.iter_mut().zip(&self.lit).zip(&self.masks) {
+            *slot = if lit { stats.add_point(mask) } else { 0.0 };
         }
         stats
     }
@@ -172,19 +192,13 @@ pub fn soft_strata<I: PacketTreeTest, G: Grouping, C: TileCounters>(
     visible: &mut [f32],
     counters: &mut C,
 ) -> SoftStats {
-    scratch.gather_soft(job, visible.len());
+    let n = visible.len();
+    scratch.gather_soft(job, n);
     for k in 0..SAMPLES {
-        scratch.clear();
-        let ShadowScratch { soft, order, starts, ends, slots, .. } = &mut *scratch;
-        for &i in order.iter() {
-            if let Some((start, samples)) = &soft[i as usize] {
-                // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`).
-                starts.push(*start);
-                ends.push(samples[k]);
-                slots.push(i);
-            }
-        }
-        scratch.trace::<I, G, C>(tree, grouping, counters);
+        // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`) of every point.
+        scratch.blocked.clear();
+        let ends = &scratch.strata[k * n..][..scratch.starts.len()];
+        grouping.occluded::<I, C>(tree, &mut scratch.group, &scratch.starts, ends, &mut scratch.blocked, counters);
         for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
             scratch.masks[slot as usize] |= u16::from(b) << k;
         }
@@ -204,15 +218,13 @@ pub fn soft_lanes<I: PacketTreeTest, C: TileCounters>(
     visible: &mut [f32],
     counters: &mut C,
 ) -> SoftStats {
-    scratch.gather_soft(job, visible.len());
-    let ShadowScratch { soft, order, group: lanes, slots, masks, .. } = &mut *scratch;
+    let n = visible.len();
+    scratch.gather_soft(job, n);
+    let ShadowScratch { group: lanes, starts, slots, strata, masks, .. } = &mut *scratch;
     lanes.clear();
-    slots.clear();
-    for &i in order.iter() {
-        if let Some((start, samples)) = &soft[i as usize] {
-            lanes.push(&[*start; SAMPLES], samples);
-            slots.push(i);
-        }
+    for (j, &start) in starts.iter().enumerate() {
+        let samples: [Vec3; SAMPLES] = std::array::from_fn(|k| strata[k * n + j]);
+        lanes.push(&[start; SAMPLES], &samples);
     }
     lanes.trace_with::<I, C>(tree, width, counters);
     for (&slot, &mask) in slots.iter().zip(lanes.blocked()) {
