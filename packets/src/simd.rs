@@ -104,7 +104,7 @@ pub trait SimdF32:
     /// `lanes[l] = value` in the lanes set in `mask`, the others unchanged: a packet's
     /// triangle indices taking a hit ([`crate::packet::PacketHit::record`]). This default,
     /// one branch-free blend per lane, is the scalar twin; the x86 lane types blend the whole
-    /// array in one instruction.
+    /// array at once (a blend between a load and a store, or one masked store).
     #[inline(always)]
     fn blend_u32(mask: Self::Mask, value: u32, lanes: &mut Self::Array<u32>) {
         let bits = mask.bitmask();

@@ -755,8 +755,8 @@ impl SimdF32 for F32x16 {
     fn blend_u32(mask: Mask16, value: u32, lanes: &mut [u32; 16]) {
         let p = lanes.as_mut_ptr().cast::<__m512i>();
         // SAFETY: the type's contract (AVX-512F); `p` points to the 64 bytes of `lanes`
-        // (unaligned loads and stores). A whole store, not a masked one, so that the next
-        // load of the lanes is forwarded from it.
+        // (unaligned loads and stores). LLVM makes the three one masked store
+        // (`vmovdqa32` to memory under the mask).
         unsafe {
             let old = _mm512_loadu_si512(p);
             _mm512_storeu_si512(p, _mm512_mask_mov_epi32(old, mask.0, _mm512_set1_epi32(value as i32)));

@@ -455,8 +455,8 @@ impl<V: SimdF32> TileTracer<V> {
 /// Asks the CPU to bring the cache lines of `out` in for writing, ahead of
 /// [`TileTracer::write_hits`] into it: issued before a tile is traced, so that the lines
 /// arrive while the traversal runs. A frame's hits (20 bytes a pixel) outgrow the caches
-/// between frames, and the write-back otherwise waits on one store miss after another: with
-/// the per-lane stores it held about a tenth of a 16-lane MFT tile (`perf`, Sponza). A hint
+/// between frames, and the write-back otherwise waits on one store miss after another: it
+/// held about a tenth of the 16-lane MFT kernel's time (`perf`, Sponza). A hint
 /// only: it changes no result, and does nothing off x86-64.
 #[inline(always)]
 pub fn prefetch_for_write<T>(out: &[T]) {

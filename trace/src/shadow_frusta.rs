@@ -66,8 +66,8 @@ pub struct ShadowScratch<S> {
     /// Per pixel: its hard shadow ray's ends, `None` where none is cast.
     hard: Vec<Option<(Vec3, Vec3)>>,
     /// The soft shadow rays' light samples, stratum by stratum: sample `k` of point `j` (the
-    /// point whose origin is `starts[j]`) at `k * stride + j`, so that each stratum's ends are
-    /// one slice beside `starts`.
+    /// point whose origin is `starts[j]`) at `k * n + j` for a tile of `n` pixels, so that
+    /// each stratum's ends are one slice beside `starts`.
     strata: Vec<Vec3>,
     /// Per pixel: whether it casts soft shadow rays.
     lit: Vec<bool>,
