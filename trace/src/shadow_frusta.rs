@@ -57,20 +57,17 @@ pub trait Grouping: Sync {
 #[derive(Debug, Default)]
 pub struct ShadowScratch<S> {
     group: S,
-    /// The rays of one group as segments (ray `i` is `Ray::segment(starts[i],
-    /// ends[i])`), and the pixel (tile index) of each.
+    /// The tile's points that cast rays, in Morton order: each one's origin, and its pixel
+    /// (tile index).
     starts: Vec<Vec3>,
-    ends: Vec<Vec3>,
     slots: Vec<u32>,
+    /// The rays' ends, stratum by stratum: end `k` of point `j` at `k * stride + j`, so that
+    /// stratum `k`'s rays are `starts` and one slice of `ends`. Hard shadows have one stratum
+    /// (the light); soft shadows 16 (the light samples), with the tile's pixel count as stride.
+    ends: Vec<Vec3>,
     blocked: Vec<bool>,
     /// Per pixel: its hard shadow ray's ends, `None` where none is cast.
     hard: Vec<Option<(Vec3, Vec3)>>,
-    /// The soft shadow rays' light samples, stratum by stratum: sample `k` of point `j` (the
-    /// point whose origin is `starts[j]`) at `k * n + j` for a tile of `n` pixels, so that
-    /// each stratum's ends are one slice beside `starts`.
-    strata: Vec<Vec3>,
-    /// Per pixel: whether it casts soft shadow rays.
-    lit: Vec<bool>,
     masks: Vec<u16>,
     /// The tile's pixels (row-major indices) in Morton order, for tiles of `order_size`.
     order: Vec<u32>,
@@ -101,48 +98,50 @@ impl<S> ShadowScratch<S> {
         self.slots.clear();
     }
 
-    /// Traces the group with `grouping`, the answers into `blocked`.
+    /// Traces stratum `k` of the points (`stride` apart in `ends`) with `grouping`, the
+    /// answers into `blocked`.
     fn trace<I: PacketTreeTest, G: Grouping<Scratch = S>, C: TileCounters>(
         &mut self,
         tree: &KdTree,
         grouping: &G,
+        (k, stride): (usize, usize),
         counters: &mut C,
     ) {
         self.blocked.clear();
-        grouping.occluded::<I, C>(tree, &mut self.group, &self.starts, &self.ends, &mut self.blocked, counters);
+        let ends = &self.ends[k * stride..][..self.starts.len()];
+        grouping.occluded::<I, C>(tree, &mut self.group, &self.starts, ends, &mut self.blocked, counters);
     }
 
     /// The points of `job` (a tile of `n` pixels) that cast rays, in Morton order: each
-    /// one's origin into `starts`, its pixel into `slots` and its light samples into
-    /// `strata` (stride `n`); which pixels cast rays into `lit`, and the masks cleared.
-    /// Laid out once per tile, so that each stratum's rays are two slices and no copy.
+    /// one's origin into `starts`, its pixel into `slots` and its light samples into `ends`
+    /// (stride `n`), and the masks cleared. Laid out once per tile, so that each stratum's
+    /// rays are two slices and no copy.
     fn gather_soft(&mut self, job: &SoftJob<'_>, n: usize) {
         self.morton_order(job.hits.tile);
         self.clear();
-        self.strata.resize(SAMPLES * n, Vec3::ZERO);
-        self.lit.clear();
-        self.lit.resize(n, false);
+        self.ends.resize(SAMPLES * n, Vec3::ZERO);
         self.masks.clear();
         self.masks.resize(n, 0);
-        let ShadowScratch { order, starts, slots, strata, lit, .. } = self;
+        let ShadowScratch { order, starts, slots, ends, .. } = self;
         for &i in order.iter() {
             if let Some((start, samples, _)) = job.samples(i as usize) {
                 let j = starts.len();
                 for (k, &sample) in samples.iter().enumerate() {
-                    strata[k * n + j] = sample;
+                    ends[k * n + j] = sample;
                 }
                 starts.push(start);
                 slots.push(i);
-                lit[i as usize] = true;
             }
         }
     }
 
-    /// The visible fraction per pixel from the masks, and what was traced.
+    /// The visible fraction per pixel from the masks (0 for the pixels that cast no rays),
+    /// and what was traced.
     fn finish_soft(&self, visible: &mut [f32]) -> SoftStats {
         let mut stats = SoftStats::default();
-        for ((slot, &lit), &mask) in visible.iter_mut().zip(&self.lit).zip(&self.masks) {
-            *slot = if lit { stats.add_point(mask) } else { 0.0 };
+        visible.fill(0.0);
+        for &slot in &self.slots {
+            visible[slot as usize] = stats.add_point(self.masks[slot as usize]);
         }
         stats
     }
@@ -170,7 +169,7 @@ pub fn hard<I: PacketTreeTest, G: Grouping, C: TileCounters>(
             slots.push(i);
         }
     }
-    scratch.trace::<I, G, C>(tree, grouping, counters);
+    scratch.trace::<I, G, C>(tree, grouping, (0, 0), counters);
     out.fill(false);
     let mut blocked = 0;
     for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
@@ -196,9 +195,7 @@ pub fn soft_strata<I: PacketTreeTest, G: Grouping, C: TileCounters>(
     scratch.gather_soft(job, n);
     for k in 0..SAMPLES {
         // Ray `k` of `SoftJob::point` (`cones::shadows::shadow_ray`) of every point.
-        scratch.blocked.clear();
-        let ends = &scratch.strata[k * n..][..scratch.starts.len()];
-        grouping.occluded::<I, C>(tree, &mut scratch.group, &scratch.starts, ends, &mut scratch.blocked, counters);
+        scratch.trace::<I, G, C>(tree, grouping, (k, n), counters);
         for (&slot, &b) in scratch.slots.iter().zip(&scratch.blocked) {
             scratch.masks[slot as usize] |= u16::from(b) << k;
         }
@@ -220,10 +217,10 @@ pub fn soft_lanes<I: PacketTreeTest, C: TileCounters>(
 ) -> SoftStats {
     let n = visible.len();
     scratch.gather_soft(job, n);
-    let ShadowScratch { group: lanes, starts, slots, strata, masks, .. } = &mut *scratch;
+    let ShadowScratch { group: lanes, starts, slots, ends, masks, .. } = &mut *scratch;
     lanes.clear();
     for (j, &start) in starts.iter().enumerate() {
-        let samples: [Vec3; SAMPLES] = std::array::from_fn(|k| strata[k * n + j]);
+        let samples: [Vec3; SAMPLES] = std::array::from_fn(|k| ends[k * n + j]);
         lanes.push(&[start; SAMPLES], &samples);
     }
     lanes.trace_with::<I, C>(tree, width, counters);
