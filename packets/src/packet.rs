@@ -603,6 +603,82 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// The packet clip gives each lane the single ray's clip, at 4 and 16 lanes: on random
+        /// rays with zero direction components, origins on the box's faces, boxes far from
+        /// the origin and intervals that start behind the origin.
+        #[test]
+        fn clip_is_the_single_ray_clip(
+            seeds in proptest::collection::vec((proptest::array::uniform3(-4.0f32..4.0),
+                proptest::array::uniform3(-1.0f32..1.0), proptest::array::uniform3(0u8..4), -2.0f32..1.0), 16),
+            corner in proptest::array::uniform3(-2.0f32..2.0), size in proptest::array::uniform3(0.0f32..3.0),
+            far_away in proptest::bool::ANY,
+        ) {
+            let shift = if far_away { 1.0e5 } else { 0.0 };
+            proptest::prop_assume!(seeds.iter().all(|s| s.1[2].abs() > 1e-3));
+            let lo = Vec3::from(corner) + shift;
+            let b = Aabb { min: lo, max: lo + Vec3::from(size) };
+            let rays: Vec<Ray> = seeds
+                .iter()
+                .map(|&(o, d, special, t_min)| {
+                    let mut o = Vec3::from(o) + shift;
+                    let mut d = Vec3::from(d);
+                    // Axes 0 and 1 may lose their direction component, not all three.
+                    for a in 0..3 {
+                        match special[a] {
+                            0 if a < 2 => d[a] = 0.0,
+                            1 => o[a] = b.min[a],
+                            _ => {}
+                        }
+                    }
+                    Ray::new(o, d, t_min, 10.0)
+                })
+                .collect();
+            let (lo4, hi4) = (b.min.extend(0.0).to_array(), b.max.extend(0.0).to_array());
+            let check = |lane: usize, enter: f32, exit: f32| match clip_to_box(&rays[lane], &b) {
+                Some((t0, t1)) => enter == t0 && exit == t1,
+                None => enter > exit || enter.is_nan() || exit.is_nan(),
+            };
+            let (enter, exit) = RayPacket::<PortableF32<16>>::from_rays(&rays).clip(lo4, hi4);
+            for lane in 0..16 {
+                proptest::prop_assert!(check(lane, enter[lane], exit[lane]), "16 lanes, lane {}", lane);
+            }
+            let (enter, exit) = RayPacket::new(&rays[..4]).clip(lo4, hi4);
+            for lane in 0..4 {
+                proptest::prop_assert!(check(lane, enter[lane], exit[lane]), "4 lanes, lane {}", lane);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// The lane widenings are the scalar ones bit for bit (infinities kept, NaN kept NaN),
+        /// at 4 and 16 lanes, on random bit patterns: normal, subnormal, huge and special.
+        #[test]
+        fn lane_widenings_are_the_scalar_ones(bits in proptest::array::uniform16(proptest::num::u32::ANY)) {
+            let t: [f32; 16] = bits.map(f32::from_bits);
+            let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+            let (up, down) = (widen_up(PortableF32::<16>(t)), widen_down(PortableF32::<16>(t)));
+            let (up4, down4) = (widen_up(Vec4::from_slice(&t[..4])), widen_down(Vec4::from_slice(&t[..4])));
+            for lane in 0..16 {
+                proptest::prop_assert!(same(up[lane], widen_up1(t[lane])), "up {:e}", t[lane]);
+                proptest::prop_assert!(same(down[lane], widen_down1(t[lane])), "down {:e}", t[lane]);
+            }
+            for lane in 0..4 {
+                proptest::prop_assert!(same(up4[lane], widen_up1(t[lane])) && same(down4[lane], widen_down1(t[lane])));
+            }
+        }
+    }
+
+    #[test]
+    fn widenings_keep_infinities() {
+        for t in [f32::INFINITY, f32::NEG_INFINITY] {
+            assert_eq!(widen_up(Vec4::splat(t)), Vec4::splat(t));
+            assert_eq!(widen_down(Vec4::splat(t)), Vec4::splat(t));
+        }
+        assert_eq!(widen_up(Vec4::splat(f32::MAX)), Vec4::splat(f32::INFINITY));
+        assert_eq!(widen_down(Vec4::splat(-f32::MAX)), Vec4::splat(f32::NEG_INFINITY));
+    }
+
     #[test]
     fn common_origin_needs_every_valid_lane() {
         let r = rays();

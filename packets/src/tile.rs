@@ -234,6 +234,15 @@ impl<V: SimdF32> TileTracer<V> {
     /// naming it.
     #[inline(always)]
     pub fn load_primary(&mut self, camera: &Camera, tile: &Tile) -> Result<(), TileError> {
+        self.load_primary_prefetching::<()>(camera, tile, &[])
+    }
+
+    /// [`TileTracer::load_primary`], asking for the cache lines of `out` (where
+    /// [`TileTracer::write_hits`] will write the tile's hits) as it goes: after each packet
+    /// its share of the lines ([`prefetch_for_write`]), so that the requests are spread over
+    /// the packets' generation instead of one burst that fills the CPU's miss buffers.
+    #[inline(always)]
+    pub fn load_primary_prefetching<T>(&mut self, camera: &Camera, tile: &Tile, out: &[T]) -> Result<(), TileError> {
         if tile.width() > self.size || tile.height() > self.size || tile.x1 > camera.width || tile.y1 > camera.height {
             return Err(TileError::BadTile(*tile, self.size));
         }
@@ -258,6 +267,10 @@ impl<V: SimdF32> TileTracer<V> {
         let ys = |k: u32| (tile.y0 + k * step).min(tile.y1);
         let origin = camera.eye.extend(0.0).to_array();
         let rays = PrimaryRays::new(camera);
+        // The tile's packets, and the share of `out` each prefetches (the last one the rest).
+        let count = (tile.width().div_ceil(pw) * tile.height().div_ceil(ph)).max(1) as usize;
+        let share = out.len().div_ceil(count);
+        let mut ahead = out.chunks(share.max(1));
         for q in 0..MAX_REGIONS {
             let first = self.packets.len();
             let (qx0, qx1, qy0, qy1) = if (q as u32) < side * side {
@@ -271,6 +284,9 @@ impl<V: SimdF32> TileTracer<V> {
                 for x in (qx0..qx1.max(qx0)).step_by(pw as usize) {
                     self.packets.push(OmniPacket { rays: rays.packet(x, y, tile), origin });
                     self.corners.push((x, y));
+                    if let Some(lines) = ahead.next() {
+                        prefetch_for_write(lines);
+                    }
                 }
             }
             self.quadrants[q] = first..self.packets.len();
@@ -453,8 +469,9 @@ impl<V: SimdF32> TileTracer<V> {
 }
 
 /// Asks the CPU to bring the cache lines of `out` in for writing, ahead of
-/// [`TileTracer::write_hits`] into it: issued before a tile is traced, so that the lines
-/// arrive while the traversal runs. A frame's hits (20 bytes a pixel) outgrow the caches
+/// [`TileTracer::write_hits`] into it: issued while a tile's packets are made
+/// ([`TileTracer::load_primary_prefetching`]), so that the lines arrive while the traversal
+/// runs. A frame's hits (20 bytes a pixel) outgrow the caches
 /// between frames, and the write-back otherwise waits on one store miss after another: it
 /// held about a tenth of the 16-lane MFT kernel's time (`perf`, Sponza). A hint
 /// only: it changes no result, and does nothing off x86-64.
@@ -463,11 +480,13 @@ pub fn prefetch_for_write<T>(out: &[T]) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_ET0, _mm_prefetch};
+        // Every 64-byte line the slice touches, from the one holding its first byte.
         let (start, bytes) = (out.as_ptr().cast::<i8>(), std::mem::size_of_val(out));
-        for offset in (0..bytes).step_by(64) {
+        let skew = start as usize % 64;
+        for offset in (0..bytes + skew).step_by(64) {
             // SAFETY: a prefetch never faults and reads nothing the program sees; the address
-            // lies inside `out` (`offset < bytes`), so the pointer arithmetic stays in bounds.
-            unsafe { _mm_prefetch::<_MM_HINT_ET0>(start.add(offset)) };
+            // is only computed (wrapping, no dereference), so it may lie outside `out`.
+            unsafe { _mm_prefetch::<_MM_HINT_ET0>(start.wrapping_sub(skew).wrapping_add(offset)) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
@@ -493,6 +512,39 @@ impl Grid {
     pub(crate) fn within(&self, rect: [f32; 4], (pw, ph): (u32, u32)) -> (Range<u32>, Range<u32>) {
         // Packet column c has centres x0 + pw c + 0.5 to x0 + pw c + pw - 0.5. The sides are
         // powers of two: `* (1 / p)` is the division, exactly.
+        let span = |lo: f32, hi: f32, origin: u32, n: u32, p: u32| {
+            let (last_centre, scale) = (p as f32 - 0.5, 1.0 / p as f32);
+            let first = ((lo - last_centre - origin as f32) * scale).ceil();
+            let end = ((hi - 0.5 - origin as f32) * scale).floor() + 1.0;
+            (to_count(first, n), to_count(end, n))
+        };
+        let ((x0, x1), (y0, y1)) =
+            (span(rect[0], rect[1], self.x0, self.cols, pw), span(rect[2], rect[3], self.y0, self.rows, ph));
+        (x0..x1.max(x0), y0..y1.max(y0))
+    }
+}
+
+/// `v` (a whole number, or NaN) clamped to `[0, n]` as an integer, NaN as 0. The comparisons
+/// are each one `maxss`/`minss` and the conversion one instruction: `Grid::within` runs at
+/// every leaf a frustum reaches, and `f32::clamp` with a saturating `as u32` made its four
+/// conversions a compare-and-move chain each (about 6% of the 16-lane MFT kernel, `perf`).
+#[inline(always)]
+fn to_count(v: f32, n: u32) -> u32 {
+    let n_f = n as f32;
+    // `v > 0.0` is false for NaN, so NaN becomes 0.
+    let v = if v > 0.0 { v } else { 0.0 };
+    let v = if v < n_f { v } else { n_f };
+    // SAFETY: `v` is not NaN and lies in `[0, n as f32]`, and a grid has at most
+    // `MAX_TILE` columns or rows (`TileTracer::with_size` checks the tile), so `v` truncated
+    // fits a `u32`.
+    unsafe { v.to_int_unchecked::<u32>() }
+}
+
+#[cfg(test)]
+impl Grid {
+    /// [`Grid::within`] as it was written first, with `f32::clamp` and saturating
+    /// conversions: the reference its faster form is tested against.
+    fn within_saturating(&self, rect: [f32; 4], (pw, ph): (u32, u32)) -> (Range<u32>, Range<u32>) {
         let span = |lo: f32, hi: f32, origin: u32, n: u32, p: u32| {
             let (last_centre, scale) = (p as f32 - 0.5, 1.0 / p as f32);
             let first = ((lo - last_centre - origin as f32) * scale).ceil().clamp(0.0, n as f32) as u32;
@@ -616,6 +668,27 @@ mod tests {
         assert_eq!(g.within([11.4, 12.6, 3.6, 4.4], (4, 4)).1.len(), 0);
         assert_eq!(g.within([-1e30, 1e30, 3.4, 4.6], (4, 4)), (0..2, 0..2));
         assert_eq!(g.within([-1e30, 1e30, 4.4, 4.6], (4, 4)), (0..2, 1..2));
+    }
+
+    proptest::proptest! {
+        /// The branch-free `within` gives the first form's ranges: on rectangles inside,
+        /// across and far outside the grid (±1e30), reversed ones, and NaN sides.
+        #[test]
+        fn grid_ranges_equal_the_saturating_form(
+            x0 in 0u32..1024, y0 in 0u32..1024, cols in 0u32..=32, rows in 0u32..=32,
+            shape in 0usize..3, sides in proptest::array::uniform4(-2000.0f32..2000.0),
+            far in proptest::array::uniform4(0u8..5),
+        ) {
+            let g = Grid { x0, y0, cols, rows };
+            let rect = std::array::from_fn(|i| match far[i] {
+                0 => -1e30,
+                1 => 1e30,
+                2 if i == 3 => f32::NAN,
+                _ => sides[i],
+            });
+            let shape = [(2, 2), (4, 2), (4, 4)][shape];
+            proptest::prop_assert_eq!(g.within(rect, shape), g.within_saturating(rect, shape));
+        }
     }
 
     /// The packet shapes and the sizes each width takes, with the error naming the width.

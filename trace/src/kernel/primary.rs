@@ -155,9 +155,10 @@ fn primary_tile<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, K: TileKernel, C
         tracer
     });
     // The frame driver's tiles fit the tracer (same size, inside the image).
-    packets::tile::prefetch_for_write(out);
     counters.generation_start();
-    tracer.load_primary(camera, tile).expect("tile fits the tracer");
+    // The output's lines are asked for while the packets are made, to be in cache for
+    // `write_hits`.
+    tracer.load_primary_prefetching(camera, tile, out).expect("tile fits the tracer");
     counters.generation_end();
     K::trace_loaded::<I, V, C>(tree, tracer, counters);
     tracer.write_hits(out);
