@@ -530,13 +530,14 @@ impl Grid {
 /// conversions a compare-and-move chain each (about 6% of the 16-lane MFT kernel, `perf`).
 #[inline(always)]
 fn to_count(v: f32, n: u32) -> u32 {
-    let n_f = n as f32;
+    // A grid has at most `MAX_TILE` columns or rows (`TileTracer::with_size` checks the
+    // tile); the bound `2^24` (exact in `f32`) only keeps the conversion below sound for any
+    // `n`.
+    let n_f = n.min(1 << 24) as f32;
     // `v > 0.0` is false for NaN, so NaN becomes 0.
     let v = if v > 0.0 { v } else { 0.0 };
     let v = if v < n_f { v } else { n_f };
-    // SAFETY: `v` is not NaN and lies in `[0, n as f32]`, and a grid has at most
-    // `MAX_TILE` columns or rows (`TileTracer::with_size` checks the tile), so `v` truncated
-    // fits a `u32`.
+    // SAFETY: `v` is not NaN and lies in `[0, 2^24]`, so truncated it fits a `u32`.
     unsafe { v.to_int_unchecked::<u32>() }
 }
 
