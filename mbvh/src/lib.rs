@@ -32,14 +32,15 @@
 //! - [`traverse`]: closest hit (children nearest first) and any hit (early exit), one loop
 //!   for every width and node test, with a scalar twin.
 //! - [`packet`]: the 8-wide tree traced by packets of 16 rays (one AVX-512 register per ray
-//!   coordinate, [`Avx512`], or the portable twin [`Portable16`]), lanes finished by single
+//!   coordinate, [`Avx512`]; two AVX registers per coordinate on a CPU without AVX-512,
+//!   [`Avx2`]; or the portable twin [`Portable16`]), lanes finished by single
 //!   rays below a threshold (the hybrid traversal of Benthin et al. 2012, Embree's
 //!   incoherent `embree-16`).
 //!
 //! Modules import only downwards: `node` imports nothing of the crate; `boxtest` and
 //! `build` import `node`; `simd4`, `simd8` and `simd16` import `node` and `boxtest`; `traverse`
 //! imports `node`, `boxtest` and `leaf`; `packet` imports `node`, `boxtest`, `leaf`,
-//! `simd16` and `traverse`; this root imports them all.
+//! `simd8`, `simd16` and `traverse`; this root imports them all.
 //!
 //! **Where the CPU makes us differ from the paper.** The paper targets 16-wide SIMD (Larrabee)
 //! and builds 16-wide nodes and leaves. The project's first machine (AMD Zen 1) has SSE4.2 and

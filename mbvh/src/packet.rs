@@ -50,10 +50,12 @@
 //! between the two lane types.
 //!
 //! **Lane types.** [`Lanes`] is implemented by [`Row`] (portable, a loop over 16 `f32`) and,
-//! on x86-64, by an AVX-512 register (`__m512`, 16-bit `k` masks); [`PacketLanes`] picks one:
-//! [`Portable16`] anywhere, or the [`Avx512`] token, which runs the whole stream in one
-//! function compiled for AVX-512 (the loop, the lane operations and the single-ray node
-//! test inline into it). Both give the same answers bit for bit. Masks are kept in general
+//! on x86-64, by an AVX-512 register (`__m512`, 16-bit `k` masks) and by two AVX registers
+//! (`__m256` halves, masks from their sign bits); [`PacketLanes`] picks one: [`Portable16`]
+//! anywhere, the [`Avx512`] token, or the [`Avx2`] token on a CPU without AVX-512 (Embree's
+//! 16-ray packets run as two 8-wide halves there too). Each token runs the whole stream in
+//! one function compiled for its instructions (the loop, the lane operations and the
+//! single-ray node test inline into it). All give the same answers bit for bit. Masks are kept in general
 //! registers and children are taken from them with `tzcnt` / `blsr`; nothing is compressed
 //! to memory (`vcompressps` to memory is microcoded on AMD Zen 4).
 
@@ -67,6 +69,7 @@ use kdtree::{Counters, Hit, Ray};
 use crate::boxtest::{BoxTest, TINY, WIDEN};
 use crate::leaf::{LANES, LeafBlock};
 use crate::node::{EMPTY, LEAF, Node8, stack_capacity};
+use crate::simd8::Avx2;
 use crate::simd16::Avx512;
 use crate::traverse::{Traversal, block_count, traceable};
 
@@ -270,6 +273,28 @@ impl PacketLanes for Avx512 {
         counters: &mut C,
     ) {
         zmm::any(self, p, rays, out, counters);
+    }
+}
+
+impl PacketLanes for Avx2 {
+    fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        self,
+        p: &PacketTraversal<'_, B, K, Self>,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        ymm::closest(self, p, rays, out, counters);
+    }
+
+    fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        self,
+        p: &PacketTraversal<'_, B, K, Self>,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
+        ymm::any(self, p, rays, out, counters);
     }
 }
 
@@ -922,6 +947,217 @@ mod zmm {
         counters: &mut C,
     ) {
         any_stream::<Zmm, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
+    }
+}
+
+/// The AVX2 lanes: the 16 lanes as two `__m256` halves (lanes 0-7 and 8-15), masks as `u16`
+/// built from the halves' sign bits, and the runners that compile the packet loops for AVX2:
+/// the 16-ray packets on a CPU without AVX-512, as Embree runs its 16-ray packets there (two
+/// 8-wide halves per operation).
+#[cfg(target_arch = "x86_64")]
+mod ymm {
+    use std::arch::x86_64::*;
+
+    use super::*;
+
+    /// Sixteen lanes in two AVX registers.
+    ///
+    /// # Safety
+    /// Its operations are AVX and AVX2 instructions: used only inside [`closest_avx2`] and
+    /// [`any_avx2`], which run only where an [`Avx2`] token exists.
+    #[derive(Clone, Copy)]
+    pub(super) struct Ymm2(__m256, __m256);
+
+    impl Ymm2 {
+        /// `f` on both halves.
+        #[inline(always)]
+        fn each(self, b: Ymm2, f: impl Fn(__m256, __m256) -> __m256) -> Ymm2 {
+            Ymm2(f(self.0, b.0), f(self.1, b.1))
+        }
+
+        /// The 16-bit mask of a per-half comparison `f` (a lane's bit where its result is all
+        /// ones).
+        #[inline(always)]
+        fn mask(self, b: Ymm2, f: impl Fn(__m256, __m256) -> __m256) -> u16 {
+            // SAFETY: AVX, inside the runners (see the type).
+            let (lo, hi) = unsafe { (_mm256_movemask_ps(f(self.0, b.0)), _mm256_movemask_ps(f(self.1, b.1))) };
+            (lo | hi << 8) as u16
+        }
+    }
+
+    /// The halves' blend masks of `mask` (lane `i` all ones where bit `i` is set): each lane
+    /// keeps its own bit of the broadcast mask and compares it with that bit.
+    #[inline(always)]
+    fn expand(mask: u16) -> (__m256, __m256) {
+        // SAFETY: AVX2, inside the runners (see `Ymm2`).
+        unsafe {
+            let m = _mm256_set1_epi32(i32::from(mask));
+            let lo = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let hi = _mm256_slli_epi32::<8>(lo);
+            let on = |bit: __m256i| _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(m, bit), bit));
+            (on(lo), on(hi))
+        }
+    }
+
+    // SAFETY (every operation below): a `Ymm2` is only used inside the runners, which an
+    // `Avx2` token proves may run AVX2 (see the type).
+    impl Lanes for Ymm2 {
+        #[inline(always)]
+        fn splat(x: f32) -> Ymm2 {
+            let v = unsafe { _mm256_set1_ps(x) };
+            Ymm2(v, v)
+        }
+
+        #[inline(always)]
+        fn load(row: &Row) -> Ymm2 {
+            // SAFETY: a `Row` is sixteen `f32` aligned to 64 bytes, so both halves are
+            // aligned to 32.
+            unsafe { Ymm2(_mm256_load_ps(row.0.as_ptr()), _mm256_load_ps(row.0.as_ptr().add(8))) }
+        }
+
+        #[inline(always)]
+        fn store(self) -> Row {
+            let mut row = Row([0.0; PACKET]);
+            // SAFETY: as in `load`.
+            unsafe {
+                _mm256_store_ps(row.0.as_mut_ptr(), self.0);
+                _mm256_store_ps(row.0.as_mut_ptr().add(8), self.1);
+            }
+            row
+        }
+
+        #[inline(always)]
+        fn sub(self, b: Ymm2) -> Ymm2 {
+            self.each(b, |x, y| unsafe { _mm256_sub_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn add(self, b: Ymm2) -> Ymm2 {
+            self.each(b, |x, y| unsafe { _mm256_add_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn mul(self, b: Ymm2) -> Ymm2 {
+            self.each(b, |x, y| unsafe { _mm256_mul_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn max(self, b: Ymm2) -> Ymm2 {
+            // `vmaxps`: the second operand where either is NaN, as `Row::max`.
+            self.each(b, |x, y| unsafe { _mm256_max_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn min(self, b: Ymm2) -> Ymm2 {
+            self.each(b, |x, y| unsafe { _mm256_min_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn abs(self) -> Ymm2 {
+            let magnitude = unsafe { _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX)) };
+            self.each(Ymm2(magnitude, magnitude), |x, m| unsafe { _mm256_and_ps(x, m) })
+        }
+
+        #[inline(always)]
+        fn select(self, mask: u16, b: Ymm2) -> Ymm2 {
+            let (lo, hi) = expand(mask);
+            unsafe { Ymm2(_mm256_blendv_ps(self.0, b.0, lo), _mm256_blendv_ps(self.1, b.1, hi)) }
+        }
+
+        #[inline(always)]
+        fn div(self, b: Ymm2) -> Ymm2 {
+            self.each(b, |x, y| unsafe { _mm256_div_ps(x, y) })
+        }
+
+        #[inline(always)]
+        fn le(self, b: Ymm2) -> u16 {
+            self.mask(b, |x, y| unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(x, y) })
+        }
+
+        #[inline(always)]
+        fn lt(self, b: Ymm2) -> u16 {
+            self.mask(b, |x, y| unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(x, y) })
+        }
+
+        #[inline(always)]
+        fn ge(self, b: Ymm2) -> u16 {
+            self.mask(b, |x, y| unsafe { _mm256_cmp_ps::<_CMP_GE_OQ>(x, y) })
+        }
+    }
+
+    #[inline(always)]
+    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        _: Avx2,
+        p: &PacketTraversal<'_, B, K, Avx2>,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found every feature enabled there.
+        unsafe { closest_avx2(&p.single, p.threshold, p.leaf_lanes, rays, out, counters) }
+    }
+
+    #[inline(always)]
+    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        _: Avx2,
+        p: &PacketTraversal<'_, B, K, Avx2>,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found every feature enabled there.
+        unsafe { any_avx2(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters) }
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
+    fn closest_avx2<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        tr: &Traversal<'_, B, K>,
+        threshold: u32,
+        leaf_lanes: u32,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        closest_stream::<Ymm2, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
+    fn any_avx2<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        tr: &Traversal<'_, B, K>,
+        threshold: u32,
+        leaf_lanes: u32,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
+        any_stream::<Ymm2, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
+    }
+}
+
+/// Elsewhere no [`Avx2`] token is ever made; these keep the type usable with the portable
+/// lanes.
+#[cfg(not(target_arch = "x86_64"))]
+mod ymm {
+    use super::*;
+
+    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        _: Avx2,
+        p: &PacketTraversal<'_, B, K, Avx2>,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        counters: &mut C,
+    ) {
+        closest_stream::<Row, B, K, C>(&p.single, p.threshold, p.leaf_lanes, rays, out, counters);
+    }
+
+    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+        _: Avx2,
+        p: &PacketTraversal<'_, B, K, Avx2>,
+        rays: &[Ray],
+        out: &mut [bool],
+        counters: &mut C,
+    ) {
+        any_stream::<Row, B, K, C>(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters);
     }
 }
 

@@ -81,7 +81,9 @@ pub struct Avx2 {
 }
 
 impl Avx2 {
-    /// The token if this CPU has AVX2 and FMA (`is_x86_feature_detected!`) and the SIMD level is not
+    /// The token if this CPU has AVX2 and FMA (`is_x86_feature_detected!`; and BMI1, BMI2,
+    /// POPCNT and LZCNT, which every AVX2 CPU has, for the packet runners of
+    /// [`crate::packet`]) and the SIMD level is not
     /// capped below it (`kdtree::isa::SimdLevel::active`, `rttest --simd`), else `None`
     /// (always on architectures other than x86-64). Call it once, when a traversal is set up.
     pub fn detect() -> Option<Avx2> {
@@ -89,6 +91,10 @@ impl Avx2 {
         if kdtree::isa::SimdLevel::allows(kdtree::isa::SimdLevel::Avx2)
             && is_x86_feature_detected!("avx2")
             && is_x86_feature_detected!("fma")
+            && is_x86_feature_detected!("bmi1")
+            && is_x86_feature_detected!("bmi2")
+            && is_x86_feature_detected!("popcnt")
+            && is_x86_feature_detected!("lzcnt")
         {
             return Some(Avx2 { _detected: () });
         }

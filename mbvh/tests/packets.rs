@@ -2,8 +2,8 @@
 //! same tree, both intersectors: every lane's closest distance equal bit for bit, the same
 //! triangle (with the same `u`, `v`) but where another triangle is hit at exactly that
 //! distance (a tie the brute-force oracle accepts), the same any-hit answer; the AVX-512
-//! packets (where the CPU runs them) equal to the portable twin bit for bit, triangles
-//! included. Streams of every length (partial packets), hybrid thresholds 0 (packets to the
+//! and the AVX2 packets (where the CPU runs them) equal to the portable twin bit for bit,
+//! triangles included. Streams of every length (partial packets), hybrid thresholds 0 (packets to the
 //! leaves), the default and 16 (single rays from the root); built-in scenes with rays from
 //! surfaces and axis-parallel rays (zero direction components), random soups with degenerate
 //! triangles, rays that miss everything, rays that cannot hit (non-finite), and no NaN.
@@ -79,12 +79,20 @@ fn check<B: LeafBlock, K: BoxTest<Node = Node8>>(
                     (g, s) => assert_eq!(bits(g), bits(s), "{}", at()),
                 }
             }
+            let portable: Vec<_> = got.iter().map(|&h| bits(h)).collect();
+            let mut same_as_portable = |lanes: &str, (h, b): (Vec<Option<Hit>>, Vec<bool>)| {
+                assert_eq!(b, blocked, "{what}: threshold {threshold} split {split}: {lanes} any hit");
+                let h: Vec<_> = h.into_iter().map(bits).collect();
+                assert_eq!(
+                    h, portable,
+                    "{what}: threshold {threshold} split {split}: {lanes} against the portable lanes"
+                );
+            };
             if let Some(avx) = Avx512::detect() {
-                let (zh, zb) = packets(tr, avx, threshold, rays, split);
-                assert_eq!(zb, blocked, "{what}: threshold {threshold} split {split}: AVX-512 any hit");
-                let (z, p): (Vec<_>, Vec<_>) =
-                    (zh.into_iter().map(bits).collect(), got.iter().map(|&h| bits(h)).collect());
-                assert_eq!(z, p, "{what}: threshold {threshold} split {split}: AVX-512 against the portable lanes");
+                same_as_portable("AVX-512", packets(tr, avx, threshold, rays, split));
+            }
+            if let Some(avx) = Avx2::detect() {
+                same_as_portable("AVX2", packets(tr, avx, threshold, rays, split));
             }
             hits = got.iter().filter(|h| h.is_some()).count();
         }
@@ -104,7 +112,10 @@ fn both(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) ->
         check(&format!("{what} avx2 watertight"), bvh.watertight().with_test(avx), &wt, rays);
     }
     if Avx512::detect().is_none() {
-        eprintln!("note: no AVX-512 on this CPU (or the SIMD cap): the portable packets only");
+        eprintln!("note: no AVX-512 on this CPU (or the SIMD cap): the AVX2 and portable packets only");
+    }
+    if Avx2::detect().is_none() {
+        eprintln!("note: no AVX2 on this CPU (or the SIMD cap): the portable packets only");
     }
     hits
 }
@@ -175,6 +186,10 @@ fn all_miss_and_empty_packets() {
         let (h, b) = packets(bvh.wald(), Portable16, threshold, &rays, 16);
         assert!(h.iter().all(Option::is_none) && b.iter().all(|&b| !b));
         if let Some(avx) = Avx512::detect() {
+            let (h, b) = packets(bvh.watertight(), avx, threshold, &rays, 16);
+            assert!(h.iter().all(Option::is_none) && b.iter().all(|&b| !b));
+        }
+        if let Some(avx) = Avx2::detect() {
             let (h, b) = packets(bvh.watertight(), avx, threshold, &rays, 16);
             assert!(h.iter().all(Option::is_none) && b.iter().all(|&b| !b));
         }

@@ -16,7 +16,8 @@
 //! coordinate, lanes finished by single rays below a threshold ([`mbvh::packet`]: the hybrid
 //! traversal that Embree's `embree-16` incoherent rows run); primary and hard-shadow tiles go
 //! ray by ray through the same tree as `mbvh-8`. Without AVX-512 (or below it by
-//! `Options::simd`) the packets run in the portable lanes, the same answers bit for bit.
+//! `Options::simd`) the packets run as two AVX2 halves, and without AVX2 in the portable
+//! lanes, the same answers bit for bit.
 
 use cones::Cone;
 use cones::shadows::SAMPLES;
@@ -117,13 +118,15 @@ fn bind_wide<'s, N: DefaultTest, T: BoxTest<Node = N> + 's>(
 
 /// `mbvh-8-p16`: the 8-wide BVH `bvh` with the triangle test of `tree`, ray streams and
 /// soft-shadow points by packets of 16 rays ([`PacketTraversal`]), in AVX-512 if this CPU has
-/// it and `simd` allows it, else in the portable lanes (the kernel then named
-/// `mbvh-8-p16-portable`); single rays (primary and hard-shadow tiles, and lanes below the
-/// hybrid threshold) through `mbvh-8`'s node test (AVX2 or scalar, as [`bind8`] picks).
+/// it and `simd` allows it, else as two 8-lane AVX2 halves if it has AVX2 (the kernel then
+/// named `mbvh-8-p16-avx2`), else in the portable lanes (`mbvh-8-p16-portable`); single
+/// rays (primary and hard-shadow tiles, and lanes below the hybrid threshold) through
+/// `mbvh-8`'s node test (AVX2 or scalar, as [`bind8`] picks).
 pub fn bind8_p16<'s>(bvh: &'s Mbvh8, tree: &KdTree, simd: SimdLevel) -> Result<Binding<'s>, Error> {
     let avx512 = Avx512::detect().filter(|_| simd >= SimdLevel::Avx512);
     let avx2 = Avx2::detect().filter(|_| simd >= SimdLevel::Avx2);
     let portable = KernelNames::whole("mbvh-8-p16-portable");
+    let in_avx2 = KernelNames::whole("mbvh-8-p16-avx2");
     match (tree.intersector(), avx512, avx2) {
         (kdtree::Intersector::Wald, Some(t), Some(a)) => {
             Ok(Binding::method(Packets(bvh.wald().with_test(a).packets(t))))
@@ -132,10 +135,10 @@ pub fn bind8_p16<'s>(bvh: &'s Mbvh8, tree: &KdTree, simd: SimdLevel) -> Result<B
             Ok(Binding::method(Packets(bvh.watertight().with_test(a).packets(t))))
         }
         (kdtree::Intersector::Wald, _, Some(a)) => {
-            Ok(Binding::method(Packets(bvh.wald().with_test(a).packets(Portable16))).named(portable))
+            Ok(Binding::method(Packets(bvh.wald().with_test(a).packets(a))).named(in_avx2))
         }
         (kdtree::Intersector::Watertight, _, Some(a)) => {
-            Ok(Binding::method(Packets(bvh.watertight().with_test(a).packets(Portable16))).named(portable))
+            Ok(Binding::method(Packets(bvh.watertight().with_test(a).packets(a))).named(in_avx2))
         }
         (kdtree::Intersector::Wald, _, None) => {
             Ok(Binding::method(Packets(bvh.wald().packets(Portable16))).named(portable))
@@ -215,8 +218,11 @@ mod tests {
         }
         let bvh = build8(&scene).unwrap();
         let names = |simd| bind8_p16(&bvh, &tree, simd).unwrap().kernels.map(|k| k.primary);
-        assert_eq!(names(SimdLevel::Avx2).as_deref(), Some("mbvh-8-p16-portable"));
+        assert_eq!(names(SimdLevel::Sse41).as_deref(), Some("mbvh-8-p16-portable"));
         assert_eq!(names(SimdLevel::Scalar).as_deref(), Some("mbvh-8-p16-portable"));
+        if Avx2::detect().is_some() {
+            assert_eq!(names(SimdLevel::Avx2).as_deref(), Some("mbvh-8-p16-avx2"));
+        }
         if Avx512::detect().is_some() {
             assert_eq!(names(SimdLevel::Avx512), None, "named by its entry, mbvh-8-p16");
         }
