@@ -93,9 +93,10 @@ impl Plan {
     /// Every method of `registry` on our kd-tree but `mono` itself against `mono`, exactly
     /// ([`Rule::Exact`]), at tiles 4, 8 and 16 (tiled methods also without packet/leaf
     /// culling at 8, and those with a per-point soft-shadow kernel also with it at 8; at
-    /// tiles 8 and 16 also at each narrower SIMD level the CPU runs, `sse4.1` and `avx2`, so
-    /// that every packet width is checked), with both intersectors; `mono` against the
-    /// oracle.
+    /// tiles 8 and 16 also at each narrower SIMD level the CPU runs, `sse4.1` and `avx2`, and
+    /// with 8-lane packets where it runs AVX2, so that every packet width and lane type is
+    /// checked: 4, 8, 16 in two AVX2 registers and 16 in one AVX-512 register), with both
+    /// intersectors; `mono` against the oracle.
     pub fn ours(registry: &Registry) -> Plan {
         let mut checks = Vec::new();
         for e in registry.entries().iter().filter(|e| e.structure == KDTREE) {
@@ -122,6 +123,17 @@ impl Plan {
                 if tile >= 8 {
                     for simd in [SimdLevel::Sse41, SimdLevel::Avx2].into_iter().filter(|l| *l < options.simd) {
                         let options = Options { simd, ..options };
+                        checks.push(Check {
+                            method: method.clone(),
+                            options,
+                            reference: "mono".into(),
+                            rule: Rule::Exact,
+                        });
+                    }
+                    // The 8-lane packets (one AVX2 register), which no level binds by
+                    // default (16 lanes from `avx2` on).
+                    if options.simd >= SimdLevel::Avx2 {
+                        let options = Options { packet_lanes: Some(8), ..options };
                         checks.push(Check {
                             method: method.clone(),
                             options,

@@ -183,7 +183,8 @@ pub fn select_methods(registry: &Registry, config: &CompareConfig) -> Result<Vec
             return Err(Error::Usage(format!("--methods {token}: {hint}")));
         }
         if token.contains('@') {
-            // A method at a capped SIMD level (`mft-16@avx2`): the width ladder's rows.
+            // A method at a capped SIMD level (`mft-16@avx2`) or packet width (`mft-16@w8`):
+            // the width ladder's rows.
             at_levels.push(registry.select(token, Options::default()).map_err(|e| match e {
                 Error::Usage(m) => Error::Usage(format!("--methods: {m}")),
                 e => e,

@@ -3,8 +3,10 @@
 //!
 //! One [`crate::compare`] run per scene times every rung (interleaved rounds, medians), so a
 //! row's widths and Embree's compare within one run. A rung is a registry method capped at a
-//! SIMD level (`NAME@LEVEL`, [`trace::Options::simd`]): our packet kernels at 4 (SSE 4.1, the
-//! thesis's 2x2 packets), 8 (AVX2, 4x2 pixels) and 16 lanes (AVX-512, 4x4 pixels), MFT with
+//! SIMD level (`NAME@LEVEL`, [`trace::Options::simd`]) or a packet width (`NAME@wN`,
+//! [`trace::Options::packet_lanes`]): our packet kernels at 4 (SSE 4.1, the thesis's 2x2
+//! packets), 8 (AVX2, 4x2 pixels) and 16 lanes (4x4 pixels: one AVX-512 register, or two
+//! AVX2 registers on a CPU without AVX-512), MFT with
 //! 16 frusta over those packets, Benthin & Wald's lane frusta 4, 8 and 16 frusta per step,
 //! the multi-BVHs at node widths 4, 8 and 16 (one ray against W children), and the kd-tree's
 //! single rays as every kernel's `W = 1`. Levels above the machine's (or `rttest --simd`'s
@@ -77,27 +79,27 @@ const LADDER: &[Rungs] = &[
     rungs(
         "MFT 16x16 (`kd-mft-16`)",
         Column::Primary,
-        [Some("mono"), Some("mft-16@sse"), Some("mft-16@avx2"), Some("mft-16@avx512")],
+        [Some("mono"), Some("mft-16@sse"), Some("mft-16@w8"), Some("mft-16@w16")],
     ),
     rungs(
         "MFT 16x16, 16 frusta (`kd-mft-x16`)",
         Column::Primary,
-        [Some("mono"), Some("mft-x16-16@sse"), Some("mft-x16-16@avx2"), Some("mft-x16-16@avx512")],
+        [Some("mono"), Some("mft-x16-16@sse"), Some("mft-x16-16@w8"), Some("mft-x16-16@w16")],
     ),
     rungs(
         "omni-directional packets (`kd-omni-packets`)",
         Column::Primary,
-        [Some("mono"), Some("packet@sse"), Some("packet@avx2"), Some("packet@avx512")],
+        [Some("mono"), Some("packet@sse"), Some("packet@w8"), Some("packet@w16")],
     ),
     rungs(
         "shadow packets (`kd-packets`)",
         Column::Shadow,
-        [Some("mono"), Some("packet@sse"), Some("packet@avx2"), Some("packet@avx512")],
+        [Some("mono"), Some("packet@sse"), Some("packet@w8"), Some("packet@w16")],
     ),
     rungs(
         "stratum packets (`kd-stratum-packets`)",
         Column::Soft16,
-        [Some("mono"), Some("packet@sse"), Some("packet@avx2"), Some("packet@avx512")],
+        [Some("mono"), Some("packet@sse"), Some("packet@w8"), Some("packet@w16")],
     ),
     rungs(
         "lane frusta, W frusta per step (`kd-lane-frusta`)",
@@ -140,13 +142,18 @@ const LADDER: &[Rungs] = &[
 ];
 
 /// Whether `registry` has `method` and this machine may run it: its base name registered
-/// (Embree's only in a build with it) and its `@LEVEL`, if any, at most `level`.
+/// (Embree's only in a build with it), its `@LEVEL`, if any, at most `level`, and its
+/// packet width `@wN`, if any, one that `level` runs (8 and 16 lanes from `avx2` on).
 fn runnable(registry: &Registry, method: &str, level: SimdLevel) -> bool {
     let (base, at) = match method.rsplit_once('@') {
-        Some((base, at)) => (base, SimdLevel::from_name(at)),
+        Some((base, at)) => (base, Some(at)),
         None => (method, None),
     };
-    at.is_none_or(|at| at <= level) && registry.names(&[16]).iter().any(|n| n == base)
+    let fits = |at: &str| match at.strip_prefix('w').and_then(|n| n.parse::<usize>().ok()) {
+        Some(lanes) => packets::Width::at_level(lanes, level).is_some(),
+        None => SimdLevel::from_name(at).is_some_and(|at| at <= level),
+    };
+    at.is_none_or(fits) && registry.names(&[16]).iter().any(|n| n == base)
 }
 
 /// The methods the ladder runs on this machine, each once, `mono` first.
@@ -340,7 +347,11 @@ mod tests {
             }
             assert!(known.iter().any(|k| k == base), "{m} is not registered");
             if let Some((_, level)) = m.rsplit_once('@') {
-                assert!(SimdLevel::from_name(level).is_some(), "{m}: unknown level");
+                let width = level.strip_prefix('w').and_then(|n| n.parse::<usize>().ok());
+                assert!(SimdLevel::from_name(level).is_some() || width.is_some(), "{m}: unknown level");
+                if runnable(&registry, m, SimdLevel::detect()) {
+                    registry.select(m, trace::Options::default()).unwrap_or_else(|e| panic!("{m}: {e}"));
+                }
             }
         }
     }
@@ -352,9 +363,12 @@ mod tests {
         let sse = methods(&registry, SimdLevel::Sse41);
         assert_eq!(sse[0], "mono");
         assert!(sse.iter().any(|m| m == "mft-16@sse"));
-        assert!(!sse.iter().any(|m| m.ends_with("@avx2") || m.ends_with("@avx512")));
+        assert!(!sse.iter().any(|m| ["@avx2", "@avx512", "@w8", "@w16"].iter().any(|s| m.ends_with(s))));
+        let avx2 = methods(&registry, SimdLevel::Avx2);
+        assert!(avx2.iter().any(|m| m == "packet@w8") && avx2.iter().any(|m| m == "packet@w16"));
+        assert!(!avx2.iter().any(|m| m.ends_with("@avx512")));
         let all = methods(&registry, SimdLevel::Avx512);
-        assert!(all.iter().any(|m| m == "packet@avx512"));
+        assert!(all.iter().any(|m| m == "packet@w16"));
         let mut unique = all.clone();
         unique.sort();
         unique.dedup();

@@ -153,8 +153,8 @@ fuzz_target!(|input: Input| {
     if shared.is_empty() {
         return;
     }
-    // At every packet width: 4 lanes, and 8 and 16 (AVX2 and AVX-512 where the CPU has them,
-    // else their portable twins).
+    // At every packet width: 4 lanes, 8 (AVX2), 16 in two AVX2 registers and 16 in one
+    // AVX-512 register where the CPU has them, else their portable twins.
     for width in Width::ALL {
         packets::at_width!(width, V => any_hit_tiles::<V>(&tree, &oracle, &shared));
     }

@@ -80,7 +80,7 @@ fn check<B: LeafBlock, K: BoxTest<Node = Node8>>(
                 }
             }
             let portable: Vec<_> = got.iter().map(|&h| bits(h)).collect();
-            let mut same_as_portable = |lanes: &str, (h, b): (Vec<Option<Hit>>, Vec<bool>)| {
+            let same_as_portable = |lanes: &str, (h, b): (Vec<Option<Hit>>, Vec<bool>)| {
                 assert_eq!(b, blocked, "{what}: threshold {threshold} split {split}: {lanes} any hit");
                 let h: Vec<_> = h.into_iter().map(bits).collect();
                 assert_eq!(

@@ -72,7 +72,7 @@ pub use lane_frusta::{LaneFrusta, LaneWidth};
 pub use packet::{OmniPacket, PacketHit, RayPacket};
 pub use shadow_frustum::ShadowFrustum;
 #[cfg(target_arch = "x86_64")]
-pub use simd_x86::{F32x8, F32x16, Mask8, Mask16, with_avx2, with_avx512};
+pub use simd_x86::{F32x8, F32x8x2, F32x16, Mask8, Mask8x2, Mask16, with_avx2, with_avx512};
 pub use tile::TileTracer;
 pub use triangle4::PacketTreeTest;
 pub use width::Width;

@@ -1,6 +1,7 @@
 //! Explicit x86-64 lane types for 8- and 16-ray packets (issue 28, "wide SIMD"):
-//! [`F32x8`] / [`Mask8`] (AVX2, one 256-bit register per vector and per mask) and
-//! [`F32x16`] / [`Mask16`] (AVX-512F, one 512-bit register and one `k` mask register). Each
+//! [`F32x8`] / [`Mask8`] (AVX2, one 256-bit register per vector and per mask),
+//! [`F32x16`] / [`Mask16`] (AVX-512F, one 512-bit register and one `k` mask register) and
+//! [`F32x8x2`] / [`Mask8x2`] (16 lanes as two AVX2 registers, for CPUs without AVX-512). Each
 //! implements [`SimdF32`] / [`SimdMask`] with the semantics the traits document, and gives
 //! bit for bit the answers of the portable twin [`PortableF32<8>`](crate::simd::PortableF32)
 //! / `PortableF32<16>` (tested below, operation by operation and through the packet
@@ -467,6 +468,266 @@ impl SimdMask for Mask8 {
     #[inline(always)]
     fn all(self) -> bool {
         self.bitmask() == 0xff
+    }
+}
+
+// --------------------------------------------------------------------------------------------
+// AVX2, two registers: F32x8x2 / Mask8x2
+// --------------------------------------------------------------------------------------------
+
+/// Sixteen f32 lanes in two AVX registers (lanes 0-7, then 8-15): the lane type of 16-ray
+/// packets on a CPU with AVX2 but not AVX-512, as Embree runs its 16-ray packets there. Each
+/// operation is [`F32x8`]'s on both halves, so the answers are `PortableF32<16>`'s bit for
+/// bit; what the 16-ray packet saves over two 8-ray ones is its per-packet work (traversal
+/// steps, culling, the walk's decisions), not arithmetic.
+///
+/// # Safety
+/// As [`F32x8`]: use it only on a CPU with AVX2 and FMA, and for speed only inside a
+/// function compiled for them ([`with_avx2`], [`crate::at_width!`]).
+#[derive(Clone, Copy)]
+pub struct F32x8x2(pub F32x8, pub F32x8);
+
+/// The lane mask of [`F32x8x2`]: [`Mask8`]s of lanes 0-7 and 8-15.
+///
+/// # Safety
+/// As [`F32x8`]: only on a CPU with AVX2 and FMA.
+#[derive(Clone, Copy)]
+pub struct Mask8x2(pub Mask8, pub Mask8);
+
+impl F32x8x2 {
+    /// `f` on both halves.
+    #[inline(always)]
+    fn halves(self, rhs: F32x8x2, f: impl Fn(F32x8, F32x8) -> F32x8) -> F32x8x2 {
+        F32x8x2(f(self.0, rhs.0), f(self.1, rhs.1))
+    }
+
+    /// `f` on both halves, to a mask.
+    #[inline(always)]
+    fn test(self, rhs: F32x8x2, f: impl Fn(F32x8, F32x8) -> Mask8) -> Mask8x2 {
+        Mask8x2(f(self.0, rhs.0), f(self.1, rhs.1))
+    }
+}
+
+/// The lanes as an array.
+impl Debug for F32x8x2 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_tuple("F32x8x2").field(&SimdF32::to_array(*self)).finish()
+    }
+}
+
+/// Lane by lane `==` (NaN lanes are unequal).
+impl PartialEq for F32x8x2 {
+    #[inline(always)]
+    fn eq(&self, other: &Self) -> bool {
+        self.0 == other.0 && self.1 == other.1
+    }
+}
+
+impl Index<usize> for F32x8x2 {
+    type Output = f32;
+    /// Lane `lane` (panics past lane 15).
+    #[inline(always)]
+    fn index(&self, lane: usize) -> &f32 {
+        if lane < 8 { &self.0[lane] } else { &self.1[lane - 8] }
+    }
+}
+
+/// `F32x8x2`'s binary arithmetic operators, [`F32x8`]'s on each half.
+macro_rules! pair_binary_ops {
+    ($($trait:ident $method:ident),*) => {$(
+        impl $trait for F32x8x2 {
+            type Output = F32x8x2;
+            #[inline(always)]
+            fn $method(self, rhs: F32x8x2) -> F32x8x2 {
+                self.halves(rhs, $trait::$method)
+            }
+        }
+    )*};
+}
+pair_binary_ops!(Add add, Sub sub, Mul mul, Div div);
+
+impl SimdF32 for F32x8x2 {
+    const LANES: usize = 16;
+    const ZERO: F32x8x2 = F32x8x2(F32x8::ZERO, F32x8::ZERO);
+    const ONE: F32x8x2 = F32x8x2(F32x8::ONE, F32x8::ONE);
+    const INFINITY: F32x8x2 = F32x8x2(F32x8::INFINITY, F32x8::INFINITY);
+    const NEG_INFINITY: F32x8x2 = F32x8x2(F32x8::NEG_INFINITY, F32x8::NEG_INFINITY);
+    type Mask = Mask8x2;
+    type Array<T: Copy + Debug> = [T; 16];
+
+    #[inline(always)]
+    fn array_from_fn<T: Copy + Debug>(f: impl FnMut(usize) -> T) -> [T; 16] {
+        crate::simd::array_fn(f)
+    }
+    #[inline(always)]
+    fn splat(v: f32) -> F32x8x2 {
+        let half = F32x8::splat(v);
+        F32x8x2(half, half)
+    }
+    #[inline(always)]
+    fn from_fn(f: impl FnMut(usize) -> f32) -> F32x8x2 {
+        let lanes: [f32; 16] = crate::simd::array_fn(f);
+        let (lo, hi) = lanes.split_at(8);
+        F32x8x2(F32x8::from_fn(|l| lo[l]), F32x8::from_fn(|l| hi[l]))
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f32; 16] {
+        let (lo, hi) = (self.0.to_array(), self.1.to_array());
+        crate::simd::array_fn(|l| if l < 8 { lo[l] } else { hi[l - 8] })
+    }
+    #[inline(always)]
+    fn axes(points: [Vec3; 16]) -> [F32x8x2; 4] {
+        let lo = F32x8::axes(crate::simd::array_fn(|l| points[l]));
+        let hi = F32x8::axes(crate::simd::array_fn(|l| points[8 + l]));
+        [F32x8x2(lo[0], hi[0]), F32x8x2(lo[1], hi[1]), F32x8x2(lo[2], hi[2]), F32x8x2(lo[3], hi[3])]
+    }
+    #[inline(always)]
+    fn min(self, rhs: F32x8x2) -> F32x8x2 {
+        self.halves(rhs, F32x8::min)
+    }
+    #[inline(always)]
+    fn max(self, rhs: F32x8x2) -> F32x8x2 {
+        self.halves(rhs, F32x8::max)
+    }
+    #[inline(always)]
+    fn abs(self) -> F32x8x2 {
+        F32x8x2(self.0.abs(), self.1.abs())
+    }
+    #[inline(always)]
+    fn copysign(self, sign: F32x8x2) -> F32x8x2 {
+        self.halves(sign, F32x8::copysign)
+    }
+    #[inline(always)]
+    fn recip(self) -> F32x8x2 {
+        F32x8x2(self.0.recip(), self.1.recip())
+    }
+    #[inline(always)]
+    fn sqrt(self) -> F32x8x2 {
+        F32x8x2(self.0.sqrt(), self.1.sqrt())
+    }
+    #[inline(always)]
+    fn strided(values: &[f32], start: usize, stride: usize) -> F32x8x2 {
+        // Checks the whole range (and the stride) once; each half then reads inside it.
+        let lanes = crate::simd::strided_lanes(values, start, stride, 16);
+        F32x8x2(F32x8::strided(lanes, 0, stride), F32x8::strided(lanes, 8 * stride, stride))
+    }
+    #[inline(always)]
+    fn cmpeq(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmpeq)
+    }
+    #[inline(always)]
+    fn cmpne(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmpne)
+    }
+    #[inline(always)]
+    fn cmplt(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmplt)
+    }
+    #[inline(always)]
+    fn cmple(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmple)
+    }
+    #[inline(always)]
+    fn cmpgt(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmpgt)
+    }
+    #[inline(always)]
+    fn cmpge(self, rhs: F32x8x2) -> Mask8x2 {
+        self.test(rhs, F32x8::cmpge)
+    }
+    #[inline(always)]
+    fn is_finite_mask(self) -> Mask8x2 {
+        Mask8x2(self.0.is_finite_mask(), self.1.is_finite_mask())
+    }
+    #[inline(always)]
+    fn is_nan_mask(self) -> Mask8x2 {
+        Mask8x2(self.0.is_nan_mask(), self.1.is_nan_mask())
+    }
+    #[inline(always)]
+    fn is_negative_bitmask(self) -> u32 {
+        self.0.is_negative_bitmask() | self.1.is_negative_bitmask() << 8
+    }
+    #[inline(always)]
+    fn select(mask: Mask8x2, if_true: F32x8x2, if_false: F32x8x2) -> F32x8x2 {
+        F32x8x2(F32x8::select(mask.0, if_true.0, if_false.0), F32x8::select(mask.1, if_true.1, if_false.1))
+    }
+    #[inline(always)]
+    fn blend_u32(mask: Mask8x2, value: u32, lanes: &mut [u32; 16]) {
+        let (halves, _) = lanes.as_chunks_mut::<8>();
+        F32x8::blend_u32(mask.0, value, &mut halves[0]);
+        F32x8::blend_u32(mask.1, value, &mut halves[1]);
+    }
+}
+
+/// The set lanes as bits (`Mask8x2(0b...)`, lane 0 the lowest bit).
+impl Debug for Mask8x2 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Mask8x2({:#018b})", self.bitmask())
+    }
+}
+
+/// The same lanes set.
+impl PartialEq for Mask8x2 {
+    #[inline(always)]
+    fn eq(&self, other: &Self) -> bool {
+        self.bitmask() == other.bitmask()
+    }
+}
+
+impl Eq for Mask8x2 {}
+
+/// `Mask8x2`'s binary operators, [`Mask8`]'s on each half.
+macro_rules! mask_pair_ops {
+    ($($trait:ident $method:ident $assign_trait:ident $assign:ident),*) => {$(
+        impl $trait for Mask8x2 {
+            type Output = Mask8x2;
+            #[inline(always)]
+            fn $method(self, rhs: Mask8x2) -> Mask8x2 {
+                Mask8x2($trait::$method(self.0, rhs.0), $trait::$method(self.1, rhs.1))
+            }
+        }
+        impl $assign_trait for Mask8x2 {
+            #[inline(always)]
+            fn $assign(&mut self, rhs: Mask8x2) {
+                *self = $trait::$method(*self, rhs);
+            }
+        }
+    )*};
+}
+mask_pair_ops!(BitAnd bitand BitAndAssign bitand_assign, BitOr bitor BitOrAssign bitor_assign);
+
+impl Not for Mask8x2 {
+    type Output = Mask8x2;
+    #[inline(always)]
+    fn not(self) -> Mask8x2 {
+        Mask8x2(!self.0, !self.1)
+    }
+}
+
+impl SimdMask for Mask8x2 {
+    #[inline(always)]
+    fn splat(v: bool) -> Mask8x2 {
+        let half = Mask8::splat(v);
+        Mask8x2(half, half)
+    }
+    #[inline(always)]
+    fn from_fn(f: impl FnMut(usize) -> bool) -> Mask8x2 {
+        let lanes: [bool; 16] = crate::simd::array_fn(f);
+        Mask8x2(Mask8::from_fn(|l| lanes[l]), Mask8::from_fn(|l| lanes[8 + l]))
+    }
+    #[inline(always)]
+    fn bitmask(self) -> u32 {
+        self.0.bitmask() | self.1.bitmask() << 8
+    }
+    /// One `vorps` and one `vmovmskps`.
+    #[inline(always)]
+    fn any(self) -> bool {
+        (self.0 | self.1).any()
+    }
+    /// One `vandps` and one `vmovmskps`.
+    #[inline(always)]
+    fn all(self) -> bool {
+        (self.0 & self.1).all()
     }
 }
 
@@ -1129,6 +1390,12 @@ mod tests {
         skipped(with_avx2(CheckAll::<F32x8, 8>(PhantomData)), "AVX2 and FMA");
     }
 
+    /// Every operation of `F32x8x2` / `Mask8x2`, compiled for AVX2, is `PortableF32<16>`'s.
+    #[test]
+    fn avx2_pairs_are_the_portable_lanes_bit_for_bit() {
+        skipped(with_avx2(CheckAll::<F32x8x2, 16>(PhantomData)), "AVX2 and FMA");
+    }
+
     /// Every operation of `F32x16` / `Mask16`, compiled for AVX-512, is `PortableF32<16>`'s.
     #[test]
     fn avx512_lanes_are_the_portable_lanes_bit_for_bit() {
@@ -1194,8 +1461,8 @@ mod tests {
         vm.bitmask().count_ones() as usize
     }
 
-    /// The packet-triangle tests at 8 (AVX2) and 16 (AVX-512) lanes give the portable
-    /// twin's answers bit for bit.
+    /// The packet-triangle tests at 8 (AVX2) and 16 (AVX-512, and AVX2 pairs) lanes give the
+    /// portable twin's answers bit for bit.
     #[test]
     fn packet_triangle_tests_at_8_and_16_lanes_are_the_portable_ones() {
         let hits = with_avx2(TrianglesAgree::<F32x8, 8>(PhantomData));
@@ -1204,6 +1471,8 @@ mod tests {
         let hits = with_avx512(TrianglesAgree::<F32x16, 16>(PhantomData));
         assert!(hits.is_none_or(|h| h > 1000), "16 lanes: {hits:?} hits");
         skipped(hits.map(|_| ()), "AVX-512F/VL");
+        let hits = with_avx2(TrianglesAgree::<F32x8x2, 16>(PhantomData));
+        assert!(hits.is_none_or(|h| h > 1000), "16 lanes in AVX2 pairs: {hits:?} hits");
     }
 
     /// The omni-directional and same-sign walks over the hard scenes (both intersectors,
@@ -1255,8 +1524,8 @@ mod tests {
         hits
     }
 
-    /// The packet walks at 8 (AVX2) and 16 (AVX-512) lanes give the portable twin's answers
-    /// bit for bit on the hard scenes.
+    /// The packet walks at 8 (AVX2) and 16 (AVX-512, and AVX2 pairs) lanes give the portable
+    /// twin's answers bit for bit on the hard scenes.
     #[test]
     fn packet_walks_at_8_and_16_lanes_are_the_portable_ones() {
         let scenes = test_support::hard_scenes();
@@ -1266,5 +1535,7 @@ mod tests {
         let hits = with_avx512(WalksAgree::<F32x16, 16>(&scenes, PhantomData));
         assert!(hits.is_none_or(|h| h > 1000), "16 lanes: {hits:?} hits");
         skipped(hits.map(|_| ()), "AVX-512F/VL");
+        let hits = with_avx2(WalksAgree::<F32x8x2, 16>(&scenes, PhantomData));
+        assert!(hits.is_none_or(|h| h > 1000), "16 lanes in AVX2 pairs: {hits:?} hits");
     }
 }

@@ -64,6 +64,7 @@ pub trait AnyWidth:
     + PacketTest<PortableF32<16>>
     + PacketTest<crate::simd_x86::F32x8>
     + PacketTest<crate::simd_x86::F32x16>
+    + PacketTest<crate::simd_x86::F32x8x2>
 {
 }
 
@@ -77,7 +78,8 @@ impl<
         + PacketTest<PortableF32<8>>
         + PacketTest<PortableF32<16>>
         + PacketTest<crate::simd_x86::F32x8>
-        + PacketTest<crate::simd_x86::F32x16>,
+        + PacketTest<crate::simd_x86::F32x16>
+        + PacketTest<crate::simd_x86::F32x8x2>,
 > AnyWidth for R
 {
 }

@@ -7,6 +7,9 @@
 //! - [`Width::Four`]: glam's `Vec4` (SSE), the thesis's 2x2 packet;
 //! - [`Width::Eight`]: [`F32x8`](crate::simd_x86::F32x8) (AVX2), compiled inside the
 //!   8-lane runner `simd_x86::run_avx2` (`#[target_feature(enable = "avx2,fma")]`);
+//! - [`Width::SixteenInPairs`]: [`F32x8x2`](crate::simd_x86::F32x8x2), 16 lanes in two
+//!   AVX2 registers, compiled inside `simd_x86::run_avx2`: the 16-ray packets of a CPU (or
+//!   a SIMD cap) without AVX-512;
 //! - [`Width::Sixteen`]: [`F32x16`](crate::simd_x86::F32x16) (AVX-512 F/VL), compiled
 //!   inside the 16-lane runner `simd_x86::run_avx512`.
 //!
@@ -22,27 +25,60 @@
 
 use kdtree::isa::SimdLevel;
 
-/// How many rays a packet kernel traces per instruction.
+/// How many rays a packet kernel traces per instruction, and in which registers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Width {
     /// 4 lanes (SSE): 2x2 pixels, the thesis's packet.
     Four,
     /// 8 lanes (AVX2): 4x2 pixels.
     Eight,
+    /// 16 lanes in two AVX2 registers: 4x4 pixels on a CPU (or a SIMD cap) without AVX-512.
+    SixteenInPairs,
     /// 16 lanes (AVX-512): 4x4 pixels.
     Sixteen,
 }
 
 impl Width {
     /// Every width, narrowest first.
-    pub const ALL: [Width; 3] = [Width::Four, Width::Eight, Width::Sixteen];
+    pub const ALL: [Width; 4] = [Width::Four, Width::Eight, Width::SixteenInPairs, Width::Sixteen];
 
-    /// The widest width `level` runs natively: 16 at `avx512`, 8 at `avx2`, else 4.
+    /// The width the packet kernels bind at `level` unless a method asks for another
+    /// ([`Width::at_level`]): 16 lanes at `avx512` (one register) and at `avx2` (two
+    /// registers, [`Width::SixteenInPairs`]), else 4. At `avx2` the 16-ray packets beat the
+    /// 8-ray ones of one register: per ray they do the same arithmetic, and they halve the
+    /// per-packet work (traversal steps, culling, the walk's decisions): 1.03-1.04x on
+    /// primary rays, 1.06-1.08x on hard shadows and 1.07x on soft shadows on an AVX2 CPU
+    /// (`docs/results/width-ladder.md`).
     pub fn for_level(level: SimdLevel) -> Width {
         match level {
             SimdLevel::Avx512 => Width::Sixteen,
-            SimdLevel::Avx2 => Width::Eight,
+            SimdLevel::Avx2 => Width::SixteenInPairs,
             _ => Width::Four,
+        }
+    }
+
+    /// The width of `lanes` rays per instruction at `level` (a method's `NAME@w8`): 16
+    /// lanes in one register at `avx512`, in two at `avx2`; `None` for another count, or
+    /// where `level` runs no such width natively (8 or 16 below `avx2`).
+    pub fn at_level(lanes: usize, level: SimdLevel) -> Option<Width> {
+        let width = match lanes {
+            4 => Width::Four,
+            8 => Width::Eight,
+            16 if level >= SimdLevel::Avx512 => Width::Sixteen,
+            16 => Width::SixteenInPairs,
+            _ => return None,
+        };
+        (width.level() <= level).then_some(width)
+    }
+
+    /// The lowest SIMD level that runs the width natively (else [`at_width!`] runs its
+    /// portable twin): `sse4.1` for 4 lanes, `avx2` for 8 and for 16 in pairs, `avx512`
+    /// for 16 in one register.
+    pub fn level(self) -> SimdLevel {
+        match self {
+            Width::Four => SimdLevel::Sse41,
+            Width::Eight | Width::SixteenInPairs => SimdLevel::Avx2,
+            Width::Sixteen => SimdLevel::Avx512,
         }
     }
 
@@ -51,17 +87,18 @@ impl Width {
         match self {
             Width::Four => 4,
             Width::Eight => 8,
-            Width::Sixteen => 16,
+            Width::SixteenInPairs | Width::Sixteen => 16,
         }
     }
 
     /// What a kernel's name gains at this width: nothing at 4 (the thesis's packets keep
-    /// their names), `-w8` and `-w16` otherwise (`kd-mft-16-w16`).
+    /// their names), `-w8` and `-w16` otherwise (`kd-mft-16-w16`; the SIMD level a run
+    /// prints tells one register from two).
     pub fn suffix(self) -> &'static str {
         match self {
             Width::Four => "",
             Width::Eight => "-w8",
-            Width::Sixteen => "-w16",
+            Width::SixteenInPairs | Width::Sixteen => "-w16",
         }
     }
 
@@ -72,7 +109,7 @@ impl Width {
         match self {
             Width::Four => true,
             #[cfg(target_arch = "x86_64")]
-            Width::Eight => crate::simd_x86::F32x8::available(),
+            Width::Eight | Width::SixteenInPairs => crate::simd_x86::F32x8::available(),
             #[cfg(target_arch = "x86_64")]
             Width::Sixteen => crate::simd_x86::F32x16::available(),
             #[cfg(not(target_arch = "x86_64"))]
@@ -83,8 +120,9 @@ impl Width {
 
 /// `at_width!(width, V => body)`: evaluates `body` with the type `V` the lane type of
 /// `width` ([`Width`]), compiled for its instruction set: `Vec4` at [`Width::Four`],
-/// `F32x8` under AVX2 at [`Width::Eight`], `F32x16` under AVX-512 at [`Width::Sixteen`]
-/// (the portable twins `PortableF32<8>` / `<16>` where the CPU lacks them, or off x86-64).
+/// `F32x8` under AVX2 at [`Width::Eight`], `F32x8x2` under AVX2 at
+/// [`Width::SixteenInPairs`], `F32x16` under AVX-512 at [`Width::Sixteen`] (the portable
+/// twins `PortableF32<8>` / `<16>` where the CPU lacks them, or off x86-64).
 /// The body is expanded once per lane type; it must call only `#[inline(always)]` kernel
 /// code for the wide lanes to become single instructions.
 #[macro_export]
@@ -121,11 +159,24 @@ macro_rules! at_width {
                     )
                 }
             }
+            #[cfg(target_arch = "x86_64")]
+            $crate::Width::SixteenInPairs if $crate::simd_x86::F32x8::available() => {
+                // SAFETY: the CPU has AVX2 and FMA (just checked).
+                unsafe {
+                    $crate::simd_x86::run_avx2(
+                        #[inline(always)]
+                        || {
+                            type $V = $crate::simd_x86::F32x8x2;
+                            $body
+                        },
+                    )
+                }
+            }
             $crate::Width::Eight => {
                 type $V = $crate::simd::PortableF32<8>;
                 $body
             }
-            $crate::Width::Sixteen => {
+            $crate::Width::Sixteen | $crate::Width::SixteenInPairs => {
                 type $V = $crate::simd::PortableF32<16>;
                 $body
             }
@@ -140,11 +191,23 @@ mod tests {
     #[test]
     fn widths_follow_the_levels() {
         assert_eq!(Width::for_level(SimdLevel::Avx512), Width::Sixteen);
-        assert_eq!(Width::for_level(SimdLevel::Avx2), Width::Eight);
+        assert_eq!(Width::for_level(SimdLevel::Avx2), Width::SixteenInPairs);
         assert_eq!(Width::for_level(SimdLevel::Sse41), Width::Four);
         assert_eq!(Width::for_level(SimdLevel::Scalar), Width::Four);
-        assert_eq!(Width::ALL.map(Width::lanes), [4, 8, 16]);
-        assert_eq!(Width::Sixteen.native(), SimdLevel::detect() == SimdLevel::Avx512);
+        assert_eq!(Width::ALL.map(Width::lanes), [4, 8, 16, 16]);
+        for level in SimdLevel::ALL {
+            assert!(Width::for_level(level).level() <= level.max(SimdLevel::Sse41), "{level}");
+        }
+        assert_eq!(Width::at_level(8, SimdLevel::Avx512), Some(Width::Eight));
+        assert_eq!(Width::at_level(16, SimdLevel::Avx512), Some(Width::Sixteen));
+        assert_eq!(Width::at_level(16, SimdLevel::Avx2), Some(Width::SixteenInPairs));
+        assert_eq!(Width::at_level(4, SimdLevel::Avx2), Some(Width::Four));
+        assert_eq!(Width::at_level(8, SimdLevel::Sse41), None);
+        assert_eq!(Width::at_level(16, SimdLevel::Sse41), None);
+        assert_eq!(Width::at_level(12, SimdLevel::Avx512), None);
+        let detected = SimdLevel::detect();
+        assert_eq!(Width::Sixteen.native(), detected == SimdLevel::Avx512);
+        assert_eq!(Width::SixteenInPairs.native(), detected >= SimdLevel::Avx2);
     }
 
     /// The macro gives each width its lane type, natively compiled or not.

@@ -49,9 +49,14 @@ pub struct Options {
     /// The widest SIMD level the kernels may bind to: by default the active one
     /// ([`SimdLevel::active`], the CPU's widest unless `--simd` caps it); a method named
     /// `NAME@LEVEL` (`mft-16@avx2`) sets it for that method alone. The packet kernels run
-    /// 4, 8 or 16 rays per instruction at `sse4.1`, `avx2` and `avx512`, and the other SIMD
-    /// kernels (lane frusta, mbvh's node test) stay at or below it.
+    /// 4 rays per instruction at `sse4.1` and 16 at `avx2` (two registers) and `avx512` (one)
+    /// unless [`Options::packet_lanes`] asks for another width, and the other SIMD kernels
+    /// (lane frusta, mbvh's node test) stay at or below it.
     pub simd: SimdLevel,
+    /// Rays per packet instruction (4, 8 or 16) that a method named `NAME@wN` (`mft-16@w8`)
+    /// asks its packet kernels for; `None`: the widest of its SIMD level
+    /// ([`packets::Width::for_level`]). Resolved at bind by [`Options::packet_width`].
+    pub packet_lanes: Option<usize>,
 }
 
 impl Default for Options {
@@ -62,6 +67,22 @@ impl Default for Options {
             soft: SoftGrouping::Strata,
             lanes: LaneWidth::widest(),
             simd: SimdLevel::active(),
+            packet_lanes: None,
+        }
+    }
+}
+
+impl Options {
+    /// The width of the packet kernels: [`Options::packet_lanes`] at [`Options::simd`]
+    /// ([`packets::Width::at_level`]: 16 lanes in one AVX-512 register or in two AVX2 ones),
+    /// else the widest of the level. An error where the level does not run the lanes asked
+    /// for (8 or 16 below `avx2`).
+    pub fn packet_width(&self) -> Result<packets::Width, Error> {
+        match self.packet_lanes {
+            None => Ok(packets::Width::for_level(self.simd)),
+            Some(lanes) => packets::Width::at_level(lanes, self.simd).ok_or_else(|| {
+                Error::Usage(format!("w{lanes}: {lanes}-ray packets need avx2 (SIMD level here: {})", self.simd))
+            }),
         }
     }
 }
@@ -361,7 +382,9 @@ impl Registry {
 
     /// The method `name`: an entry's name (tile from `options`) or, for a tiled method,
     /// `NAME-TILE` (e.g. `mft-16`), either with an optional `@LEVEL` (`mft-16@avx2`: the
-    /// method with its SIMD level capped at `avx2`, [`Options::simd`]). An unknown name is an error listing the known ones, and
+    /// method with its SIMD level capped at `avx2`, [`Options::simd`]) and an optional
+    /// `@wN` (`mft-16@w8`, `mft-16@avx512@w8`: its packets of N rays,
+    /// [`Options::packet_lanes`]). An unknown name is an error listing the known ones, and
     /// so is [`SoftGrouping::PerPoint`] for a method without a per-point kernel.
     pub fn select(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let selected = self.select_name(name, options)?;
@@ -381,8 +404,17 @@ impl Registry {
     fn select_name(&self, name: &str, options: Options) -> Result<Selected, Error> {
         let name = name.trim();
         if let Some((base, level)) = name.rsplit_once('@') {
+            if let Some(lanes) = level.strip_prefix('w').and_then(|n| n.parse::<usize>().ok()) {
+                if ![4, 8, 16].contains(&lanes) {
+                    return Err(Error::Usage(format!("{name}: packets of 4, 8 or 16 rays (w4, w8, w16), not {lanes}")));
+                }
+                let selected = self.select_name(base, Options { packet_lanes: Some(lanes), ..options })?;
+                return Ok(Selected { name: format!("{}@{level}", selected.name), ..selected });
+            }
             let simd = SimdLevel::from_name(level).filter(|l| *l >= SimdLevel::Sse2).ok_or_else(|| {
-                Error::Usage(format!("{name}: unknown SIMD level '{level}' (known: sse, avx2, avx512)"))
+                Error::Usage(format!(
+                    "{name}: unknown SIMD level or packet width '{level}' (known: sse, avx2, avx512, w4, w8, w16)"
+                ))
             })?;
             let detected = SimdLevel::detect();
             if simd > detected {
@@ -528,8 +560,21 @@ mod tests {
         let wide = packets::Width::for_level(SimdLevel::active()).suffix();
         assert_eq!(k.shadow, format!("kd-packets{wide}"));
         if SimdLevel::active() >= SimdLevel::Avx2 {
-            assert_eq!(kernels("packet@avx2").shadow, "kd-packets-w8");
+            // 16 lanes at `avx2` (two registers), 8 where the method asks for them.
+            assert_eq!(kernels("packet@avx2").shadow, "kd-packets-w16");
+            assert_eq!(kernels("packet@w8").shadow, "kd-packets-w8");
+            assert_eq!(kernels("packet@avx2@w8").shadow, "kd-packets-w8");
+            assert_eq!(kernels("mft-16@w8").primary, "kd-mft-16-w8");
+            assert_eq!(kernels("packet@w4").shadow, "kd-packets");
             assert_eq!(kernels("lane-frusta-16@sse").shadow, "kd-lane-frusta-x4");
+        }
+        // Wider packets than the level runs are an error naming the width.
+        let sse_w8 = r.select("packet@sse@w8", Options::default()).unwrap();
+        let e = r.bind(&sse_w8, &s).unwrap_err().to_string();
+        assert!(e.contains("w8") && e.contains("avx2"), "{e}");
+        for bad in ["packet@w12", "packet@w", "packet@fast"] {
+            let e = r.select(bad, Options::default()).unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
         }
         let k = kernels("cone-4");
         assert_eq!((k.primary.as_str(), k.stream.as_str()), ("kd-cone-4", "kd-cone-runs"));

@@ -27,8 +27,8 @@ pub struct CompareArgs {
     pub build_rounds: u32,
     /// Methods, comma-separated: names (`mono`, `mft-16`, `embree-16`, `bvh`, ...), groups
     /// (`all`, `ours`, `embree`, `bvh-crates`), or a method of ours at a capped SIMD level
-    /// (`mft-16@sse`, `mft-16@avx2`, `mft-16@avx512`: the width ladder). `all` takes the
-    /// baselines this build has.
+    /// (`mft-16@sse`, `mft-16@avx2`, `mft-16@avx512`) or packet width (`mft-16@w8`,
+    /// `mft-16@w16`: the width ladder). `all` takes the baselines this build has.
     #[arg(long, value_delimiter = ',', default_value = "all", value_name = "LIST")]
     pub methods: Vec<String>,
     /// Tile sizes of our frustum, MFT, cone and MFT-cone methods (multiples of 4, 4 to 64).

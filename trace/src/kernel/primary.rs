@@ -77,16 +77,21 @@ pub trait TileKernel: Primary {
 }
 
 /// The options a tile kernel reads: its tile (a multiple of 4 in `4..=64`, checked),
-/// packet/leaf culling (thesis 4.1.4) and its packets' width: the widest the method's SIMD
-/// level runs ([`Options::simd`]) whose packets the tile holds whole in each quadrant (a
-/// tile of 4 or 12 pixels keeps 2x2 packets; wider packets need a multiple of 8).
+/// packet/leaf culling (thesis 4.1.4) and its packets' width: the one the method asks for
+/// ([`Options::packet_width`]: by default the widest of its SIMD level) if the tile holds
+/// its packets whole in each quadrant, else 2x2 packets (a tile of 4 or 12 pixels; wider
+/// packets need a multiple of 8).
 fn tile_options(options: &Options, regions: usize) -> Result<(u32, bool, Width), Error> {
     let tile = options.tile;
     TileTracer::<Vec4>::check_regions(tile, regions).map_err(|e| Error::Usage(format!("tile: {e}")))?;
     // The tracer's own size rule for each width (its portable twin has the same packets).
-    let width = match Width::for_level(options.simd) {
+    let width = match options.packet_width()? {
         Width::Eight if TileTracer::<PortableF32<8>>::check_regions(tile, regions).is_ok() => Width::Eight,
-        Width::Sixteen if TileTracer::<PortableF32<16>>::check_regions(tile, regions).is_ok() => Width::Sixteen,
+        w @ (Width::Sixteen | Width::SixteenInPairs)
+            if TileTracer::<PortableF32<16>>::check_regions(tile, regions).is_ok() =>
+        {
+            w
+        }
         _ => Width::Four,
     };
     Ok((tile, options.culling, width))
@@ -103,6 +108,8 @@ pub struct TileScratch {
     avx2: Option<TileTracer<packets::F32x8>>,
     #[cfg(target_arch = "x86_64")]
     avx512: Option<TileTracer<packets::F32x16>>,
+    #[cfg(target_arch = "x86_64")]
+    avx2_pairs: Option<TileTracer<packets::F32x8x2>>,
 }
 
 /// The slot of [`TileScratch`] for packets of lane type `V`.
@@ -131,6 +138,8 @@ tracer_slot! {
     avx2: packets::F32x8;
     #[cfg(target_arch = "x86_64")]
     avx512: packets::F32x16;
+    #[cfg(target_arch = "x86_64")]
+    avx2_pairs: packets::F32x8x2;
 }
 
 /// [`Primary::primary_tile`] of the tile kernel `K` with tiles of `size` and `culling`, in

@@ -114,7 +114,7 @@ impl Default for Packets {
 
 impl FromOptions for Packets {
     fn from_options(options: &Options) -> Result<Self, Error> {
-        Ok(Packets { width: Width::for_level(options.simd) })
+        Ok(Packets { width: options.packet_width()? })
     }
 }
 
