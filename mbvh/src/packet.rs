@@ -1134,15 +1134,15 @@ mod ymm {
     }
 }
 
-/// Elsewhere no [`Avx2`] token is ever made; these keep the type usable with the portable
-/// lanes.
+/// Elsewhere no [`Avx2`] or [`Avx512`] token is ever made; these keep the types usable with
+/// the portable lanes (as `ymm` and `zmm`).
 #[cfg(not(target_arch = "x86_64"))]
-mod ymm {
+mod portable {
     use super::*;
 
-    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx2,
-        p: &PacketTraversal<'_, B, K, Avx2>,
+    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, L, C: Counters>(
+        _: L,
+        p: &PacketTraversal<'_, B, K, L>,
         rays: &[Ray],
         out: &mut [Option<Hit>],
         counters: &mut C,
@@ -1150,9 +1150,9 @@ mod ymm {
         closest_stream::<Row, B, K, C>(&p.single, p.threshold, p.leaf_lanes, rays, out, counters);
     }
 
-    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx2,
-        p: &PacketTraversal<'_, B, K, Avx2>,
+    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, L, C: Counters>(
+        _: L,
+        p: &PacketTraversal<'_, B, K, L>,
         rays: &[Ray],
         out: &mut [bool],
         counters: &mut C,
@@ -1161,29 +1161,7 @@ mod ymm {
     }
 }
 
-/// Elsewhere no [`Avx512`] token is ever made; these keep the type usable with the
-/// portable lanes.
 #[cfg(not(target_arch = "x86_64"))]
-mod zmm {
-    use super::*;
-
-    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx512,
-        p: &PacketTraversal<'_, B, K, Avx512>,
-        rays: &[Ray],
-        out: &mut [Option<Hit>],
-        counters: &mut C,
-    ) {
-        closest_stream::<Row, B, K, C>(&p.single, p.threshold, p.leaf_lanes, rays, out, counters);
-    }
-
-    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx512,
-        p: &PacketTraversal<'_, B, K, Avx512>,
-        rays: &[Ray],
-        out: &mut [bool],
-        counters: &mut C,
-    ) {
-        any_stream::<Row, B, K, C>(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters);
-    }
-}
+use portable as ymm;
+#[cfg(not(target_arch = "x86_64"))]
+use portable as zmm;
