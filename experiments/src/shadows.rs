@@ -874,8 +874,8 @@ fn pixel_samples(x: u32, y: u32, n: u32) -> impl Iterator<Item = Vec2> {
 /// ray counts as blocked. The rays go sample by sample, each sample's in the pixel order
 /// `order` (Morton order of a tile: neighbours' rays to the same light stratum side by side)
 /// as same-sign any-hit packets made from the segments, as many rays a packet as the SIMD
-/// level has lanes (`packets::Width::for_level`: 16, 4x4 pixels, on AVX-512; 8 on AVX2; the
-/// thesis's 2x2 otherwise; `samesign::occluded_segments`), as `trace::shadow_frusta`
+/// level has lanes (`packets::Width::for_level`: 16, 4x4 pixels, on AVX-512 and, in two
+/// registers, on AVX2; the thesis's 2x2 otherwise; `samesign::occluded_segments`), as `trace::shadow_frusta`
 /// groups a render's shadows (Benthin & Wald 2009).
 fn count_visible_by_sample(
     tree: &KdTree,

@@ -58,11 +58,12 @@ impl Width {
     }
 
     /// The width of `lanes` rays per instruction at `level` (a method's `NAME@w8`): 16
-    /// lanes in one register at `avx512`, in two at `avx2`; `None` for another count, or
-    /// where `level` runs no such width natively (8 or 16 below `avx2`).
+    /// lanes in one register at `avx512`, in two at `avx2`; 4 lanes at any level (as
+    /// [`Width::for_level`] binds them below `sse4.1`); `None` for another count, or where
+    /// `level` runs no such width natively (8 or 16 below `avx2`).
     pub fn at_level(lanes: usize, level: SimdLevel) -> Option<Width> {
         let width = match lanes {
-            4 => Width::Four,
+            4 => return Some(Width::Four),
             8 => Width::Eight,
             16 if level >= SimdLevel::Avx512 => Width::Sixteen,
             16 => Width::SixteenInPairs,
@@ -202,6 +203,7 @@ mod tests {
         assert_eq!(Width::at_level(16, SimdLevel::Avx512), Some(Width::Sixteen));
         assert_eq!(Width::at_level(16, SimdLevel::Avx2), Some(Width::SixteenInPairs));
         assert_eq!(Width::at_level(4, SimdLevel::Avx2), Some(Width::Four));
+        assert_eq!(Width::at_level(4, SimdLevel::Scalar), Some(Width::Four));
         assert_eq!(Width::at_level(8, SimdLevel::Sse41), None);
         assert_eq!(Width::at_level(16, SimdLevel::Sse41), None);
         assert_eq!(Width::at_level(12, SimdLevel::Avx512), None);

@@ -426,10 +426,10 @@ fn soft_grouping_picks_the_kernel_and_keeps_the_answers() {
     };
     let mono = render("mono", "strata");
     assert_eq!(mono["shadow_kernel"], "kd-single");
-    // The stratum packets are as wide as the run's SIMD level.
+    // The stratum packets are as wide as the run's SIMD level: 16 lanes from avx2 on (two
+    // registers at avx2), else 2x2.
     let wide = match mono["simd"].as_str() {
-        Some("avx512") => "-w16",
-        Some("avx2") => "-w8",
+        Some("avx512" | "avx2") => "-w16",
         _ => "",
     };
     for (method, thesis) in [("packet", "kd-pyramid"), ("cone-8", "kd-cone")] {
