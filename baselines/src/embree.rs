@@ -842,12 +842,16 @@ mod tests {
         let below = |t_min: f32, t_max: f32| Ray::new(Vec3::new(0.5, -0.5, -1.0), -Vec3::Z, t_min, t_max);
         let above = Ray::new(Vec3::new(-0.25, 0.5, 1.0), -Vec3::Z, -5.0, 3.0);
         let behind = below(-2.0, f32::INFINITY);
+        // Embree's `t` of a moved ray is within a few ulps of `|t_min|` of the exact one (the
+        // module's conventions); how many depends on the kernel Embree picked for this CPU
+        // (one CI machine gave 0.9999995 for 1.0). Ours is exact.
+        let near = |t: f32, want: f32, t_min: f32| (t - want).abs() <= 8.0 * f32::EPSILON * t_min.abs().max(1.0);
         let hit = scene.intersect(&behind, Coherence::Coherent).unwrap();
-        assert_eq!((hit.prim, hit.t), (0, -1.0));
+        assert!(hit.prim == 0 && near(hit.t, -1.0, -2.0), "{hit:?}");
         assert_eq!(tree.intersect(&behind).map(|h| (h.prim, h.t)), Some((0, -1.0)));
         assert!(scene.occluded(&behind, Coherence::Coherent));
         let hit = scene.intersect(&above, Coherence::Incoherent).unwrap();
-        assert_eq!((hit.prim, hit.t), (1, 1.0));
+        assert!(hit.prim == 1 && near(hit.t, 1.0, -5.0), "{hit:?}");
         let short = [below(-0.5, f32::INFINITY), below(-3.0, -1.5), below(0.0, 10.0)];
         for r in &short {
             assert!(scene.intersect(r, Coherence::Coherent).is_none(), "{r:?}");
@@ -877,10 +881,18 @@ mod tests {
         scene.intersect_packet(&mut packet, Coherence::Coherent);
         for (lane, r) in lanes.iter().enumerate() {
             assert!(packet.active(lane));
-            let single = scene.intersect(r, Coherence::Coherent);
-            assert_eq!(packet.hit(lane).map(|h| (h.prim, h.t)), single.map(|h| (h.prim, h.t)), "lane {lane}");
+            // Embree's packet and single-ray kernels may round a moved ray's `t` apart.
+            let (single, lane_hit) = (scene.intersect(r, Coherence::Coherent), packet.hit(lane));
+            assert_eq!(lane_hit.map(|h| h.prim), single.map(|h| h.prim), "lane {lane}");
+            if let (Some(a), Some(b)) = (lane_hit, single) {
+                assert!(near(a.t, b.t, r.t_min), "lane {lane}: {a:?} against {b:?}");
+            }
         }
-        assert_eq!(packet.hit(7).map(|h| (h.prim, h.t)), Some((0, -1.0)));
+        let hit = packet.hit(7).unwrap();
+        assert!(hit.prim == 0 && near(hit.t, -1.0, -1.5), "{hit:?}");
+        // The same rays again: the query above shortened each lane's `tfar` to its hit, and
+        // whether a hit at exactly `tfar` blocks depends on the kernel Embree picked.
+        packet.load(&lanes);
         scene.occluded_packet(&mut packet, Coherence::Coherent);
         let blocked: Vec<bool> = (0..8).map(|lane| packet.occluded(lane)).collect();
         assert_eq!(blocked, [true, true, false, false, false, false, false, true]);
