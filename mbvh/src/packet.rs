@@ -807,6 +807,62 @@ fn any_packet<V: Lanes, B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
     }
 }
 
+/// The packet loops' entry points for the lanes `$lanes` of token `$token`: `closest` and
+/// `any` call the runners `$closest` / `$any`, which compile the loops for `$features` (the
+/// features `$token`'s `detect` checks).
+#[cfg(target_arch = "x86_64")]
+macro_rules! runners {
+    ($token:ident, $lanes:ident, $features:literal, $closest:ident, $any:ident) => {
+        #[inline(always)]
+        pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+            _: $token,
+            p: &PacketTraversal<'_, B, K, $token>,
+            rays: &[Ray],
+            out: &mut [Option<Hit>],
+            counters: &mut C,
+        ) {
+            // SAFETY: the token exists, so its `detect` found every feature enabled there.
+            unsafe { $closest(&p.single, p.threshold, p.leaf_lanes, rays, out, counters) }
+        }
+
+        #[inline(always)]
+        pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+            _: $token,
+            p: &PacketTraversal<'_, B, K, $token>,
+            rays: &[Ray],
+            out: &mut [bool],
+            counters: &mut C,
+        ) {
+            // SAFETY: the token exists, so its `detect` found every feature enabled there.
+            unsafe { $any(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters) }
+        }
+
+        #[target_feature(enable = $features)]
+        fn $closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+            tr: &Traversal<'_, B, K>,
+            threshold: u32,
+            leaf_lanes: u32,
+            rays: &[Ray],
+            out: &mut [Option<Hit>],
+            counters: &mut C,
+        ) {
+            closest_stream::<$lanes, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
+        }
+
+        #[target_feature(enable = $features)]
+        fn $any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
+            tr: &Traversal<'_, B, K>,
+            threshold: u32,
+            leaf_lanes: u32,
+            rays: &[Ray],
+            out: &mut [bool],
+            counters: &mut C,
+        ) {
+            any_stream::<$lanes, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
+        }
+    };
+}
+
 /// The AVX-512 lanes: one `__m512` per lane vector, `k` masks as `u16`, and the runners that
 /// compile the packet loops for AVX-512.
 #[cfg(target_arch = "x86_64")]
@@ -901,53 +957,7 @@ mod zmm {
         }
     }
 
-    #[inline(always)]
-    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx512,
-        p: &PacketTraversal<'_, B, K, Avx512>,
-        rays: &[Ray],
-        out: &mut [Option<Hit>],
-        counters: &mut C,
-    ) {
-        // SAFETY: an `Avx512` exists, so `Avx512::detect` found every feature enabled there.
-        unsafe { closest_avx512(&p.single, p.threshold, p.leaf_lanes, rays, out, counters) }
-    }
-
-    #[inline(always)]
-    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx512,
-        p: &PacketTraversal<'_, B, K, Avx512>,
-        rays: &[Ray],
-        out: &mut [bool],
-        counters: &mut C,
-    ) {
-        // SAFETY: an `Avx512` exists, so `Avx512::detect` found every feature enabled there.
-        unsafe { any_avx512(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters) }
-    }
-
-    #[target_feature(enable = "avx512f,avx512vl,avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
-    fn closest_avx512<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        tr: &Traversal<'_, B, K>,
-        threshold: u32,
-        leaf_lanes: u32,
-        rays: &[Ray],
-        out: &mut [Option<Hit>],
-        counters: &mut C,
-    ) {
-        closest_stream::<Zmm, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
-    }
-
-    #[target_feature(enable = "avx512f,avx512vl,avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
-    fn any_avx512<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        tr: &Traversal<'_, B, K>,
-        threshold: u32,
-        leaf_lanes: u32,
-        rays: &[Ray],
-        out: &mut [bool],
-        counters: &mut C,
-    ) {
-        any_stream::<Zmm, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
-    }
+    runners!(Avx512, Zmm, "avx512f,avx512vl,avx2,fma,bmi1,bmi2,popcnt,lzcnt", closest_avx512, any_avx512);
 }
 
 /// The AVX2 lanes: the 16 lanes as two `__m256` halves (lanes 0-7 and 8-15), masks as `u16`
@@ -1085,53 +1095,7 @@ mod ymm {
         }
     }
 
-    #[inline(always)]
-    pub(super) fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx2,
-        p: &PacketTraversal<'_, B, K, Avx2>,
-        rays: &[Ray],
-        out: &mut [Option<Hit>],
-        counters: &mut C,
-    ) {
-        // SAFETY: an `Avx2` exists, so `Avx2::detect` found every feature enabled there.
-        unsafe { closest_avx2(&p.single, p.threshold, p.leaf_lanes, rays, out, counters) }
-    }
-
-    #[inline(always)]
-    pub(super) fn any<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        _: Avx2,
-        p: &PacketTraversal<'_, B, K, Avx2>,
-        rays: &[Ray],
-        out: &mut [bool],
-        counters: &mut C,
-    ) {
-        // SAFETY: an `Avx2` exists, so `Avx2::detect` found every feature enabled there.
-        unsafe { any_avx2(&p.single, p.any_threshold, p.leaf_lanes, rays, out, counters) }
-    }
-
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
-    fn closest_avx2<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        tr: &Traversal<'_, B, K>,
-        threshold: u32,
-        leaf_lanes: u32,
-        rays: &[Ray],
-        out: &mut [Option<Hit>],
-        counters: &mut C,
-    ) {
-        closest_stream::<Ymm2, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
-    }
-
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,popcnt,lzcnt")]
-    fn any_avx2<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
-        tr: &Traversal<'_, B, K>,
-        threshold: u32,
-        leaf_lanes: u32,
-        rays: &[Ray],
-        out: &mut [bool],
-        counters: &mut C,
-    ) {
-        any_stream::<Ymm2, B, K, C>(tr, threshold, leaf_lanes, rays, out, counters);
-    }
+    runners!(Avx2, Ymm2, "avx2,fma,bmi1,bmi2,popcnt,lzcnt", closest_avx2, any_avx2);
 }
 
 /// Elsewhere no [`Avx2`] or [`Avx512`] token is ever made; these keep the types usable with
