@@ -207,7 +207,7 @@ impl<V: SimdF32, O: ChildOrder, T: TriangleTest + PacketTest<V>, const ANY_HIT: 
                 prim,
             );
             if ANY_HIT && lanes.any() {
-                self.limit = V::select(self.hit.found, V::NEG_INFINITY, self.limit);
+                V::blend_into(self.hit.found, V::NEG_INFINITY, &mut self.limit);
                 if (self.hit.found | !rays.valid).all() {
                     return Flow::Stop;
                 }

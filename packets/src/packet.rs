@@ -283,9 +283,9 @@ impl<V: SimdF32> PacketHit<V> {
     /// Takes `(t, u, v, prim)` in the lanes of `mask`.
     #[inline(always)]
     pub fn record(&mut self, mask: V::Mask, t: V, u: V, v: V, prim: u32) {
-        self.t = V::select(mask, t, self.t);
-        self.u = V::select(mask, u, self.u);
-        self.v = V::select(mask, v, self.v);
+        V::blend_into(mask, t, &mut self.t);
+        V::blend_into(mask, u, &mut self.u);
+        V::blend_into(mask, v, &mut self.v);
         self.found |= mask;
         // A blend without branches: a branch per lane mispredicts on the lanes a triangle
         // covers, and the 16 lanes' scalar blends cost more than the rest of this record.

@@ -197,12 +197,13 @@ fn split_by_signs<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C: Counters, c
     for group in sign_groups(packet) {
         let mut sub = *packet;
         sub.valid &= group;
-        sub.t_min = V::select(group, sub.t_min, V::INFINITY);
-        sub.t_max = V::select(group, sub.t_max, V::NEG_INFINITY);
+        // Blends into memory as `SimdF32::blend_into` (not masked stores).
+        V::blend_into(!group, V::INFINITY, &mut sub.t_min);
+        V::blend_into(!group, V::NEG_INFINITY, &mut sub.t_max);
         let part = traverse_group(&sub, counters);
-        hit.t = V::select(group, part.t, hit.t);
-        hit.u = V::select(group, part.u, hit.u);
-        hit.v = V::select(group, part.v, hit.v);
+        V::blend_into(group, part.t, &mut hit.t);
+        V::blend_into(group, part.u, &mut hit.u);
+        V::blend_into(group, part.v, &mut hit.v);
         hit.found |= part.found & group;
         for lane in 0..V::LANES {
             if group.bitmask() >> lane & 1 != 0 {

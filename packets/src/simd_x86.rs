@@ -377,15 +377,31 @@ impl SimdF32 for F32x8 {
         // SAFETY: the type's contract (AVX2).
         F32x8(unsafe { _mm256_blendv_ps(if_false.0, if_true.0, mask.0) })
     }
+    /// A volatile store of the blend: a plain one becomes `vmaskmovps` (see the trait).
+    #[inline(always)]
+    fn blend_into(mask: Mask8, value: F32x8, place: &mut F32x8) {
+        let blend = F32x8::select(mask, value, *place);
+        // SAFETY: `place` is a valid, aligned, exclusive reference.
+        unsafe { std::ptr::write_volatile(place, blend) }
+    }
     #[inline(always)]
     fn blend_u32(mask: Mask8, value: u32, lanes: &mut [u32; 8]) {
         let p = lanes.as_mut_ptr().cast::<__m256i>();
         // SAFETY: the type's contract (AVX2); `p` points to the 32 bytes of `lanes`
-        // (unaligned loads and stores). The blend moves bits: any `u32` survives it.
+        // (unaligned loads and stores, a volatile store only where aligned). The blend moves
+        // bits: any `u32` survives it.
         unsafe {
             let old = _mm256_castsi256_ps(_mm256_loadu_si256(p));
             let new = _mm256_castsi256_ps(_mm256_set1_epi32(value as i32));
-            _mm256_storeu_si256(p, _mm256_castps_si256(_mm256_blendv_ps(old, new, mask.0)));
+            let blend = _mm256_castps_si256(_mm256_blendv_ps(old, new, mask.0));
+            // A plain store becomes `vmaskmovps` (see `SimdF32::blend_into`); a volatile one
+            // is a plain `vmovdqa`. A packet hit's indices are 32-byte aligned (its fields are
+            // all 32 bytes, beside `F32x8`s), so the other branch is never taken there.
+            if p.is_aligned() {
+                std::ptr::write_volatile(p, blend);
+            } else {
+                _mm256_storeu_si256(p, blend);
+            }
         }
     }
 }
@@ -650,6 +666,11 @@ impl SimdF32 for F32x8x2 {
     #[inline(always)]
     fn select(mask: Mask8x2, if_true: F32x8x2, if_false: F32x8x2) -> F32x8x2 {
         F32x8x2(F32x8::select(mask.0, if_true.0, if_false.0), F32x8::select(mask.1, if_true.1, if_false.1))
+    }
+    #[inline(always)]
+    fn blend_into(mask: Mask8x2, value: F32x8x2, place: &mut F32x8x2) {
+        F32x8::blend_into(mask.0, value.0, &mut place.0);
+        F32x8::blend_into(mask.1, value.1, &mut place.1);
     }
     #[inline(always)]
     fn blend_u32(mask: Mask8x2, value: u32, lanes: &mut [u32; 16]) {
@@ -1273,6 +1294,12 @@ mod tests {
         V::blend_u32(vm, b[0].to_bits(), &mut vi);
         PortableF32::<W>::blend_u32(pm, b[0].to_bits(), &mut pi);
         assert_eq!(vi.as_ref(), &pi[..], "{}", what("blend_u32"));
+        // `blend_into`: `select` into the place, bit for bit.
+        let (mut vp, mut pp) = (va, pa);
+        V::blend_into(vm, vb, &mut vp);
+        PortableF32::<W>::blend_into(pm, pb, &mut pp);
+        assert_eq!(exact::<V, W>(vp), exact::<_, W>(pp), "{}", what("blend_into"));
+        assert_eq!(exact::<V, W>(vp), exact::<V, W>(V::select(vm, vb, va)), "{}", what("blend_into is select"));
         assert_eq!(va == vb, pa == pb, "{}", what("=="));
         let (va2, pa2) = (V::from_fn(|l| a[l]), PortableF32(a));
         assert_eq!(va == va2, pa == pa2, "{}", what("== a copy (false with a NaN lane)"));
