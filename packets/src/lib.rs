@@ -56,6 +56,7 @@ pub mod omni;
 pub mod omni_lanes;
 pub mod packet;
 pub mod samesign;
+pub mod shadow_cache;
 pub mod shadow_frustum;
 pub mod simd;
 #[cfg(target_arch = "x86_64")]
