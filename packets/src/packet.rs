@@ -163,6 +163,16 @@ impl<V: SimdF32> RayPacket<V> {
         RayPacket::from_slots(lanes)
     }
 
+    /// Keeps only the lanes of `lanes` valid: the others become invalid, with the empty
+    /// interval (`+inf`, `-inf`) every invalid lane holds. How a walk is handed part of a
+    /// packet (a sign group, the lanes a shadow cache left unblocked).
+    #[inline(always)]
+    pub fn keep_lanes(&mut self, lanes: V::Mask) {
+        self.valid &= lanes;
+        V::blend_into(!lanes, V::INFINITY, &mut self.t_min);
+        V::blend_into(!lanes, V::NEG_INFINITY, &mut self.t_max);
+    }
+
     /// The ray in `lane` (also for an invalid lane, whose content is filler).
     #[inline(always)]
     pub fn ray(&self, lane: usize) -> Ray {

@@ -165,13 +165,11 @@ pub fn occluded_segments_with<I: TreeTest<Record: PacketTest<V>>, V: SimdF32, C:
         let rest = packet.valid & !found;
         if rest.any() {
             if found.any() {
-                // The lanes the cache blocked leave the packet (empty intervals).
-                packet.valid = rest;
-                V::blend_into(!rest, V::INFINITY, &mut packet.t_min);
-                V::blend_into(!rest, V::NEG_INFINITY, &mut packet.t_max);
+                // The lanes the cache blocked leave the packet.
+                packet.keep_lanes(rest);
             }
             let walked = split_by_signs::<I, V, C, true, true>(tree, &packet, None, counters);
-            cache.remember(&walked, walked.found);
+            cache.remember(&walked);
             found |= walked.found;
         }
         let found = found.bitmask();
@@ -236,10 +234,7 @@ fn split_by_signs<
     let mut hit = PacketHit::new(packet);
     for group in sign_groups(packet) {
         let mut sub = *packet;
-        sub.valid &= group;
-        // Blends into memory as `SimdF32::blend_into` (not masked stores).
-        V::blend_into(!group, V::INFINITY, &mut sub.t_min);
-        V::blend_into(!group, V::NEG_INFINITY, &mut sub.t_max);
+        sub.keep_lanes(group);
         let part = traverse_group(&sub, counters);
         V::blend_into(group, part.t, &mut hit.t);
         V::blend_into(group, part.u, &mut hit.u);

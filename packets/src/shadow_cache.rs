@@ -66,11 +66,11 @@ impl ShadowCache {
         found
     }
 
-    /// Remembers the triangles that blocked the lanes `lanes` of `hit` (their `prim`s), most
-    /// recent first, dropping the oldest beyond [`CACHE_SIZE`].
+    /// Remembers the triangles that blocked the lanes of `hit` (the `prim`s of its `found`
+    /// lanes), most recent first, dropping the oldest beyond [`CACHE_SIZE`].
     #[inline(always)]
-    pub fn remember<V: SimdF32>(&mut self, hit: &PacketHit<V>, lanes: V::Mask) {
-        let mut bits = lanes.bitmask();
+    pub fn remember<V: SimdF32>(&mut self, hit: &PacketHit<V>) {
+        let mut bits = hit.found.bitmask();
         while bits != 0 {
             let lane = bits.trailing_zeros() as usize;
             bits &= bits - 1;
