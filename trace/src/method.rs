@@ -263,20 +263,23 @@ impl ShadowJob<'_> {
 
     /// The segments ([`ShadowJob::segment`]'s, bit for bit) of the tile's pixels
     /// `lx..lx + out.len()` of tile row `ly` (tile coordinates, inside the tile) into `out`.
-    /// The primary directions the segments need (which side of the surface is lit) are made
-    /// a row at a time by [`Camera::row_directions`], whose SIMD lanes take the divisions and
-    /// square roots that are otherwise the longest chain of each pixel's setup. Every shadow
-    /// kernel, ours and Embree's, starts from these.
+    /// Four pixels at a time in SIMD lanes: their primary directions (which side of the
+    /// surface is lit) by [`Camera::lane_directions`], whose lanes take the divisions and
+    /// square roots that are otherwise the longest chain of each pixel's setup, and the rest
+    /// by [`shade::shadow_starts4`], without a branch. Every shadow kernel, ours and
+    /// Embree's, starts from these.
     pub fn row_segments(&self, lx: u32, ly: u32, out: &mut [Option<(Vec3, Vec3)>]) {
-        let mut dirs = [Vec3::ZERO; ROW_LANES];
         let row = ly as usize * self.tile.width() as usize + lx as usize;
         let light = &self.scene.point_light;
-        for (c, chunk) in out.chunks_mut(ROW_LANES).enumerate() {
-            let x = lx + (c * ROW_LANES) as u32;
-            self.camera.row_directions(self.tile.x0 + x, self.tile.y0 + ly, &mut dirs[..chunk.len()]);
-            let hits = &self.hits[row + c * ROW_LANES..][..chunk.len()];
-            for ((slot, hit), &dir) in chunk.iter_mut().zip(hits).zip(&dirs) {
-                *slot = hit.as_ref().and_then(|hit| shade::shadow_segment(self.surfaces, light, dir, hit));
+        for (c, chunk) in out.chunks_mut(4).enumerate() {
+            let x = lx + 4 * c as u32;
+            let dir = self.camera.lane_directions(self.tile.x0 + x, self.tile.y0 + ly);
+            let hits = &self.hits[row + 4 * c..][..chunk.len()];
+            let lanes = std::array::from_fn(|l| hits.get(l).unwrap_or(&None));
+            let (start, lit) = shade::shadow_starts4(self.surfaces, light, &dir, lanes);
+            let [sx, sy, sz] = start.map(|v| v.to_array());
+            for (l, slot) in chunk.iter_mut().enumerate() {
+                *slot = (lit >> l & 1 != 0).then(|| (Vec3::new(sx[l], sy[l], sz[l]), light.position));
             }
         }
     }
