@@ -81,7 +81,10 @@ pub use boxtest::{BoxTest, FusedScalar8, FusedScalar16, Scalar, Scalar4, Scalar8
 pub use build::{BuildError, SpatialSplits};
 pub use leaf::{LeafBlock, WaldBlock, WatertightBlock};
 pub use node::{MAX_DEPTH, MultiNode, Node, Node4, Node8, Node16, NodeWidth, Width};
-pub use packet::{HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, LEAF_LANES, PacketLanes, PacketTraversal, Portable16};
+pub use packet::{
+    HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, HYBRID_THRESHOLD_ANY_AVX2, LEAF_LANES, PacketLanes, PacketTraversal,
+    Portable16,
+};
 pub use simd4::Simd4;
 pub use simd8::Avx2;
 pub use simd16::Avx512;

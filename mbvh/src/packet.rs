@@ -28,7 +28,8 @@
 //!   ([`LeafBlock::closest`] / [`LeafBlock::any`]) with its own ray and `t_far`. Either way
 //!   a lane's answer is its single ray's block test's.
 //! - **The hybrid switch**: an entry with at most `threshold` active lanes (default
-//!   [`HYBRID_THRESHOLD`] for closest hits, [`HYBRID_THRESHOLD_ANY`] for any hit) is
+//!   [`HYBRID_THRESHOLD`] for closest hits, [`HYBRID_THRESHOLD_ANY`] for any hit, or
+//!   [`HYBRID_THRESHOLD_ANY_AVX2`] in two AVX2 halves) is
 //!   finished lane by lane with the single-ray traversal ([`Traversal`]) from that node, with
 //!   the lane's current `t_far`.
 //!
@@ -82,9 +83,18 @@ pub const PACKET: usize = 16;
 /// `mbvh-8`'s single rays at every threshold).
 pub const HYBRID_THRESHOLD: u32 = 6;
 
-/// The default hybrid switch of any-hit packets (measured on AO rays, atrium, thresholds 2
-/// to 16: 2 to 4 were the fastest, about 1.5x `mbvh-8`'s single rays).
+/// The default hybrid switch of any-hit packets in AVX-512 and portable lanes (measured on
+/// AO rays in AVX-512, atrium, thresholds 2 to 16: 2 to 4 were the fastest, about 1.5x
+/// `mbvh-8`'s single rays).
 pub const HYBRID_THRESHOLD_ANY: u32 = 3;
+
+/// The default hybrid switch of any-hit packets in two AVX2 halves ([`Avx2`]), where a packet
+/// node test costs twice the instructions of one AVX-512 register, so single rays pay from
+/// more lanes on. Measured on AO rays (four per primary hit, 1024x1024, one thread, AMD EPYC
+/// family 25 model 1 with AVX2): thresholds 2, 3, 4, 5, 6 and 8 gave 13.80, 14.30, 14.53,
+/// 14.62, 14.64 and 14.52 Mrays/s on the atrium, 12.04, 12.52, 12.83, 12.91, 12.99 and 12.89
+/// on Sponza.
+pub const HYBRID_THRESHOLD_ANY_AVX2: u32 = 6;
 
 /// The default of [`PacketTraversal::with_leaf_lanes`]: Wald leaves are tested over the 16
 /// lanes at once where at least this many lanes reach them.
@@ -210,6 +220,9 @@ impl Lanes for Row {
 /// token (made only where the CPU has AVX-512 and the SIMD cap allows it), whose entry points
 /// run the stream in one function compiled for AVX-512.
 pub trait PacketLanes: Copy + Debug + Send + Sync + 'static {
+    /// The lanes' default hybrid switch of any-hit packets ([`PacketTraversal::thresholds`]).
+    const ANY_THRESHOLD: u32 = HYBRID_THRESHOLD_ANY;
+
     /// The closest hits of `rays` (any number, traced 16 at a time) into `out`.
     fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
         self,
@@ -277,6 +290,8 @@ impl PacketLanes for Avx512 {
 }
 
 impl PacketLanes for Avx2 {
+    const ANY_THRESHOLD: u32 = HYBRID_THRESHOLD_ANY_AVX2;
+
     fn closest<B: LeafBlock, K: BoxTest<Node = Node8>, C: Counters>(
         self,
         p: &PacketTraversal<'_, B, K, Self>,
@@ -312,14 +327,15 @@ pub struct PacketTraversal<'a, B, K: BoxTest<Node = Node8>, L> {
 impl<'a, B: LeafBlock, K: BoxTest<Node = Node8>> Traversal<'a, B, K> {
     /// This tree traced by packets of 16 rays in the lanes `lanes`, with the single-ray
     /// traversal `self` below the default thresholds ([`HYBRID_THRESHOLD`] for closest
-    /// hits, [`HYBRID_THRESHOLD_ANY`] for any hit) and Wald leaves over the 16 lanes from
-    /// [`LEAF_LANES`] lanes on.
+    /// hits, the lanes' [`PacketLanes::ANY_THRESHOLD`] for any hit: [`HYBRID_THRESHOLD_ANY`],
+    /// or [`HYBRID_THRESHOLD_ANY_AVX2`] in AVX2 halves) and Wald leaves over the 16 lanes
+    /// from [`LEAF_LANES`] lanes on.
     pub fn packets<L: PacketLanes>(self, lanes: L) -> PacketTraversal<'a, B, K, L> {
         PacketTraversal {
             single: self,
             lanes,
             threshold: HYBRID_THRESHOLD,
-            any_threshold: HYBRID_THRESHOLD_ANY,
+            any_threshold: L::ANY_THRESHOLD,
             leaf_lanes: LEAF_LANES,
         }
     }

@@ -11,8 +11,8 @@
 use glam::Vec3;
 use kdtree::{BruteForce, Counts, Hit, Intersector, NoCounters, Ray};
 use mbvh::{
-    Avx2, Avx512, BoxTest, HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, LeafBlock, Mbvh8, Node8, PacketLanes, Portable16,
-    Traversal,
+    Avx2, Avx512, BoxTest, HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY, HYBRID_THRESHOLD_ANY_AVX2, LeafBlock, Mbvh8, Node8,
+    PacketLanes, Portable16, Traversal,
 };
 use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;
@@ -171,6 +171,21 @@ fn builtin_scenes_packets_equal_single_rays() {
         let rays = rays(&scene, 11);
         let hits = both(name, &scene.mesh.positions, &scene.mesh.triangles, &rays);
         assert!(hits > 0, "{name}: no ray hit anything");
+    }
+}
+
+/// Each lane type starts from its own any-hit threshold (AVX2's two halves switch to single
+/// rays from more lanes on); the closest-hit threshold is shared.
+#[test]
+fn lane_types_take_their_default_thresholds() {
+    let scene = scenes::load_scene("cube").unwrap();
+    let bvh = Mbvh8::build(&scene.mesh.positions, &scene.mesh.triangles).unwrap();
+    assert_eq!(bvh.wald().packets(Portable16).thresholds(), (HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY));
+    if let Some(avx) = Avx512::detect() {
+        assert_eq!(bvh.wald().packets(avx).thresholds(), (HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY));
+    }
+    if let Some(avx) = Avx2::detect() {
+        assert_eq!(bvh.wald().packets(avx).thresholds(), (HYBRID_THRESHOLD, HYBRID_THRESHOLD_ANY_AVX2));
     }
 }
 
