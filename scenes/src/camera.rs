@@ -2,8 +2,8 @@
 
 use glam::{Vec3, Vec4};
 
-/// Pixels per call of [`Camera::row_directions`] that fill its SIMD lanes (two groups of 4):
-/// callers that cut rows into pieces cut them this long.
+/// Pixels per piece when a row is cut into pieces for [`Camera::lane_directions`] (two groups
+/// of its four lanes).
 pub const ROW_LANES: usize = 8;
 
 /// The lanes' square roots (correctly rounded, as `f32::sqrt`).
@@ -84,24 +84,12 @@ impl Camera {
         (self.eye, self.direction(x as f32 + 0.5, y as f32 + 0.5))
     }
 
-    /// The directions of the primary rays of pixels `x0..x0 + out.len()` of row `y`, into
-    /// `out`: [`Camera::pixel_ray`]'s, bit for bit. They are made 4 at a time in `Vec4`
-    /// lanes, each operation the one `direction` does in its order (every lane operation,
-    /// square root included, is rounded as the scalar one is), so the divisions and square
-    /// roots share SIMD instructions: per pixel they are the longest chain of the shadow rays'
-    /// setup (`trace::method::ShadowJob::row_segments`).
-    pub fn row_directions(&self, x0: u32, y: u32, out: &mut [Vec3]) {
-        for (c, chunk) in out.chunks_mut(4).enumerate() {
-            let [dx, dy, dz] = self.lane_directions(x0.wrapping_add(4 * c as u32), y).map(|v| v.to_array());
-            for (l, d) in chunk.iter_mut().enumerate() {
-                *d = Vec3::new(dx[l], dy[l], dz[l]);
-            }
-        }
-    }
-
     /// The directions of the primary rays of pixels `x0..x0 + 4` of row `y` in SIMD lanes,
-    /// `[x, y, z]` (lane `l` is pixel `x0 + l`): [`Camera::row_directions`]' four at a time,
-    /// for callers that go on in lanes.
+    /// `[x, y, z]` (lane `l` is pixel `x0 + l`): [`Camera::pixel_ray`]'s bit for bit. They
+    /// are made in `Vec4` lanes, each operation the one `direction` does in its order (every
+    /// lane operation, square root included, is rounded as the scalar one is), so the
+    /// divisions and square roots share SIMD instructions: per pixel they are the longest
+    /// chain of the shadow rays' setup (`trace::method::ShadowJob::row_segments`).
     #[inline(always)]
     pub fn lane_directions(&self, x0: u32, y: u32) -> [Vec4; 3] {
         let (w, h) = (self.width as f32, self.height as f32);
@@ -145,10 +133,11 @@ mod tests {
         assert!(c.footprint(Vec3::NAN).is_nan());
     }
 
-    /// The batched directions are `pixel_ray`'s bit for bit: odd and even sizes, rows cut at
-    /// any start and length (chunks and their remainders), wide and narrow fields of view.
+    /// The lanes' directions are `pixel_ray`'s bit for bit: four pixels from any start in a
+    /// row (past its end too), odd and even sizes, wide and narrow fields of view, a camera far
+    /// from the origin.
     #[test]
-    fn row_directions_are_pixel_rays_bit_for_bit() {
+    fn lane_directions_are_pixel_rays_bit_for_bit() {
         let cams = [
             (Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 2.5, -1.0), 60.0, 37, 23),
             (Vec3::new(-1e5, 3e4, 2e5), Vec3::new(-1e5 + 3.0, 3e4 - 1.0, 2e5 + 0.5), 1.0, 1024, 768),
@@ -157,12 +146,12 @@ mod tests {
         for (eye, target, fov, w, h) in cams {
             let cam = Camera::look_at(eye, target, fov, w, h).unwrap();
             for y in [0, h / 2, h - 1] {
-                for (x0, n) in [(0, w as usize), (3, 1), (5, 8), (w - 9, 9), (1, 17)] {
-                    let mut out = vec![Vec3::NAN; n];
-                    cam.row_directions(x0, y, &mut out);
-                    for (k, d) in out.iter().enumerate() {
-                        let want = cam.pixel_ray(x0 + k as u32, y).1;
-                        assert_eq!(d.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{x0}+{k},{y}");
+                for x0 in [0, 3, 5, w - 4, w - 1, w / 2] {
+                    let lanes = cam.lane_directions(x0, y).map(|v| v.to_array());
+                    for l in 0..4 {
+                        let got = Vec3::new(lanes[0][l], lanes[1][l], lanes[2][l]);
+                        let want = cam.pixel_ray(x0 + l as u32, y).1;
+                        assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{x0}+{l},{y}");
                     }
                 }
             }
