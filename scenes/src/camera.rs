@@ -148,10 +148,10 @@ mod tests {
             for y in [0, h / 2, h - 1] {
                 for x0 in [0, 3, 5, w - 4, w - 1, w / 2] {
                     let lanes = cam.lane_directions(x0, y).map(|v| v.to_array());
-                    for l in 0..4 {
+                    for (l, x) in (x0..x0 + 4).enumerate() {
                         let got = Vec3::new(lanes[0][l], lanes[1][l], lanes[2][l]);
-                        let want = cam.pixel_ray(x0 + l as u32, y).1;
-                        assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{x0}+{l},{y}");
+                        let want = cam.pixel_ray(x, y).1;
+                        assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "{x},{y}");
                     }
                 }
             }
