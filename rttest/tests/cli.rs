@@ -1,6 +1,5 @@
 //! End-to-end tests of the `rttest` binary on tiny scenes.
 
-use std::path::PathBuf;
 use std::process::Output;
 
 mod common;
@@ -8,7 +7,7 @@ mod common;
 use common::rttest;
 
 /// A fresh, empty scratch folder for one test.
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> scenes::ScratchDir {
     common::scratch("cli", name)
 }
 

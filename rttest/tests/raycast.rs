@@ -1,7 +1,7 @@
 //! End-to-end tests of `rttest raycast` on the built-in `cube` scene, checked against known
 //! geometry and against the brute-force oracle of the kd-tree crate.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 use glam::Vec3;
@@ -12,7 +12,7 @@ mod common;
 use common::rttest;
 
 /// A fresh, empty scratch folder for one test.
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> scenes::ScratchDir {
     common::scratch("raycast", name)
 }
 

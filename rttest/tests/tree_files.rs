@@ -9,7 +9,7 @@ mod common;
 
 use common::rttest;
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> scenes::ScratchDir {
     common::scratch("tree-files", name)
 }
 

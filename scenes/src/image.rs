@@ -303,10 +303,11 @@ fn read_pfm(path: &Path, channels: usize) -> Result<(u32, u32, Vec<f32>), SceneE
 mod tests {
     use super::*;
 
-    fn temp_path(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("scenes-image-tests-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
+    /// A file `name` in a scratch folder of its own (removed when the folder is dropped).
+    fn temp_path(name: &str) -> (crate::ScratchDir, std::path::PathBuf) {
+        let dir = crate::ScratchDir::new("scenes-image-tests", name).unwrap();
+        let path = dir.join(name);
+        (dir, path)
     }
 
     fn bits(v: &[f32]) -> Vec<u32> {
@@ -319,7 +320,7 @@ mod tests {
         img.set(0, 0, Vec3::new(-1.0, 0.5, f32::INFINITY));
         img.set(2, 1, Vec3::new(f32::NEG_INFINITY, 1e-30, -0.0));
         img.set(2, 0, Vec3::new(123.25, -7.0, 3.0));
-        let path = temp_path("rgb.pfm");
+        let (_path_dir, path) = temp_path("rgb.pfm");
         img.save_pfm(&path).unwrap();
         let back = Image::load_pfm(&path).unwrap();
         assert_eq!((back.width, back.height), (3, 2));
@@ -338,7 +339,7 @@ mod tests {
         img.set(1, 0, f32::INFINITY);
         img.set(0, 2, f32::NAN);
         img.set(1, 2, 16_777_215.0);
-        let path = temp_path("scalar.pfm");
+        let (_path_dir, path) = temp_path("scalar.pfm");
         img.save_pfm(&path).unwrap();
         let back = ScalarImage::load_pfm(&path).unwrap();
         assert_eq!(bits(&back.values), bits(&img.values));
@@ -348,7 +349,7 @@ mod tests {
 
     #[test]
     fn bad_pfm_files_are_errors_naming_the_file() {
-        let path = temp_path("bad.pfm");
+        let (_path_dir, path) = temp_path("bad.pfm");
         std::fs::write(&path, b"PF\n2 2\n-1.0\n0000").unwrap();
         let err = Image::load_pfm(&path).unwrap_err().to_string();
         assert!(err.contains("bad.pfm") && err.contains("data bytes"), "{err}");
@@ -365,7 +366,7 @@ mod tests {
             let err = Image::load_pfm(&path).unwrap_err().to_string();
             assert!(err.contains("bad.pfm") && err.contains("bad PFM scale"), "{scale}: {err}");
         }
-        let missing = temp_path("missing.pfm");
+        let (_missing_dir, missing) = temp_path("missing.pfm");
         assert!(matches!(Image::load_pfm(&missing), Err(SceneError::Io { .. })));
     }
 
@@ -374,7 +375,7 @@ mod tests {
         let mut img = Image::new(4, 3);
         img.set(1, 1, Vec3::new(2.0, 0.5, f32::NAN));
         img.set(2, 1, Vec3::new(f32::INFINITY, f32::NEG_INFINITY, 0.0));
-        let path = temp_path("rgb.png");
+        let (_path_dir, path) = temp_path("rgb.png");
         img.save_png(&path).unwrap();
         let png = image::open(&path).unwrap().to_rgb8();
         assert_eq!(png.dimensions(), (4, 3));
@@ -384,7 +385,7 @@ mod tests {
 
         let mut s = ScalarImage::new(3, 1);
         s.values = vec![1.0, 3.0, f32::NAN];
-        let path = temp_path("scalar.png");
+        let (_path_dir, path) = temp_path("scalar.png");
         s.save_png(&path).unwrap();
         let png = image::open(&path).unwrap().to_rgb8();
         assert_eq!(png.get_pixel(0, 0).0, [0, 0, 0]);

@@ -25,6 +25,7 @@ pub mod metrics;
 pub mod mtl;
 pub mod obj;
 pub mod scene;
+pub mod scratch;
 pub mod tile;
 
 pub use camera::Camera;
@@ -37,4 +38,5 @@ pub use material::{Material, Shader};
 pub use mesh::Mesh;
 pub use obj::{LoadReport, load_obj};
 pub use scene::{Scene, View, shared_scene_files, shared_scenes_dir};
+pub use scratch::ScratchDir;
 pub use tile::{Tile, morton_order, tiles};

@@ -282,10 +282,11 @@ mod tests {
         parse(text).unwrap_err().to_string()
     }
 
-    fn temp_path(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("scenes-obj-tests-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
+    /// A file `name` in a scratch folder of its own (removed when the folder is dropped).
+    fn temp_path(name: &str) -> (crate::ScratchDir, PathBuf) {
+        let dir = crate::ScratchDir::new("scenes-obj-tests", name).unwrap();
+        let path = dir.join(name);
+        (dir, path)
     }
 
     /// tobj's triangles as position triples, all models merged in order.
@@ -395,19 +396,19 @@ mod tests {
 
     #[test]
     fn files_plain_and_gzipped_and_missing() {
-        let plain = temp_path("quad.obj");
+        let (_plain_dir, plain) = temp_path("quad.obj");
         std::fs::write(&plain, PENTAGON).unwrap();
-        let gz = temp_path("quad.obj.gz");
+        let (_gz_dir, gz) = temp_path("quad.obj.gz");
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
         enc.write_all(PENTAGON.as_bytes()).unwrap();
         std::fs::write(&gz, enc.finish().unwrap()).unwrap();
         let a = load_obj(&plain).unwrap();
         let b = load_obj(&gz).unwrap();
         assert_eq!(a, b);
-        let missing = temp_path("missing.obj");
+        let (_missing_dir, missing) = temp_path("missing.obj");
         let e = load_obj(&missing).unwrap_err();
         assert!(matches!(e, SceneError::Io { .. }) && e.to_string().contains("missing.obj"));
-        let corrupt = temp_path("corrupt.obj.gz");
+        let (_corrupt_dir, corrupt) = temp_path("corrupt.obj.gz");
         std::fs::write(&corrupt, [0x1f, 0x8b, 8, 0, 1, 2, 3]).unwrap();
         assert!(matches!(load_obj(&corrupt), Err(SceneError::Parse { .. })));
     }
@@ -425,7 +426,7 @@ mod tests {
 
     #[test]
     fn material_libraries_load_relative_to_the_obj_folder() {
-        let dir = std::env::temp_dir().join(format!("scenes-obj-mtllib-{}", std::process::id()));
+        let dir = crate::ScratchDir::new("scenes-obj-mtllib", "libraries").unwrap();
         std::fs::create_dir_all(dir.join("scene/mats")).unwrap();
         let obj = format!(
             "mtllib first.mtl mats/second.mtl\nmtllib gone.mtl\n{}usemtl glass\nf 1 2 3 4\nusemtl paint\nf 1 2 3\n\
@@ -476,7 +477,6 @@ mod tests {
         assert_eq!(report.missing_material_libraries, ["first.mtl", "mats/second.mtl", "gone.mtl"]);
         assert_eq!(report.materials_from_libraries, 0);
         assert!(mesh.materials.iter().all(|m| m.shader() == crate::Shader::Diffuse && m.diffuse == Vec3::splat(0.75)));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Loads the shared benchmark scenes if present and checks their triangle counts against

@@ -152,8 +152,7 @@ mod tests {
 
     #[test]
     fn files_get_bounds_views_and_known_viewpoints() {
-        let dir = std::env::temp_dir().join(format!("scenes-scene-tests-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::ScratchDir::new("scenes-scene-tests", "views").unwrap();
         let text = "v 0 0 0\nv 4 0 0\nv 0 2 0\nv 0 0 3\nf 1 2 3\nf 1 4 2\n";
         for (file, first_view) in
             [("plain.obj", "default"), ("kitchen-test.obj", "default"), ("sponza-x.obj", "default")]

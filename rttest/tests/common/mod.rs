@@ -1,15 +1,14 @@
 //! Helpers shared by the end-to-end tests of the `rttest` binary.
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-/// A fresh, empty scratch folder for one test of `suite`.
-pub fn scratch(suite: &str, name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rttest-{suite}-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
+use scenes::ScratchDir;
+
+/// A fresh, empty scratch folder for one test of `suite`, removed when the test passes.
+pub fn scratch(suite: &str, name: &str) -> ScratchDir {
+    ScratchDir::new(&format!("rttest-{suite}"), name).expect("scratch folder")
 }
 
 /// Runs `rttest args` in `dir`.
