@@ -90,10 +90,11 @@ pub const HYBRID_THRESHOLD_ANY: u32 = 3;
 
 /// The default hybrid switch of any-hit packets in two AVX2 halves ([`Avx2`]), where a packet
 /// node test costs twice the instructions of one AVX-512 register, so single rays pay from
-/// more lanes on. Measured on AO rays (four per primary hit, 1024x1024, one thread, AMD EPYC
-/// family 25 model 1 with AVX2): thresholds 2, 3, 4, 5, 6 and 8 gave 13.80, 14.30, 14.53,
-/// 14.62, 14.64 and 14.52 Mrays/s on the atrium, 12.04, 12.52, 12.83, 12.91, 12.99 and 12.89
-/// on Sponza.
+/// more lanes on. Measured on AO rays (four per primary hit, 1024x1024, one thread, on the
+/// machine that printed `cpu: AMD EPYC (family 25 model 1), simd: avx2`): thresholds 2, 3, 4,
+/// 5, 6 and 8 gave 13.80, 14.30, 14.53, 14.62, 14.64 and 14.52 Mrays/s on the atrium, 12.04,
+/// 12.52, 12.83, 12.91, 12.99 and 12.89 on Sponza
+/// (`docs/results/incoherent-mbvh.md#the-avx2-packets-any-hit-threshold`).
 pub const HYBRID_THRESHOLD_ANY_AVX2: u32 = 6;
 
 /// The default of [`PacketTraversal::with_leaf_lanes`]: Wald leaves are tested over the 16

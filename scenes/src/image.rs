@@ -305,9 +305,7 @@ mod tests {
 
     /// A file `name` in a scratch folder of its own (removed when the folder is dropped).
     fn temp_path(name: &str) -> (crate::ScratchDir, std::path::PathBuf) {
-        let dir = crate::ScratchDir::new("scenes-image-tests", name).unwrap();
-        let path = dir.join(name);
-        (dir, path)
+        crate::scratch::scratch_file("scenes-image-tests", name)
     }
 
     fn bits(v: &[f32]) -> Vec<u32> {

@@ -284,9 +284,7 @@ mod tests {
 
     /// A file `name` in a scratch folder of its own (removed when the folder is dropped).
     fn temp_path(name: &str) -> (crate::ScratchDir, PathBuf) {
-        let dir = crate::ScratchDir::new("scenes-obj-tests", name).unwrap();
-        let path = dir.join(name);
-        (dir, path)
+        crate::scratch::scratch_file("scenes-obj-tests", name)
     }
 
     /// tobj's triangles as position triples, all models merged in order.

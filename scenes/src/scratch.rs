@@ -56,6 +56,15 @@ impl Drop for ScratchDir {
     }
 }
 
+/// For this crate's tests: the file `name` in a scratch folder of its own,
+/// `{prefix}-{process id}-{name}` (the folder goes when the returned handle is dropped).
+#[cfg(test)]
+pub(crate) fn scratch_file(prefix: &str, name: &str) -> (ScratchDir, PathBuf) {
+    let dir = ScratchDir::new(prefix, name).expect("scratch folder");
+    let path = dir.join(name);
+    (dir, path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
