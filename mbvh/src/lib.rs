@@ -170,7 +170,7 @@ impl<N: MultiNode> MultiBvh<N> {
     ) -> Result<MultiBvh<N>, BuildError> {
         splits.check()?;
         let prims = build::prims(positions, triangles)?;
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+        let bounds = build::bounds_of(&prims);
         let budget = build::split_budget(prims.len(), splits.budget);
         let binary = build::Builder::new(positions, triangles, &bounds, splits.alpha).binary(prims, 1, budget);
         let collapsed = build::collapse::<N>(&binary)?;
