@@ -17,7 +17,7 @@
 //!   node's references bins them on all three axes, and the sweep skips the planes after
 //!   empty bins (they split as the plane before); the same tree as binning each axis in its
 //!   own pass with `Aabb`'s scalar boxes (tested against that), built 1.26-1.43x as fast
-//!   (`docs/results/build-and-large-scenes.md#the-multi-bvhs-binning-in-simd-registers`).
+//!   (`docs/results/incoherent-mbvh.md#the-builds-binning-in-simd-registers`).
 //! - **Spatial splits** (Stich, Friedrich & Dietrich 2009, "Spatial splits in bounding volume
 //!   hierarchies", the SBVH): where the best object split's two boxes overlap by more than
 //!   [`SPATIAL_ALPHA`] of the root's area, the node's box is also cut into [`BINS`] slabs
