@@ -441,7 +441,7 @@ fn object_split(prims: &[Prim]) -> Option<ObjectSplit> {
     let (origin, extent) = (Vec3A::from(cb.min), Vec3A::from(cb.max - cb.min));
     // Bins per unit; infinite on an axis where every centre is equal (not swept below).
     let scale = Vec3A::splat(BINS as f32) / extent;
-    // One pass bins every reference on all three axes (Wald 2007, section 3.3).
+    // One pass bins every reference on all three axes.
     let mut counts = [[0usize; BINS]; 3];
     let mut boxes = [[Bounds::EMPTY; BINS]; 3];
     for p in prims {
