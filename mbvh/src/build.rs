@@ -305,12 +305,12 @@ impl<'a> Builder<'a> {
         }
         let plane = |b: usize| lo + extent * (b as f32 / BINS as f32);
         let scale = BINS as f32 / extent;
-        let bin = |x: f32| (((x - lo) * scale) as usize).min(BINS - 1);
+        let slab_of = |x: f32| bin((x - lo) * scale);
         let mut enter = [0usize; BINS];
         let mut leave = [0usize; BINS];
         let mut boxes = [Bounds::EMPTY; BINS];
         for p in prims {
-            let (b0, b1) = (bin(p.bounds.min[a]), bin(p.bounds.max[a]));
+            let (b0, b1) = (slab_of(p.bounds.min[a]), slab_of(p.bounds.max[a]));
             enter[b0] += 1;
             leave[b1] += 1;
             if b0 == b1 {
@@ -327,11 +327,11 @@ impl<'a> Builder<'a> {
             }
         }
         let (mut acc, mut count) = (Bounds::EMPTY, 0);
-        let mut right = [(Aabb::EMPTY, 0usize); BINS];
+        let mut right = [(Bounds::EMPTY, 0usize); BINS];
         for b in (1..BINS).rev() {
             acc = acc.union(boxes[b]);
             count += leave[b];
-            right[b] = (acc.aabb(), count);
+            right[b] = (acc, count);
         }
         let mut best: Option<(f64, f32)> = None; // (cost, plane)
         let (mut acc, mut count) = (Bounds::EMPTY, 0);
@@ -342,7 +342,7 @@ impl<'a> Builder<'a> {
             if count == 0 || rc == 0 || count >= n || rc >= n {
                 continue;
             }
-            let cost = surface_area64(&acc.aabb()) * chunks(count) + surface_area64(&right_box) * chunks(rc);
+            let cost = surface_area64(&acc.aabb()) * chunks(count) + surface_area64(&right_box.aabb()) * chunks(rc);
             if cost < limit && best.is_none_or(|(c, _)| cost < c) {
                 best = Some((cost, plane(b + 1)));
             }
@@ -494,9 +494,16 @@ fn object_split(prims: &[Prim]) -> Option<ObjectSplit> {
     best
 }
 
-/// The bins of the scaled offsets `x` (at least 0, or NaN on an axis of no extent): `x`
-/// truncated, at most `BINS - 1`, NaN in bin 0, as `(x as usize).min(BINS - 1)` per axis
-/// would (in SSE2 on x86-64: a clamp and one conversion for all three axes).
+/// The bin of a scaled offset `x` from the binned range's start (at least 0, or NaN on an
+/// axis of no extent): `x` truncated, at most `BINS - 1`, NaN in bin 0. The one rule of the
+/// build's bins: [`bins`] is its SIMD form, and the partitions use it.
+#[inline(always)]
+fn bin(x: f32) -> usize {
+    (x as usize).min(BINS - 1)
+}
+
+/// [`bin`] on each axis of `x` (in SSE2 on x86-64: a clamp and one conversion for all three
+/// axes; elsewhere `bin` per axis).
 #[inline(always)]
 fn bins(x: Vec3A) -> [usize; 3] {
     #[cfg(target_arch = "x86_64")]
@@ -513,14 +520,14 @@ fn bins(x: Vec3A) -> [usize; 3] {
         [i[0] as usize, i[1] as usize, i[2] as usize]
     }
     #[cfg(not(target_arch = "x86_64"))]
-    x.to_array().map(|v| (v as usize).min(BINS - 1))
+    x.to_array().map(bin)
 }
 
 impl ObjectSplit {
     /// Partitions `prims` and returns the size of the first part, in `1..prims.len()`.
     fn partition(&self, prims: &mut [Prim]) -> usize {
         let (a, n) = (self.axis, prims.len());
-        let left = |p: &Prim| (((p.centroid()[a] - self.origin) * self.scale) as usize).min(BINS - 1) <= self.last;
+        let left = |p: &Prim| bin((p.centroid()[a] - self.origin) * self.scale) <= self.last;
         // Two-pointer partition (deterministic).
         let (mut i, mut j) = (0, n);
         while i < j {
@@ -749,11 +756,12 @@ mod tests {
 
     #[test]
     fn bins_are_the_truncated_offsets_at_most_the_last_bin() {
+        assert_eq!([0.0, 0.99, 1.0, 31.0, 1e30, f32::INFINITY, f32::NAN].map(bin), [0, 0, 1, 31, 31, 31, 0]);
         let xs = [0.0, -0.0, 1e-40, 0.5, 1.0, 30.99, 31.0, 31.5, 32.0, 1e9, 1e30, f32::INFINITY, f32::NAN];
         for &x in &xs {
             for &y in &xs {
                 let v = Vec3A::new(x, y, 7.25);
-                assert_eq!(bins(v), v.to_array().map(|c| (c as usize).min(BINS - 1)), "{v}");
+                assert_eq!(bins(v), v.to_array().map(bin), "{v}");
             }
         }
     }
