@@ -10,10 +10,12 @@
 //!   sign bits per axis), one lane per ray; a chunk shorter than 16 leaves the other lanes
 //!   inactive, and so does a ray that cannot hit anything (non-finite, NaN interval).
 //! - **A node**: for each of the 8 children, the slab test of every lane at once
-//!   ([`Lanes`]: one AVX-512 register per ray coordinate), exactly the single-ray test's
-//!   arithmetic per lane ([`crate::boxtest::hit_scalar`]: planes by the lane's direction
-//!   sign, `(p - o) * (1 / d)`, NaN dropped by operand order, widened by `WIDEN` and `TINY`),
-//!   so a lane enters exactly the children its single ray would with the same `t_far`. The
+//!   ([`Lanes`]: one AVX-512 register per ray coordinate), a conservative single-ray test's
+//!   arithmetic per lane: planes by the lane's direction sign, NaN dropped by operand order,
+//!   and for a packet whose lanes all start at or after their origins the forward test
+//!   (`(p - o)` times the lane's reciprocal scaled by `1 -+ 2^-20`, `-+ TINY` after the
+//!   reductions; `crate::boxtest`'s **The forward test**), else the unfused
+//!   [`crate::boxtest::hit_scalar`] (`(p - o) * (1 / d)` widened by `WIDEN` and `TINY`). The
 //!   children some lane enters are pushed with their per-lane entry distances (NaN where a
 //!   lane does not enter), ordered by the entry distance of the packet's first active lane
 //!   (farthest pushed first), and the nearest is taken at once.
@@ -67,7 +69,7 @@ use glam::Vec3;
 use kdtree::leaf::Wald4;
 use kdtree::{Counters, Hit, Ray};
 
-use crate::boxtest::{BoxTest, TINY, WIDEN};
+use crate::boxtest::{BoxTest, RayBoxes, TINY, WIDEN};
 use crate::leaf::{LANES, LeafBlock};
 use crate::node::{EMPTY, LEAF, Node8, stack_capacity};
 use crate::simd8::Avx2;
@@ -396,42 +398,56 @@ struct Packet<V> {
     o: [V; 3],
     /// The directions (the Wald leaf test's).
     d: [V; 3],
-    inv: [V; 3],
+    /// The reciprocals of the entry and exit planes' products: for a forward packet `1 / d`
+    /// scaled by `1 - 2^-20` and `1 + 2^-20` (`crate::boxtest::RayBoxes::inv_entry`,
+    /// `inv_exit`), else `1 / d` in both.
+    inv_entry: [V; 3],
+    inv_exit: [V; 3],
     /// Per axis, the lanes whose direction is negative (`-0.0` included): their near plane
     /// is the box's `max`.
     neg: [u16; 3],
     t_min: V,
     /// The lanes that can hit anything.
     active: u16,
+    /// Whether every active lane starts at or after its origin (`t_min >= 0`): the packet
+    /// then takes the forward test ([`child_test`]).
+    forward: bool,
 }
 
 /// The packet of `rays` (at most 16) and its rays' `t_max` as the lanes' first `t_far`.
 #[inline(always)]
 fn packet<V: Lanes>(rays: &[Ray]) -> (Packet<V>, Row) {
-    let (mut o, mut d, mut inv) = ([Row([0.0; PACKET]); 3], [Row([0.0; PACKET]); 3], [Row([0.0; PACKET]); 3]);
+    let zero = [Row([0.0; PACKET]); 3];
+    let (mut o, mut d, mut inv, mut inv_entry, mut inv_exit) = (zero, zero, zero, zero, zero);
     let (mut t_min, mut t_far) = (Row([0.0; PACKET]), Row([f32::NAN; PACKET]));
-    let (mut neg, mut active) = ([0u16; 3], 0u16);
+    let (mut neg, mut active, mut forward) = ([0u16; 3], 0u16, true);
     for (l, ray) in rays.iter().enumerate() {
         if !traceable(ray) {
             continue;
         }
         active |= 1 << l;
+        let boxes = RayBoxes::new(ray);
         for axis in 0..3 {
             o[axis].0[l] = ray.origin[axis];
             d[axis].0[l] = ray.dir[axis];
-            inv[axis].0[l] = ray.inv_dir[axis];
+            inv[axis].0[l] = boxes.inv[axis];
+            inv_entry[axis].0[l] = boxes.inv_entry[axis];
+            inv_exit[axis].0[l] = boxes.inv_exit[axis];
             neg[axis] |= u16::from(ray.dir[axis].is_sign_negative()) << l;
         }
         t_min.0[l] = ray.t_min;
         t_far.0[l] = ray.t_max;
+        forward &= ray.t_min >= 0.0;
     }
     let p = Packet {
         o: o.map(|r| V::load(&r)),
         d: d.map(|r| V::load(&r)),
-        inv: inv.map(|r| V::load(&r)),
+        inv_entry: if forward { inv_entry } else { inv }.map(|r| V::load(&r)),
+        inv_exit: if forward { inv_exit } else { inv }.map(|r| V::load(&r)),
         neg,
         t_min: V::load(&t_min),
         active,
+        forward,
     };
     (p, t_far)
 }
@@ -444,8 +460,13 @@ fn leaf_data<B: LeafBlock>(rays: &[Ray], active: u16) -> [B::RayData; PACKET] {
 }
 
 /// Slot `i` of `node` against every lane: the lanes whose `[t_min, t_far]` enters the box and
-/// the widened entry distances, lane for lane [`crate::boxtest::hit_scalar`]'s unfused
-/// arithmetic (as [`crate::Scalar8`]).
+/// the widened entry distances. A packet whose lanes all start at or after their origins
+/// ([`Packet::forward`]) takes the unfused forward test lane for lane
+/// ([`crate::boxtest::hit_scalar_forward`] without `FUSED`: each plane's product with the
+/// lane's scaled reciprocal, the reductions, then `-+ TINY`; `crate::boxtest`'s **The forward
+/// test**), other packets [`crate::boxtest::hit_scalar`]'s unfused arithmetic (as
+/// [`crate::Scalar8`]). Both are conservative, so the lanes' answers are their single rays'
+/// (module docs).
 #[inline(always)]
 fn child_test<V: Lanes>(node: &Node8, i: usize, p: &Packet<V>, t_far: V) -> (u16, V) {
     let mut near = p.t_min;
@@ -455,13 +476,18 @@ fn child_test<V: Lanes>(node: &Node8, i: usize, p: &Packet<V>, t_far: V) -> (u16
         let (lo, hi) = (V::splat(planes[0][i]), V::splat(planes[1][i]));
         let near_plane = lo.select(p.neg[axis], hi);
         let far_plane = hi.select(p.neg[axis], lo);
-        let n = near_plane.sub(p.o[axis]).mul(p.inv[axis]);
-        let f = far_plane.sub(p.o[axis]).mul(p.inv[axis]);
+        let n = near_plane.sub(p.o[axis]).mul(p.inv_entry[axis]);
+        let f = far_plane.sub(p.o[axis]).mul(p.inv_exit[axis]);
         // Candidate first: a NaN candidate (0 * inf) leaves the accumulator.
         near = n.max(near);
         far = f.min(far);
     }
-    let (widen, tiny) = (V::splat(WIDEN), V::splat(TINY));
+    let tiny = V::splat(TINY);
+    if p.forward {
+        let (near, far) = (near.sub(tiny), far.add(tiny));
+        return (near.le(far), near);
+    }
+    let widen = V::splat(WIDEN);
     let near = near.sub(near.abs().mul(widen).add(tiny));
     let far = far.add(far.abs().mul(widen).add(tiny));
     (near.le(far), near)

@@ -76,6 +76,45 @@ pub fn hit16_avx512(node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32
     (mask, *nears.as_array())
 }
 
+/// The sixteen children's forward test in AVX-512, for `t_min >= 0` (`crate::boxtest`'s
+/// **The forward test**): [`crate::simd8::hit8_avx2_forward`]'s arithmetic in 512-bit registers and
+/// a k-mask, the same operations in the same order as its scalar twin
+/// [`crate::boxtest::hit_scalar_forward`].
+///
+/// # Safety
+/// The CPU must have AVX-512 F (which implies FMA): call it where an [`Avx512`] token exists
+/// (or from a function compiled for AVX-512 F).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,fma")]
+#[inline]
+pub fn hit16_avx512_forward(node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
+    use std::arch::x86_64::*;
+
+    use crate::node::Lanes;
+    let load = |lanes: &Lanes<16>| {
+        // SAFETY: a `Lanes<16>` is sixteen `f32` aligned to 64 bytes.
+        unsafe { _mm512_load_ps(lanes.as_array().as_ptr()) }
+    };
+    let (tiny, minus_tiny) = (_mm512_set1_ps(TINY), _mm512_set1_ps(-TINY));
+    let mut near = _mm512_set1_ps(t_min);
+    let mut far = _mm512_set1_ps(t_max);
+    for axis in 0..3 {
+        let planes = &node.bounds[axis];
+        let o = _mm512_set1_ps(r.o[axis]);
+        let (entry, exit) = (_mm512_set1_ps(r.inv_entry[axis]), _mm512_set1_ps(r.inv_exit[axis]));
+        let n = _mm512_fmadd_ps(_mm512_sub_ps(load(&planes[r.near[axis] & 1]), o), entry, minus_tiny);
+        let f = _mm512_fmadd_ps(_mm512_sub_ps(load(&planes[(r.near[axis] ^ 1) & 1]), o), exit, tiny);
+        // Candidate first: a NaN candidate (0 * inf) leaves the accumulator.
+        near = _mm512_max_ps(n, near);
+        far = _mm512_min_ps(f, far);
+    }
+    let mask = u32::from(_mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, far));
+    let mut nears = Lanes::<16>::splat(0.0);
+    // SAFETY: a `Lanes<16>` is sixteen `f32` aligned to 64 bytes.
+    unsafe { _mm512_store_ps(nears.as_mut_array().as_mut_ptr(), near) };
+    (mask, *nears.as_array())
+}
+
 /// The AVX-512 box test ([`hit16_avx512`]), as a token: made only by [`Avx512::detect`] on a
 /// CPU with AVX-512 F and VL (and the scalar extensions the loops are compiled for), so a
 /// traversal holding one may run those instructions.
@@ -127,6 +166,11 @@ impl BoxTest for Avx512 {
         avx512::hit(self, node, r, t_min, t_max)
     }
 
+    #[inline(always)]
+    fn hit_forward(self, node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
+        avx512::hit_forward(self, node, r, t_min, t_max)
+    }
+
     #[inline]
     fn closest<L: TraversalLoop, C: Counters>(self, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
         avx512::closest(self, l, ray, counters)
@@ -150,6 +194,12 @@ mod avx512 {
     pub(super) fn hit(_: Avx512, node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
         // SAFETY: an `Avx512` exists, so `Avx512::detect` found AVX-512 F on this CPU.
         unsafe { hit16_avx512(node, r, t_min, t_max) }
+    }
+
+    #[inline(always)]
+    pub(super) fn hit_forward(_: Avx512, node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
+        // SAFETY: an `Avx512` exists, so `Avx512::detect` found AVX-512 F on this CPU.
+        unsafe { hit16_avx512_forward(node, r, t_min, t_max) }
     }
 
     #[inline(always)]
@@ -185,6 +235,10 @@ mod avx512 {
         crate::boxtest::hit_scalar::<16, true>(node, r, t_min, t_max)
     }
 
+    pub(super) fn hit_forward(_: Avx512, node: &Node16, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 16]) {
+        crate::boxtest::hit_scalar_forward::<16, true>(node, r, t_min, t_max)
+    }
+
     pub(super) fn closest<L: TraversalLoop, C: Counters>(_: Avx512, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
         l.closest(ray, counters)
     }
@@ -200,7 +254,7 @@ mod tests {
     use kdtree::Aabb;
 
     use super::*;
-    use crate::boxtest::cases::{check, hard_cases, node, unit};
+    use crate::boxtest::cases::{check, check_forward, hard_cases, node, unit};
 
     fn token() -> Option<Avx512> {
         let t = Avx512::detect();
@@ -214,6 +268,7 @@ mod tests {
     fn the_hard_cases_equal_the_scalar_twin() {
         if let Some(avx) = token() {
             hard_cases::<16>(|n, ray| check(avx, n, ray));
+            hard_cases::<16>(|n, ray| check_forward(avx, n, ray));
         }
     }
 
@@ -236,8 +291,10 @@ mod tests {
             let (y, z) = (-3.0 + (k % 24) as f32 * 0.25, -3.0 + (k / 24) as f32 * 0.25);
             let o = Vec3::new(-20.0, y, z);
             for d in [Vec3::X, Vec3::new(1.0, -0.0, 0.0), Vec3::new(1.0, 0.01 * y, -0.02 * z)] {
-                let m = check(avx, &n, &Ray::new(o, d, 0.0, f32::INFINITY));
+                let ray = Ray::new(o, d, 0.0, f32::INFINITY);
+                let m = check(avx, &n, &ray);
                 assert_eq!(m >> 16, 0);
+                assert_eq!(check_forward(avx, &n, &ray) >> 16, 0);
                 entered |= m;
             }
         }

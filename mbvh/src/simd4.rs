@@ -38,6 +38,12 @@ impl BoxTest for Simd4 {
         let (mask, near) = hit4(node, r, t_min, t_max);
         (mask, near.to_array())
     }
+
+    #[inline(always)]
+    fn hit_forward(self, node: &Node4, r: &RayBoxes4, t_min: f32, t_max: f32) -> (u32, [f32; 4]) {
+        let (mask, near) = hit4_forward(node, r, t_min, t_max);
+        (mask, near.to_array())
+    }
 }
 
 /// [`RayBoxes`] splatted over four lanes, computed once per ray.
@@ -47,6 +53,10 @@ pub struct RayBoxes4 {
     pub o: [Vec4; 3],
     /// `1 / d`, each splatted.
     pub inv: [Vec4; 3],
+    /// [`RayBoxes::inv_entry`], each splatted.
+    pub inv_entry: [Vec4; 3],
+    /// [`RayBoxes::inv_exit`], each splatted.
+    pub inv_exit: [Vec4; 3],
     /// Per axis, the near plane ([`RayBoxes::near`]).
     pub near: [usize; 3],
 }
@@ -56,7 +66,13 @@ impl RayBoxes4 {
     #[inline(always)]
     pub fn new(ray: &Ray) -> RayBoxes4 {
         let r = RayBoxes::new(ray);
-        RayBoxes4 { o: r.o.map(Vec4::splat), inv: r.inv.map(Vec4::splat), near: r.near }
+        RayBoxes4 {
+            o: r.o.map(Vec4::splat),
+            inv: r.inv.map(Vec4::splat),
+            inv_entry: r.inv_entry.map(Vec4::splat),
+            inv_exit: r.inv_exit.map(Vec4::splat),
+            near: r.near,
+        }
     }
 }
 
@@ -89,13 +105,35 @@ pub fn hit4(node: &Node4, r: &RayBoxes4, t_min: f32, t_max: f32) -> (u32, Vec4) 
     (mask.bitmask(), near)
 }
 
+/// The four children's forward test (SIMD), for `t_min >= 0` (`crate::boxtest`'s **The
+/// forward test**, without fused multiply-add): each plane's offset times the ray's scaled
+/// reciprocal, the reductions, then `-+ TINY`, as its twin
+/// [`crate::boxtest::hit_scalar_forward`] does lane for lane.
+#[inline(always)]
+pub fn hit4_forward(node: &Node4, r: &RayBoxes4, t_min: f32, t_max: f32) -> (u32, Vec4) {
+    let mut near = Vec4::splat(t_min);
+    let mut far = Vec4::splat(t_max);
+    for axis in 0..3 {
+        let planes = &node.bounds[axis];
+        let n = (load(&planes[r.near[axis] & 1]) - r.o[axis]) * r.inv_entry[axis];
+        let f = (load(&planes[(r.near[axis] ^ 1) & 1]) - r.o[axis]) * r.inv_exit[axis];
+        // Candidate first: a NaN candidate (0 * inf) leaves the accumulator (module docs).
+        near = n.max(near);
+        far = f.min(far);
+    }
+    let (near, far) = (near - Vec4::splat(TINY), far + Vec4::splat(TINY));
+    let mask: BVec4A = near.cmple(far);
+    (mask.bitmask(), near)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::boxtest::cases::{check, hard_cases};
+    use crate::boxtest::cases::{check, check_forward, hard_cases};
 
     #[test]
     fn the_hard_cases_equal_the_scalar_twin() {
         hard_cases::<4>(|n, ray| check(Simd4, n, ray));
+        hard_cases::<4>(|n, ray| check_forward(Simd4, n, ray));
     }
 }

@@ -73,6 +73,46 @@ pub fn hit8_avx2(node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f
     (mask, *nears.as_array())
 }
 
+/// The eight children's forward test in AVX2, for `t_min >= 0` (`crate::boxtest`'s **The
+/// forward test**): per axis a `vsubps` and one `vfmadd` with the ray's scaled reciprocal and
+/// `-+ TINY` for each of the entry and exit planes, the reductions, one `vcmpps`; nothing
+/// after the reductions. The same arithmetic in the same order as its scalar twin
+/// [`crate::boxtest::hit_scalar_forward`].
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA: call it where an [`Avx2`] token exists (or from a
+/// function compiled for both).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub fn hit8_avx2_forward(node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+
+    use crate::node::Lanes;
+    let load = |lanes: &Lanes<8>| {
+        // SAFETY: a `Lanes<8>` is eight `f32` aligned to 32 bytes.
+        unsafe { _mm256_load_ps(lanes.as_array().as_ptr()) }
+    };
+    let (tiny, minus_tiny) = (_mm256_set1_ps(TINY), _mm256_set1_ps(-TINY));
+    let mut near = _mm256_set1_ps(t_min);
+    let mut far = _mm256_set1_ps(t_max);
+    for axis in 0..3 {
+        let planes = &node.bounds[axis];
+        let o = _mm256_set1_ps(r.o[axis]);
+        let (entry, exit) = (_mm256_set1_ps(r.inv_entry[axis]), _mm256_set1_ps(r.inv_exit[axis]));
+        let n = _mm256_fmadd_ps(_mm256_sub_ps(load(&planes[r.near[axis] & 1]), o), entry, minus_tiny);
+        let f = _mm256_fmadd_ps(_mm256_sub_ps(load(&planes[(r.near[axis] ^ 1) & 1]), o), exit, tiny);
+        // Candidate first: a NaN candidate (0 * inf) leaves the accumulator.
+        near = _mm256_max_ps(n, near);
+        far = _mm256_min_ps(f, far);
+    }
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    let mut nears = Lanes::<8>::splat(0.0);
+    // SAFETY: a `Lanes<8>` is eight `f32` aligned to 32 bytes.
+    unsafe { _mm256_store_ps(nears.as_mut_array().as_mut_ptr(), near) };
+    (mask, *nears.as_array())
+}
+
 /// The AVX2 box test ([`hit8_avx2`]), as a token: made only by [`Avx2::detect`] on a CPU
 /// with AVX2 and FMA, so a traversal holding one may run those instructions.
 #[derive(Clone, Copy, Debug)]
@@ -122,6 +162,11 @@ impl BoxTest for Avx2 {
         avx2::hit(self, node, r, t_min, t_max)
     }
 
+    #[inline(always)]
+    fn hit_forward(self, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        avx2::hit_forward(self, node, r, t_min, t_max)
+    }
+
     #[inline]
     fn closest<L: TraversalLoop, C: Counters>(self, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
         avx2::closest(self, l, ray, counters)
@@ -144,6 +189,12 @@ mod avx2 {
     pub(super) fn hit(_: Avx2, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
         // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 and FMA on this CPU.
         unsafe { hit8_avx2(node, r, t_min, t_max) }
+    }
+
+    #[inline(always)]
+    pub(super) fn hit_forward(_: Avx2, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        // SAFETY: an `Avx2` exists, so `Avx2::detect` found AVX2 and FMA on this CPU.
+        unsafe { hit8_avx2_forward(node, r, t_min, t_max) }
     }
 
     #[inline(always)]
@@ -179,6 +230,10 @@ mod avx2 {
         crate::boxtest::hit_scalar::<8, true>(node, r, t_min, t_max)
     }
 
+    pub(super) fn hit_forward(_: Avx2, node: &Node8, r: &RayBoxes, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        crate::boxtest::hit_scalar_forward::<8, true>(node, r, t_min, t_max)
+    }
+
     pub(super) fn closest<L: TraversalLoop, C: Counters>(_: Avx2, l: &L, ray: &Ray, counters: &mut C) -> Option<Hit> {
         l.closest(ray, counters)
     }
@@ -191,12 +246,13 @@ mod avx2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::boxtest::cases::{check, hard_cases};
+    use crate::boxtest::cases::{check, check_forward, hard_cases};
 
     #[test]
     fn the_hard_cases_equal_the_scalar_twin() {
         if let Some(avx) = Avx2::detect() {
             hard_cases::<8>(|n, ray| check(avx, n, ray));
+            hard_cases::<8>(|n, ray| check_forward(avx, n, ray));
         }
     }
 }

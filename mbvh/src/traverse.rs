@@ -20,6 +20,11 @@
 //!   and the prefetch traces them 1.03-1.08x as fast, AO rays 1.01-1.02x, and coherent
 //!   primary and shadow rays 0.98-1.00x (`docs/results/incoherent-mbvh.md#the-deferred-children-prefetched`).
 //!
+//! - **The forward test**: a ray whose interval starts at or after its origin (`t_min >= 0`)
+//!   is walked with its node test's [`BoxTest::hit_forward`], which widens in the ray's
+//!   reciprocals instead of after the reductions (`crate::boxtest`'s **The forward test**);
+//!   the choice is made once per query, each walk compiled for one form.
+//!
 //! Both are generic over the leaf block (the intersector), the node test ([`BoxTest`]: 4-wide
 //! SSE, 8-wide AVX2, 16-wide AVX-512, or the scalar test of any width) and over `SIMD` leaves; the stacks are
 //! sized for the node's width (`node::stack_capacity`). A test enters the loops through its
@@ -126,6 +131,36 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         t_max: f32,
         counters: &mut C,
     ) -> Option<Hit> {
+        if ray.t_min >= 0.0 {
+            self.closest_walk::<SIMD, true, C>(start, ray, data, t_max, counters)
+        } else {
+            self.closest_walk::<SIMD, false, C>(start, ray, data, t_max, counters)
+        }
+    }
+
+    /// The node test of the walks: [`BoxTest::hit_forward`] where `FORWARD` (a ray with
+    /// `t_min >= 0`, chosen once per query), else [`BoxTest::hit`].
+    #[inline(always)]
+    fn node_test<const FORWARD: bool>(
+        &self,
+        node: &K::Node,
+        rb: &K::RayData,
+        t_min: f32,
+        t_max: f32,
+    ) -> (u32, K::Nears) {
+        if FORWARD { self.test.hit_forward(node, rb, t_min, t_max) } else { self.test.hit(node, rb, t_min, t_max) }
+    }
+
+    /// The body of [`Traversal::closest_from`], with the node test chosen by `FORWARD`.
+    #[inline(always)]
+    fn closest_walk<const SIMD: bool, const FORWARD: bool, C: Counters>(
+        &self,
+        start: u32,
+        ray: &Ray,
+        data: &B::RayData,
+        t_max: f32,
+        counters: &mut C,
+    ) -> Option<Hit> {
         let rb = K::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
         let mut storage = <K::Node as MultiNode>::Stack::<(u32, f32)>::uninit();
@@ -157,7 +192,7 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
                 }
                 counters.node();
                 let node = &self.nodes[child as usize];
-                let (mut mask, nears) = self.test.hit(node, &rb, ray.t_min, t_max);
+                let (mut mask, nears) = self.node_test::<FORWARD>(node, &rb, ray.t_min, t_max);
                 if mask == 0 {
                     break;
                 }
@@ -212,6 +247,22 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         data: &B::RayData,
         counters: &mut C,
     ) -> bool {
+        if ray.t_min >= 0.0 {
+            self.any_walk::<SIMD, true, C>(start, ray, data, counters)
+        } else {
+            self.any_walk::<SIMD, false, C>(start, ray, data, counters)
+        }
+    }
+
+    /// The body of [`Traversal::any_from`], with the node test chosen by `FORWARD`.
+    #[inline(always)]
+    fn any_walk<const SIMD: bool, const FORWARD: bool, C: Counters>(
+        &self,
+        start: u32,
+        ray: &Ray,
+        data: &B::RayData,
+        counters: &mut C,
+    ) -> bool {
         let rb = K::prepare(ray);
         // Invariant: `stack[..sp]` is initialised.
         let mut storage = <K::Node as MultiNode>::Stack::<u32>::uninit();
@@ -237,7 +288,7 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
             }
             counters.node();
             let node = &self.nodes[child as usize];
-            let (mut mask, _) = self.test.hit(node, &rb, ray.t_min, ray.t_max);
+            let (mut mask, _) = self.node_test::<FORWARD>(node, &rb, ray.t_min, ray.t_max);
             let slots = node.children();
             while mask != 0 {
                 self.prefetch(slots[mask.trailing_zeros() as usize]);

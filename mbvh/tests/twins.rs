@@ -6,7 +6,8 @@
 //! infinite or inverted intervals, and coordinates from subnormal to near `f32::MAX` (plane
 //! distances that underflow, overflow to infinity, or are `inf - inf`). The tests: 4-wide SSE
 //! ([`Simd4`]), 8-wide AVX2 ([`Avx2`]) and 16-wide AVX-512 ([`Avx512`]), each where the CPU
-//! has it (a note is printed where it has not).
+//! has it (a note is printed where it has not), each in its fused or unfused form and, for
+//! rays with `t_min >= 0`, its forward form (`BoxTest::hit_forward`).
 
 use glam::Vec3;
 use kdtree::{Aabb, Ray};
@@ -32,6 +33,15 @@ fn agree<K: BoxTest>(test: K, slots: &[Option<Aabb>], ray: &Ray) -> Result<(), T
     prop_assert_eq!(m, ms, "{:?}: mask of {:?} differs from its twin's; slots {:?}", ray, test, slots);
     for i in 0..K::Node::WIDTH {
         prop_assert_eq!(near[i].to_bits(), nears[i].to_bits(), "{:?} lane {}: entry of {:?}", ray, i, test);
+    }
+    // The forward test (`BoxTest::hit_forward`), for the rays it is made for.
+    if ray.t_min >= 0.0 {
+        let (m, near) = test.hit_forward(&n, &K::prepare(ray), ray.t_min, ray.t_max);
+        let (ms, nears) = test.twin().hit_forward(&n, &K::Twin::prepare(ray), ray.t_min, ray.t_max);
+        prop_assert_eq!(m, ms, "{:?}: forward mask of {:?} differs from its twin's; slots {:?}", ray, test, slots);
+        for i in 0..K::Node::WIDTH {
+            prop_assert_eq!(near[i].to_bits(), nears[i].to_bits(), "{:?} lane {}: forward entry of {:?}", ray, i, test);
+        }
     }
     Ok(())
 }
