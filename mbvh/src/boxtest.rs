@@ -80,6 +80,13 @@ use crate::node::{MultiNode, Node, NodeWidth, Width};
 /// and exit distances that keeps the box test conservative (module docs).
 pub const WIDEN: f32 = 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// Whether `ray` takes the forward test ([`BoxTest::hit_forward`]): its interval starts at
+/// or after its origin (`t_min >= 0`, `-0.0` included).
+#[inline(always)]
+pub fn forward(ray: &Ray) -> bool {
+    ray.t_min >= 0.0
+}
+
 /// The absolute part of the widening: a product that underflows to a subnormal or zero has
 /// an absolute, not a relative, error (below `2^-149`); the smallest normal float covers it.
 pub const TINY: f32 = f32::MIN_POSITIVE;
@@ -224,30 +231,7 @@ pub fn hit_scalar<const W: usize, const FUSED: bool>(
 where
     Width<W>: NodeWidth,
 {
-    let mut mask = 0;
-    let mut nears = [0.0; W];
-    for (i, slot) in nears.iter_mut().enumerate() {
-        let (mut near, mut far) = (t_min, t_max);
-        for axis in 0..3 {
-            // `& 1`: the index is 0 or 1 by construction; the mask spares the bounds check.
-            let planes = &node.bounds[axis];
-            let n = (planes[r.near[axis] & 1][i] - r.o[axis]) * r.inv[axis];
-            let f = (planes[(r.near[axis] ^ 1) & 1][i] - r.o[axis]) * r.inv[axis];
-            if !n.is_nan() {
-                near = if n > near { n } else { near };
-            }
-            if !f.is_nan() {
-                far = if f < far { f } else { far };
-            }
-        }
-        let (near, far) =
-            if FUSED { (lowered(near), raised(far)) } else { (lowered_unfused(near), raised_unfused(far)) };
-        if near <= far {
-            mask |= 1 << i;
-        }
-        *slot = near;
-    }
-    (mask, nears)
+    slab_scalar::<W, FUSED, false>(node, r, t_min, t_max)
 }
 
 /// The forward test ([`BoxTest::hit_forward`], valid for `t_min >= 0`), scalar: per lane and
@@ -268,18 +252,35 @@ pub fn hit_scalar_forward<const W: usize, const FUSED: bool>(
 where
     Width<W>: NodeWidth,
 {
+    slab_scalar::<W, FUSED, true>(node, r, t_min, t_max)
+}
+
+/// The scalar slab test behind [`hit_scalar`] (`FORWARD = false`: plain products, the
+/// widening after the reductions) and [`hit_scalar_forward`] (the scaled reciprocals).
+#[inline(always)]
+fn slab_scalar<const W: usize, const FUSED: bool, const FORWARD: bool>(
+    node: &Node<W>,
+    r: &RayBoxes,
+    t_min: f32,
+    t_max: f32,
+) -> (u32, [f32; W])
+where
+    Width<W>: NodeWidth,
+{
+    let (inv_n, inv_f) = if FORWARD { (&r.inv_entry, &r.inv_exit) } else { (&r.inv, &r.inv) };
     let mut mask = 0;
     let mut nears = [0.0; W];
     for (i, slot) in nears.iter_mut().enumerate() {
         let (mut near, mut far) = (t_min, t_max);
         for axis in 0..3 {
+            // `& 1`: the index is 0 or 1 by construction; the mask spares the bounds check.
             let planes = &node.bounds[axis];
             let entry = planes[r.near[axis] & 1][i] - r.o[axis];
             let exit = planes[(r.near[axis] ^ 1) & 1][i] - r.o[axis];
-            let (n, f) = if FUSED {
-                (entry.mul_add(r.inv_entry[axis], -TINY), exit.mul_add(r.inv_exit[axis], TINY))
+            let (n, f) = if FORWARD && FUSED {
+                (entry.mul_add(inv_n[axis], -TINY), exit.mul_add(inv_f[axis], TINY))
             } else {
-                (entry * r.inv_entry[axis], exit * r.inv_exit[axis])
+                (entry * inv_n[axis], exit * inv_f[axis])
             };
             if !n.is_nan() {
                 near = if n > near { n } else { near };
@@ -288,7 +289,12 @@ where
                 far = if f < far { f } else { far };
             }
         }
-        let (near, far) = if FUSED { (near, far) } else { (near - TINY, far + TINY) };
+        let (near, far) = match (FORWARD, FUSED) {
+            (true, true) => (near, far),
+            (true, false) => (near - TINY, far + TINY),
+            (false, true) => (lowered(near), raised(far)),
+            (false, false) => (lowered_unfused(near), raised_unfused(far)),
+        };
         if near <= far {
             mask |= 1 << i;
         }
@@ -389,7 +395,7 @@ pub(crate) mod cases {
     /// checking it against its scalar twin's bit for bit as [`check`] does; [`check`] itself
     /// for a ray reaching behind its origin (which the traversal gives the fused test).
     pub(crate) fn check_forward<K: BoxTest>(test: K, n: &K::Node, ray: &Ray) -> u32 {
-        if ray.t_min < 0.0 {
+        if !forward(ray) {
             return check(test, n, ray);
         }
         let (m, near) = test.hit_forward(n, &K::prepare(ray), ray.t_min, ray.t_max);

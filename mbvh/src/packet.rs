@@ -437,7 +437,7 @@ fn packet<V: Lanes>(rays: &[Ray]) -> (Packet<V>, Row) {
         }
         t_min.0[l] = ray.t_min;
         t_far.0[l] = ray.t_max;
-        forward &= ray.t_min >= 0.0;
+        forward &= crate::boxtest::forward(ray);
     }
     let p = Packet {
         o: o.map(|r| V::load(&r)),

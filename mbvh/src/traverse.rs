@@ -37,7 +37,7 @@
 
 use kdtree::{Counters, Hit, Ray};
 
-use crate::boxtest::{BoxTest, TraversalLoop};
+use crate::boxtest::{self, BoxTest, TraversalLoop};
 use crate::leaf::{LANES, LeafBlock};
 use crate::node::{LEAF, MultiNode, StackArray};
 
@@ -131,7 +131,7 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         t_max: f32,
         counters: &mut C,
     ) -> Option<Hit> {
-        if ray.t_min >= 0.0 {
+        if boxtest::forward(ray) {
             self.closest_walk::<SIMD, true, C>(start, ray, data, t_max, counters)
         } else {
             self.closest_walk::<SIMD, false, C>(start, ray, data, t_max, counters)
@@ -247,7 +247,7 @@ impl<'a, B: LeafBlock, K: BoxTest> Traversal<'a, B, K> {
         data: &B::RayData,
         counters: &mut C,
     ) -> bool {
-        if ray.t_min >= 0.0 {
+        if boxtest::forward(ray) {
             self.any_walk::<SIMD, true, C>(start, ray, data, counters)
         } else {
             self.any_walk::<SIMD, false, C>(start, ray, data, counters)

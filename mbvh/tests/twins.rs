@@ -35,7 +35,7 @@ fn agree<K: BoxTest>(test: K, slots: &[Option<Aabb>], ray: &Ray) -> Result<(), T
         prop_assert_eq!(near[i].to_bits(), nears[i].to_bits(), "{:?} lane {}: entry of {:?}", ray, i, test);
     }
     // The forward test (`BoxTest::hit_forward`), for the rays it is made for.
-    if ray.t_min >= 0.0 {
+    if mbvh::boxtest::forward(ray) {
         let (m, near) = test.hit_forward(&n, &K::prepare(ray), ray.t_min, ray.t_max);
         let (ms, nears) = test.twin().hit_forward(&n, &K::Twin::prepare(ray), ray.t_min, ray.t_max);
         prop_assert_eq!(m, ms, "{:?}: forward mask of {:?} differs from its twin's; slots {:?}", ray, test, slots);
