@@ -1,15 +1,14 @@
 //! The multi-BVH bindings name their node tests ([`trace::multibvh`]).
 
-use kdtree::KdTree;
 use mbvh::{Avx2, Avx512};
 use trace::SimdLevel;
 use trace::multibvh::{bind8, bind8_p16, bind16, build8, build16};
+use trace::setup::load_and_build;
 
 /// Below AVX2 the 8-wide tree is traced with the scalar node test, and its kernel says so.
 #[test]
 fn mbvh8_names_its_node_test() {
-    let scene = scenes::load_scene("cube").unwrap();
-    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+    let (scene, tree, _) = load_and_build("cube", &Default::default()).unwrap();
     let bvh = build8(&scene).unwrap();
     let names = |simd| bind8(&bvh, &tree, simd).unwrap().kernels.map(|k| k.primary);
     assert_eq!(names(SimdLevel::Sse41).as_deref(), Some("mbvh-8-scalar-nodes"));

@@ -1,8 +1,8 @@
 //! The registry: names, tiles, per-point soft shadows and kernel names of bound methods
 //! ([`trace::registry`]).
 
-use kdtree::KdTree;
 use packets::LaneWidth;
+use trace::setup::load_and_build;
 use trace::{Options, Registry, SimdLevel, SoftGrouping, Structures};
 
 #[test]
@@ -29,8 +29,7 @@ fn names_resolve_with_and_without_tiles() {
 
 #[test]
 fn a_bad_tile_is_an_error_naming_the_method() {
-    let scene = scenes::load_scene("cube").unwrap();
-    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+    let (_, tree, _) = load_and_build("cube", &Default::default()).unwrap();
     let s = Structures::new(&tree);
     let r = Registry::ours();
     let bad = r.select("mft-6", Options::default()).unwrap();
@@ -41,8 +40,7 @@ fn a_bad_tile_is_an_error_naming_the_method() {
 
 #[test]
 fn per_point_soft_shadows_name_their_kernel_or_are_refused() {
-    let scene = scenes::load_scene("cube").unwrap();
-    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+    let (_, tree, _) = load_and_build("cube", &Default::default()).unwrap();
     let s = Structures::new(&tree);
     let r = Registry::ours();
     let per_point = Options { soft: SoftGrouping::PerPoint, ..Options::default() };
@@ -69,8 +67,7 @@ fn per_point_soft_shadows_name_their_kernel_or_are_refused() {
 /// frustum kernel is its own field.
 #[test]
 fn kernels_are_named_by_their_identity() {
-    let scene = scenes::load_scene("cube").unwrap();
-    let tree = KdTree::build(&scene.mesh.positions, &scene.mesh.triangles, &Default::default()).unwrap();
+    let (_, tree, _) = load_and_build("cube", &Default::default()).unwrap();
     let s = Structures::new(&tree);
     let r = Registry::ours();
     let kernels = |method: &str| r.bind(&r.select(method, Options::default()).unwrap(), &s).unwrap().kernels;

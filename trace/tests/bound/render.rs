@@ -6,7 +6,7 @@ use kdtree::Counts;
 use scenes::PointLight;
 use trace::aov::{Attribution, Cost, PixelCost};
 use trace::method::{Tracer, primary_ray};
-use trace::registry::{Options, Registry, Structures};
+use trace::registry::{Bound, Options, Registry, Structures};
 use trace::render::{Renderer, Shadows};
 use trace::setup::load_and_build;
 use trace::shade;
@@ -18,7 +18,7 @@ fn frame_matches_a_per_pixel_loop() {
     let camera = scene.default_view().camera(37, 29).unwrap();
     let structures = Structures::new(&tree);
     let registry = Registry::ours();
-    let mono = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
+    let mono = bind(&registry, "mono", &structures);
     let renderer = Renderer::new(&scene, &mono, camera, Shadows::Hard);
     let surfaces = shade::surfaces(&scene.mesh);
     let mut buf = renderer.buffers();
@@ -53,7 +53,7 @@ fn packed_colors_are_the_png_bytes() {
     let camera = scene.default_view().camera(45, 31).unwrap();
     let structures = Structures::new(&tree);
     let registry = Registry::ours();
-    let m = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+    let m = bind(&registry, "mft-8", &structures);
     let renderer = Renderer::new(&scene, &m, camera, Shadows::Hard);
     let mut buf = renderer.buffers();
     renderer.trace(&mut buf);
@@ -78,7 +78,7 @@ fn soft_shadows_agree_across_kernels() {
     let registry = Registry::ours();
     let mut reference: Option<Vec<f32>> = None;
     for name in ["mono", "packet", "cone-8", "mft-16"] {
-        let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+        let m = bind(&registry, name, &structures);
         let renderer = Renderer::new(&scene, &m, camera, Shadows::Soft16).with_light(light);
         let mut buf = renderer.buffers();
         let (stats, _, counts) = renderer.trace_counted(&mut buf);
@@ -92,6 +92,7 @@ fn soft_shadows_agree_across_kernels() {
         }
     }
 }
+
 /// Edge-width shadows: the same rays as hard shadows, so a pixel is fully lit exactly where
 /// the hard shadow ray is unblocked; inside hard shadows the edge width gives a penumbra
 /// (0 < visible < 1) somewhere; the same visibility whatever the primary method; and each
@@ -106,7 +107,7 @@ fn edge_width_shadows_darken_only_the_hard_shadows() {
     let registry = Registry::ours();
     let mut reference: Option<Vec<f32>> = None;
     for name in ["mono", "mft-8"] {
-        let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+        let m = bind(&registry, name, &structures);
         let hard = Renderer::new(&scene, &m, camera, Shadows::Hard).with_light(light);
         let mut hard_buf = hard.buffers();
         let hard_stats = hard.trace(&mut hard_buf);
@@ -142,6 +143,7 @@ fn edge_width_shadows_darken_only_the_hard_shadows() {
         }
     }
 }
+
 /// Buffers reused from a frame with other shadows (as the viewer reuses them) give the
 /// frame of fresh buffers: no visibility is left over from soft or edge-width shadows.
 #[test]
@@ -150,7 +152,7 @@ fn reused_buffers_keep_nothing_from_other_shadows() {
     let camera = scene.default_view().camera(40, 30).unwrap();
     let structures = Structures::new(&tree);
     let registry = Registry::ours();
-    let m = registry.bind(&registry.select("mft-8", Options::default()).unwrap(), &structures).unwrap();
+    let m = bind(&registry, "mft-8", &structures);
     let modes = [Shadows::None, Shadows::Hard, Shadows::Soft16, Shadows::EdgeWidth];
     let renderer = |s| Renderer::new(&scene, &m, camera, s).with_tree(&tree);
     for before in modes {
@@ -176,7 +178,7 @@ fn cost_images_sum_to_the_counters_totals() {
     let structures = Structures::new(&tree);
     let registry = Registry::ours();
     for name in ["mono", "packet", "samesign", "frustum-8", "mft-16", "cone-8", "mft-cone-16"] {
-        let m = registry.bind(&registry.select(name, Options::default()).unwrap(), &structures).unwrap();
+        let m = bind(&registry, name, &structures);
         let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
         let mut buf = renderer.buffers();
         let (_, counted, _) = renderer.trace_counted(&mut buf);
@@ -208,7 +210,7 @@ fn single_ray_pixels_hold_their_own_ray() {
     let camera = scene.default_view().camera(19, 13).unwrap();
     let structures = Structures::new(&tree);
     let registry = Registry::ours();
-    let m = registry.bind(&registry.select("mono", Options::default()).unwrap(), &structures).unwrap();
+    let m = bind(&registry, "mono", &structures);
     let renderer = Renderer::new(&scene, &m, camera, Shadows::None);
     let frame = renderer.trace_costs(&mut renderer.buffers());
     for y in 0..camera.height {
@@ -220,4 +222,9 @@ fn single_ray_pixels_hold_their_own_ray() {
             assert_eq!(p, PixelCost::share(&c, 1), "({x}, {y})");
         }
     }
+}
+
+/// `name` selected with the default options and bound to `structures`.
+fn bind<'s>(registry: &Registry, name: &str, structures: &'s Structures<'_>) -> Bound<'s> {
+    registry.bind(&registry.select(name, Options::default()).unwrap(), structures).unwrap()
 }
